@@ -1,0 +1,48 @@
+"""``online-slam`` entry point: builds the parser, dispatches, turns package errors into one line."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from online_slam import __version__
+from online_slam.cli import bench, replay, simulate
+from online_slam.errors import OnlineSlamError
+
+COMMANDS = {"replay": replay, "simulate": simulate, "bench": bench}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser, one sub-command per module."""
+    parser = argparse.ArgumentParser(
+        prog="online-slam",
+        description="Incremental, online 2D landmark SLAM: replay streams, simulate worlds, benchmark.",
+    )
+    parser.add_argument("--version", action="version", version=f"online-slam {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for module in COMMANDS.values():
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code (0 ok, 2 bad input or usage)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        args = parser.parse_args(["replay", *(argv or [])])
+    try:
+        return int(COMMANDS[args.command].run(args))
+    except OnlineSlamError as exc:
+        print(f"online-slam: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:
+        return 0
+    except KeyboardInterrupt:
+        print("online-slam: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

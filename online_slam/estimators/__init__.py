@@ -1,0 +1,7 @@
+"""Estimators: the only stateful objects. Each consumes steps and returns immutable snapshots."""
+
+from online_slam.estimators.batch import BatchConfig, BatchEstimator
+from online_slam.estimators.dead_reckoning import DeadReckoning
+from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
+
+__all__ = ["BatchConfig", "BatchEstimator", "DeadReckoning", "Estimate", "Estimator", "Snapshot"]

@@ -1,0 +1,70 @@
+"""The one protocol every estimator follows, and the immutable records they return."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.frontend.steps import Step
+from online_slam.sources.events import LandmarkId
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What an estimator knows right after consuming one step (M landmarks known so far)."""
+
+    estimator: str
+    """Name of the estimator that produced it."""
+    index: int
+    """Index of the step just consumed (the newest pose)."""
+    t: float
+    """Time of that step, seconds."""
+    pose: Array
+    """Current estimate of the newest pose, shape (3,)."""
+    pose_cov: Array | None
+    """Its covariance, shape (3, 3), or None when the estimator has none."""
+    landmark_ids: tuple[LandmarkId, ...]
+    """Ids of the landmarks known so far, length M."""
+    landmarks: Array
+    """Their current estimates, shape (M, 2)."""
+    landmark_covs: Array | None = None
+    """Their 2x2 marginal covariances, shape (M, 2, 2), or None."""
+    info: Mapping[str, Any] = field(default_factory=dict)
+    """Estimator-specific figures for this step (e.g. NIS, gated observations, iterations)."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """An estimator's final answer over the whole stream (N poses, M landmarks)."""
+
+    estimator: str
+    """Name of the estimator."""
+    poses: Array
+    """Final estimate of every pose, shape (N, 3)."""
+    landmark_ids: tuple[LandmarkId, ...]
+    """Landmark ids, length M."""
+    landmarks: Array
+    """Final landmark estimates, shape (M, 2)."""
+    info: Mapping[str, Any] = field(default_factory=dict)
+    """Solver report (iterations, convergence, costs...)."""
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """Consumes steps one at a time; ``finish`` closes the stream and returns the final estimate."""
+
+    name: str
+
+    def step(self, step: Step) -> Snapshot:
+        """Consume the next step (indices arrive in order 0, 1, 2, ...) and report the current estimate."""
+        ...
+
+    def finish(self) -> Estimate:
+        """End of stream: return the final estimate."""
+        ...

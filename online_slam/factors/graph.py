@@ -1,0 +1,250 @@
+"""A factor graph over poses ``[x, y, theta]`` and landmarks ``[x, y]``, stored as arrays.
+
+Three factor kinds, all whitened by the square-root information ``W`` (``W^T W = cov^-1``):
+
+- prior on a pose: ``W (p - mean)`` (angle wrapped);
+- odometry between poses a and b: ``W (between(a, b) - delta)`` (angle wrapped) — the article's model;
+- range-bearing observation of landmark l from pose p: ``W (h(p, l) - z)`` (bearing wrapped).
+
+The state vector holds the free poses then the landmarks; fixed poses have no columns.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
+
+from online_slam.geometry.angles import wrap
+from online_slam.models.motion import odometry_residual_with_jacobians
+from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+
+def sqrt_information(cov: ArrayLike) -> Array:
+    """Square-root information matrices ``W`` with ``W^T W = cov^-1``.
+
+    Args:
+        cov: Covariances, shape (..., n, n), symmetric positive definite.
+
+    Returns:
+        Lower-triangular ``W = chol(cov)^-1``, shape (..., n, n).
+    """
+    L = np.linalg.cholesky(np.asarray(cov, dtype=float))
+    return np.linalg.inv(L)
+
+
+def _index(values: ArrayLike) -> Index:
+    return np.asarray(values, dtype=np.int64).reshape(-1)
+
+
+@dataclass(frozen=True)
+class FactorGraph:
+    """All factors of a problem as arrays (P priors, K odometry factors, L observations)."""
+
+    n_poses: int
+    """Number of pose variables."""
+    n_landmarks: int
+    """Number of landmark variables."""
+    fixed_poses: Index
+    """Indices of poses held constant, shape (F,)."""
+    prior_pose: Index
+    """Pose index of each prior, shape (P,)."""
+    prior_mean: Array
+    """Prior means, shape (P, 3)."""
+    prior_sqrt_info: Array
+    """Prior square-root information, shape (P, 3, 3)."""
+    odo_from: Index
+    """Earlier pose of each odometry factor, shape (K,)."""
+    odo_to: Index
+    """Later pose of each odometry factor, shape (K,)."""
+    odo_delta: Array
+    """Measured increments, shape (K, 3)."""
+    odo_sqrt_info: Array
+    """Square-root information of the increments, shape (K, 3, 3)."""
+    obs_pose: Index
+    """Observing pose of each observation, shape (L,)."""
+    obs_landmark: Index
+    """Observed landmark of each observation, shape (L,)."""
+    obs_z: Array
+    """Measured ``[range, bearing]``, shape (L, 2)."""
+    obs_sqrt_info: Array
+    """Square-root information of the observations, shape (L, 2, 2)."""
+
+    @staticmethod
+    def build(
+        n_poses: int,
+        n_landmarks: int,
+        *,
+        fixed_poses: ArrayLike = (),
+        prior_pose: ArrayLike = (),
+        prior_mean: ArrayLike = (),
+        prior_cov: ArrayLike = (),
+        odo_from: ArrayLike = (),
+        odo_to: ArrayLike = (),
+        odo_delta: ArrayLike = (),
+        odo_cov: ArrayLike = (),
+        obs_pose: ArrayLike = (),
+        obs_landmark: ArrayLike = (),
+        obs_z: ArrayLike = (),
+        obs_cov: ArrayLike = (),
+    ) -> FactorGraph:
+        """Build a graph from covariances (computes the square-root information once)."""
+        prior_cov = np.asarray(prior_cov, dtype=float).reshape(-1, 3, 3)
+        odo_cov = np.asarray(odo_cov, dtype=float).reshape(-1, 3, 3)
+        obs_cov = np.asarray(obs_cov, dtype=float).reshape(-1, 2, 2)
+        return FactorGraph(
+            n_poses=int(n_poses),
+            n_landmarks=int(n_landmarks),
+            fixed_poses=_index(fixed_poses),
+            prior_pose=_index(prior_pose),
+            prior_mean=np.asarray(prior_mean, dtype=float).reshape(-1, 3),
+            prior_sqrt_info=sqrt_information(prior_cov) if len(prior_cov) else prior_cov,
+            odo_from=_index(odo_from),
+            odo_to=_index(odo_to),
+            odo_delta=np.asarray(odo_delta, dtype=float).reshape(-1, 3),
+            odo_sqrt_info=sqrt_information(odo_cov) if len(odo_cov) else odo_cov,
+            obs_pose=_index(obs_pose),
+            obs_landmark=_index(obs_landmark),
+            obs_z=np.asarray(obs_z, dtype=float).reshape(-1, 2),
+            obs_sqrt_info=sqrt_information(obs_cov) if len(obs_cov) else obs_cov,
+        )
+
+    @property
+    def n_residuals(self) -> int:
+        """Number of scalar residuals."""
+        return 3 * len(self.prior_pose) + 3 * len(self.odo_from) + 2 * len(self.obs_pose)
+
+
+@dataclass(frozen=True)
+class SparseLayout:
+    """Where each Jacobian entry goes; computed once per graph, reused every iteration."""
+
+    pose_column: Index
+    """First column of each pose, -1 for a fixed pose, shape (n_poses,)."""
+    landmark_column: Index
+    """First column of each landmark, shape (n_landmarks,)."""
+    n_columns: int
+    """Number of free scalar variables."""
+    rows: Index
+    """Row of each kept Jacobian entry."""
+    cols: Index
+    """Column of each kept Jacobian entry."""
+    keep: NDArray[np.bool_]
+    """Which entries of the full (fixed columns included) data vector are kept."""
+
+
+def _block_indices(first_row: Index, m: int, first_col: Index, c: int) -> tuple[Index, Index]:
+    rows = first_row[:, None, None] + np.arange(m)[None, :, None] + np.zeros((1, 1, c), dtype=np.int64)
+    cols = first_col[:, None, None] + np.arange(c)[None, None, :] + np.zeros((1, m, 1), dtype=np.int64)
+    return rows.reshape(-1), np.where(np.repeat(first_col, m * c) < 0, -1, cols.reshape(-1))
+
+
+def layout(graph: FactorGraph) -> SparseLayout:
+    """Compute the sparse layout of a graph's Jacobian.
+
+    Args:
+        graph: The factor graph.
+
+    Returns:
+        The layout: columns of every variable and the (row, column) of every Jacobian entry.
+    """
+    free = np.ones(graph.n_poses, dtype=bool)
+    free[graph.fixed_poses] = False
+    pose_column = np.where(free, 3 * (np.cumsum(free) - 1), -1).astype(np.int64)
+    n_pose_cols = 3 * int(free.sum())
+    landmark_column = n_pose_cols + 2 * np.arange(graph.n_landmarks, dtype=np.int64)
+    P, K, L = len(graph.prior_pose), len(graph.odo_from), len(graph.obs_pose)
+    prior_rows = 3 * np.arange(P, dtype=np.int64)
+    odo_rows = 3 * P + 3 * np.arange(K, dtype=np.int64)
+    obs_rows = 3 * P + 3 * K + 2 * np.arange(L, dtype=np.int64)
+    parts = [
+        _block_indices(prior_rows, 3, pose_column[graph.prior_pose], 3),
+        _block_indices(odo_rows, 3, pose_column[graph.odo_from], 3),
+        _block_indices(odo_rows, 3, pose_column[graph.odo_to], 3),
+        _block_indices(obs_rows, 2, pose_column[graph.obs_pose], 3),
+        _block_indices(obs_rows, 2, landmark_column[graph.obs_landmark], 2),
+    ]
+    rows = np.concatenate([p[0] for p in parts])
+    cols = np.concatenate([p[1] for p in parts])
+    keep = cols >= 0
+    return SparseLayout(
+        pose_column=pose_column,
+        landmark_column=landmark_column,
+        n_columns=n_pose_cols + 2 * graph.n_landmarks,
+        rows=rows[keep],
+        cols=cols[keep],
+        keep=keep,
+    )
+
+
+def _whiten(W: Array, e: Array) -> Array:
+    return np.einsum("kij,kj->ki", W, e)
+
+
+def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
+    """Whitened residuals.
+
+    Args:
+        graph: The factor graph.
+        poses: Pose values, shape (n_poses, 3).
+        landmarks: Landmark values, shape (n_landmarks, 2).
+
+    Returns:
+        Residual vector, shape (n_residuals,), ordered priors, odometry, observations.
+    """
+    e_prior = poses[graph.prior_pose] - graph.prior_mean
+    e_prior[:, 2] = wrap(e_prior[:, 2])
+    e_odo, _, _ = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
+    e_obs = range_bearing(poses[graph.obs_pose], landmarks[graph.obs_landmark]) - graph.obs_z
+    e_obs[:, 1] = wrap(e_obs[:, 1])
+    return np.concatenate(
+        [
+            _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
+            _whiten(graph.odo_sqrt_info, e_odo).reshape(-1),
+            _whiten(graph.obs_sqrt_info, e_obs).reshape(-1),
+        ]
+    )
+
+
+def linearize(graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array) -> tuple[Array, sp.csr_matrix]:
+    """Whitened residuals and their Jacobian with respect to the free variables.
+
+    Args:
+        graph: The factor graph.
+        sparse: Its layout (from :func:`layout`).
+        poses: Pose values, shape (n_poses, 3).
+        landmarks: Landmark values, shape (n_landmarks, 2).
+
+    Returns:
+        (r, J): residuals, shape (n_residuals,), and the Jacobian, sparse (n_residuals, n_columns).
+    """
+    e_prior = poses[graph.prior_pose] - graph.prior_mean
+    e_prior[:, 2] = wrap(e_prior[:, 2])
+    e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
+    z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
+    e_obs = z - graph.obs_z
+    e_obs[:, 1] = wrap(e_obs[:, 1])
+    W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
+    r = np.concatenate(
+        [
+            _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
+            _whiten(W_odo, e_odo).reshape(-1),
+            _whiten(W_obs, e_obs).reshape(-1),
+        ]
+    )
+    data = np.concatenate(
+        [
+            graph.prior_sqrt_info.reshape(-1),
+            (W_odo @ J_a).reshape(-1),
+            (W_odo @ J_b).reshape(-1),
+            (W_obs @ J_p).reshape(-1),
+            (W_obs @ J_l).reshape(-1),
+        ]
+    )[sparse.keep]
+    J = sp.csr_matrix((data, (sparse.rows, sparse.cols)), shape=(graph.n_residuals, sparse.n_columns))
+    return r, J

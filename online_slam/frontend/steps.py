@@ -1,0 +1,223 @@
+"""Events -> steps.
+
+Step 0 is the start pose; each odometry event makes a new pose; an observation at time t belongs to the newest
+pose with time <= t. A step is emitted once it is complete: when the next pose begins, or at the end of the
+stream. Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
+
+Optional keyframing merges consecutive odometry events with no observation in between into one step (the
+increments composed and their covariance propagated), up to distance, angle and time limits.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.models.motion import compose_increments
+from online_slam.sources.events import (
+    Event,
+    Header,
+    LandmarkId,
+    LandmarkTruth,
+    Observation,
+    Odometry,
+    Start,
+    Truth,
+)
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class KeyframeConfig:
+    """Limits for merging observation-free odometry steps; a merged step never exceeds any of them."""
+
+    max_distance: float = 0.5
+    """Largest translation of a merged increment, metres."""
+    max_angle: float = 0.35
+    """Largest absolute rotation of a merged increment, radians."""
+    max_time: float = math.inf
+    """Largest time span of a merged increment, seconds."""
+
+
+@dataclass(frozen=True)
+class FrontEndConfig:
+    """How events become steps."""
+
+    keyframing: KeyframeConfig | None = None
+    """Merge observation-free odometry steps within these limits; None (default) keeps every pose."""
+    first_observation_only: bool = False
+    """Keep only the first observation of each landmark (the article's ablation)."""
+
+
+@dataclass(frozen=True)
+class Step:
+    """One pose of the trajectory with what the estimators may know about it.
+
+    Step 0 carries the start pose (``prior``); every later step carries the odometry increment from the
+    previous step. ``k`` is the number of observations.
+    """
+
+    index: int
+    """Pose index, 0-based, consecutive."""
+    t: float
+    """Time of the pose, seconds."""
+    odometry: Array | None
+    """Increment ``[dx, dy, dtheta]`` from the previous pose in its frame, shape (3,); None for step 0."""
+    odometry_cov: Array | None
+    """Covariance of ``odometry``, shape (3, 3); None for step 0."""
+    landmarks: tuple[LandmarkId, ...]
+    """Ids of the observed landmarks, length k."""
+    z: Array
+    """Observations ``[range, bearing]``, shape (k, 2)."""
+    z_cov: Array
+    """Observation covariances, shape (k, 2, 2)."""
+    prior: Array | None = None
+    """Start pose, shape (3,); only on step 0."""
+    prior_cov: Array | None = None
+    """Covariance of the start pose, shape (3, 3); None means the start pose is held fixed."""
+    merged: int = 1
+    """How many odometry events this step's increment stands for (keyframing)."""
+
+
+@dataclass
+class GroundTruth:
+    """Truth gathered from the stream for evaluation: poses by step index and landmarks by id."""
+
+    poses: dict[int, Array] = field(default_factory=dict)
+    """True pose ``[x, y, theta]`` of a step, where the stream has one at the step's time."""
+    landmarks: dict[LandmarkId, Array] = field(default_factory=dict)
+    """True landmark positions ``[x, y]``."""
+
+
+@dataclass
+class _Pending:
+    """The newest pose, still open for observations."""
+
+    index: int
+    t: float
+    t_begin: float  # time of the previous pose: where this step's increment begins
+    odometry: Array | None
+    odometry_cov: Array | None
+    prior: Array | None = None
+    prior_cov: Array | None = None
+    merged: int = 1
+    landmarks: list[LandmarkId] = field(default_factory=list)
+    z: list[tuple[float, float]] = field(default_factory=list)
+    z_cov: list[Array] = field(default_factory=list)
+
+    def freeze(self) -> Step:
+        k = len(self.landmarks)
+        return Step(
+            index=self.index,
+            t=self.t,
+            odometry=self.odometry,
+            odometry_cov=self.odometry_cov,
+            landmarks=tuple(self.landmarks),
+            z=np.array(self.z, dtype=float).reshape(k, 2),
+            z_cov=np.array(self.z_cov, dtype=float).reshape(k, 2, 2),
+            prior=self.prior,
+            prior_cov=self.prior_cov,
+            merged=self.merged,
+        )
+
+
+class FrontEnd:
+    """Consumes events lazily and yields steps; collects header, truth and counts on the way.
+
+    Attributes:
+        header: The stream's header, if it had one.
+        truth: Ground truth met so far.
+        counts: Events seen by type, and observations dropped by ``first_observation_only``.
+    """
+
+    def __init__(self, config: FrontEndConfig | None = None) -> None:
+        self.config = config or FrontEndConfig()
+        self.header: Header | None = None
+        self.truth = GroundTruth()
+        self.counts: dict[str, int] = {}
+        self._seen: set[LandmarkId] = set()
+
+    def _count(self, key: str) -> None:
+        self.counts[key] = self.counts.get(key, 0) + 1
+
+    def steps(self, events: Iterable[Event]) -> Iterator[Step]:
+        """Turn events into steps.
+
+        Args:
+            events: Validated stream-v1 events in stream order.
+
+        Yields:
+            Steps in index order, each once it is complete.
+        """
+        pending: _Pending | None = None
+        for event in events:
+            if isinstance(event, Odometry):
+                self._count("odometry")
+                if pending is None:
+                    pending = self._start_pose(None, event.t)
+                if self._merge(pending, event):
+                    continue
+                yield pending.freeze()
+                pending = _Pending(
+                    index=pending.index + 1,
+                    t=event.t,
+                    t_begin=pending.t,
+                    odometry=np.array(event.delta),
+                    odometry_cov=event.covariance,
+                )
+            elif isinstance(event, Observation):
+                self._count("observation")
+                if pending is None:
+                    pending = self._start_pose(None, event.t)
+                if self.config.first_observation_only:
+                    if event.landmark in self._seen:
+                        self._count("dropped_repeat_observation")
+                        continue
+                    self._seen.add(event.landmark)
+                pending.landmarks.append(event.landmark)
+                pending.z.append((event.range, event.bearing))
+                pending.z_cov.append(event.covariance)
+            elif isinstance(event, Truth):
+                self._count("truth")
+                if pending is None:
+                    pending = self._start_pose(None, event.t)
+                if event.t == pending.t:
+                    self.truth.poses[pending.index] = np.array(event.pose)
+            elif isinstance(event, Start):
+                pending = self._start_pose(event, event.t)
+            elif isinstance(event, LandmarkTruth):
+                self._count("landmark_truth")
+                self.truth.landmarks[event.landmark] = np.array(event.position)
+            elif isinstance(event, Header):
+                self.header = event
+        if pending is not None:
+            yield pending.freeze()
+
+    def _start_pose(self, start: Start | None, t: float) -> _Pending:
+        prior_cov = None if start is None or start.fixed else start.covariance
+        pose = np.zeros(3) if start is None else np.array(start.pose)
+        return _Pending(index=0, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov)
+
+    def _merge(self, pending: _Pending, event: Odometry) -> bool:
+        """Fold the odometry event into the pending step if keyframing allows it."""
+        limits = self.config.keyframing
+        if limits is None or pending.odometry is None or pending.landmarks:
+            return False
+        delta, cov = compose_increments(pending.odometry, pending.odometry_cov, np.array(event.delta), event.covariance)
+        if (
+            math.hypot(delta[0], delta[1]) > limits.max_distance
+            or abs(delta[2]) > limits.max_angle
+            or event.t - pending.t_begin > limits.max_time
+        ):
+            return False
+        pending.odometry, pending.odometry_cov = delta, cov
+        pending.t = event.t
+        pending.merged += 1
+        # The pose moved on in time: a truth recorded for its earlier time no longer applies.
+        self.truth.poses.pop(pending.index, None)
+        return True

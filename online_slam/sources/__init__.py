@@ -1,0 +1,31 @@
+"""Sources: where events come from (stream files, stdin, built-in simulated worlds)."""
+
+from online_slam.sources.events import (
+    Event,
+    Header,
+    LandmarkId,
+    LandmarkTruth,
+    Observation,
+    Odometry,
+    Start,
+    Truth,
+)
+from online_slam.sources.stream import read_stream, write_stream
+from online_slam.sources.worlds import WORLDS, GridConfig, grid_world, square_world
+
+__all__ = [
+    "WORLDS",
+    "Event",
+    "GridConfig",
+    "Header",
+    "LandmarkId",
+    "LandmarkTruth",
+    "Observation",
+    "Odometry",
+    "Start",
+    "Truth",
+    "grid_world",
+    "read_stream",
+    "square_world",
+    "write_stream",
+]

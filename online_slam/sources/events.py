@@ -1,0 +1,178 @@
+"""Events of stream format v1: immutable records, one per JSON line.
+
+Numbers are stored as Python floats in tuples so that events compare and round-trip exactly; ``covariance``
+gives the numpy matrix. Noise is given either as ``sigma`` (standard deviations, a diagonal covariance) or as a
+full ``cov``; exactly one of the two is set (for ``Start`` neither means a fixed start pose).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+LandmarkId = int | str
+"""Landmark identifiers: integers or strings (``3`` and ``"3"`` are different landmarks)."""
+
+Vector = tuple[float, ...]
+Matrix = tuple[tuple[float, ...], ...]
+
+
+def _covariance(sigma: Vector | None, cov: Matrix | None, n: int) -> NDArray[np.float64]:
+    if cov is not None:
+        return np.array(cov, dtype=float)
+    if sigma is not None:
+        return np.diag(np.square(np.array(sigma, dtype=float)))
+    return np.zeros((n, n))
+
+
+def _noise_record(sigma: Vector | None, cov: Matrix | None) -> dict[str, Any]:
+    if cov is not None:
+        return {"cov": [list(row) for row in cov]}
+    if sigma is not None:
+        return {"sigma": list(sigma)}
+    return {}
+
+
+@dataclass(frozen=True)
+class Header:
+    """Optional first line: names the stream and carries free-form metadata."""
+
+    name: str | None = None
+    """Human-readable name of the data set or run."""
+    meta: dict[str, Any] = field(default_factory=dict)
+    """Any further header fields (generator, seed, units, notes...), kept as read."""
+    version: int = 1
+    """Stream format version; only 1 exists."""
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        record: dict[str, Any] = {"type": "header", "format": "online-slam", "version": self.version}
+        if self.name is not None:
+            record["name"] = self.name
+        record.update(self.meta)
+        return record
+
+
+@dataclass(frozen=True)
+class Start:
+    """The first pose: its time, value and (optional) uncertainty; without noise it is held fixed."""
+
+    t: float
+    """Time of the first pose, seconds."""
+    pose: Vector
+    """``[x, y, theta]`` of the first pose in the world frame."""
+    sigma: Vector | None = None
+    """Standard deviations ``[sx, sy, stheta]`` of a prior on the first pose, or None."""
+    cov: Matrix | None = None
+    """Full 3x3 prior covariance, or None."""
+
+    @property
+    def fixed(self) -> bool:
+        """True when the first pose is held fixed (no prior noise given)."""
+        return self.sigma is None and self.cov is None
+
+    @property
+    def covariance(self) -> NDArray[np.float64]:
+        """Prior covariance, shape (3, 3); zeros when fixed."""
+        return _covariance(self.sigma, self.cov, 3)
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        return {"type": "start", "t": self.t, "pose": list(self.pose), **_noise_record(self.sigma, self.cov)}
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """Motion since the previous pose, expressed in the previous pose's frame; makes a new pose at ``t``."""
+
+    t: float
+    """Time of the new pose, seconds."""
+    delta: Vector
+    """``[dx, dy, dtheta]`` in the previous pose's frame."""
+    sigma: Vector | None = None
+    """Standard deviations of the increment, or None when ``cov`` is given."""
+    cov: Matrix | None = None
+    """Full 3x3 covariance of the increment, or None when ``sigma`` is given."""
+
+    @property
+    def covariance(self) -> NDArray[np.float64]:
+        """Covariance of the increment, shape (3, 3)."""
+        return _covariance(self.sigma, self.cov, 3)
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        return {
+            "type": "odometry",
+            "t": self.t,
+            "delta": list(self.delta),
+            **_noise_record(self.sigma, self.cov),
+        }
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Range and bearing (from the robot's heading) to a landmark, taken at time ``t``."""
+
+    t: float
+    """Time of the observation; it belongs to the newest pose with time <= t."""
+    landmark: LandmarkId
+    """Identifier of the observed landmark (known data association)."""
+    range: float
+    """Distance to the landmark, metres (> 0)."""
+    bearing: float
+    """Angle to the landmark from the robot's heading, radians."""
+    sigma: Vector | None = None
+    """Standard deviations ``[s_range, s_bearing]``, or None when ``cov`` is given."""
+    cov: Matrix | None = None
+    """Full 2x2 covariance of ``[range, bearing]``, or None when ``sigma`` is given."""
+
+    @property
+    def covariance(self) -> NDArray[np.float64]:
+        """Covariance of ``[range, bearing]``, shape (2, 2)."""
+        return _covariance(self.sigma, self.cov, 2)
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        return {
+            "type": "observation",
+            "t": self.t,
+            "landmark": self.landmark,
+            "range": self.range,
+            "bearing": self.bearing,
+            **_noise_record(self.sigma, self.cov),
+        }
+
+
+@dataclass(frozen=True)
+class Truth:
+    """True pose at time ``t`` (evaluation only; no estimator sees it)."""
+
+    t: float
+    """Time, seconds; it applies to the pose whose time equals t."""
+    pose: Vector
+    """True ``[x, y, theta]``."""
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        return {"type": "truth", "t": self.t, "pose": list(self.pose)}
+
+
+@dataclass(frozen=True)
+class LandmarkTruth:
+    """True landmark position (evaluation only; no estimator sees it)."""
+
+    landmark: LandmarkId
+    """Identifier of the landmark."""
+    position: Vector
+    """True ``[x, y]``."""
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        return {"type": "landmark_truth", "landmark": self.landmark, "position": list(self.position)}
+
+
+Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth
+"""Any event of stream format v1."""

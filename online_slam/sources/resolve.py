@@ -1,0 +1,33 @@
+"""Resolve a user's SOURCE argument: a built-in world name, a stream file, a ``.gz`` file, or ``-``."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+from online_slam.errors import InputError
+from online_slam.sources.events import Event
+from online_slam.sources.stream import read_stream, source_name
+from online_slam.sources.worlds import WORLDS
+
+
+def open_source(spec: str | Path) -> tuple[str, Iterator[Event]]:
+    """Open a source lazily.
+
+    Args:
+        spec: A built-in world name (``square``, ``grid``) unless a file of that name exists; a path to a
+            stream-v1 file (``.gz`` allowed); or ``-`` for standard input.
+
+    Returns:
+        (name for messages and reports, event iterator).
+
+    Raises:
+        InputError: When the path does not exist (raised at once, not on first read).
+    """
+    text = str(spec)
+    if text in WORLDS and not Path(text).exists():
+        return text, WORLDS[text]()
+    if text != "-" and not Path(text).is_file():
+        worlds = ", ".join(sorted(WORLDS))
+        raise InputError(text, 0, "", f"no such file (and not a built-in world: {worlds})")
+    return source_name(text), read_stream(text)

@@ -1,0 +1,187 @@
+"""Built-in simulated worlds, produced as stream-v1 events (truth included).
+
+``square`` reproduces the article's worked example exactly: the same generator (``default_rng(1616)``), the
+same draws in the same order, the same landmark selection, so its numbers match the article's table.
+``grid`` is a configurable Manhattan-street world for scale tests.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.geometry.angles import wrap
+from online_slam.geometry.se2 import between
+from online_slam.models.range_bearing import range_bearing
+from online_slam.sources.events import (
+    Event,
+    Header,
+    LandmarkTruth,
+    Observation,
+    Odometry,
+    Start,
+    Truth,
+)
+
+Array = NDArray[np.float64]
+
+
+def _events(
+    name: str,
+    meta: dict,
+    truth: Array,
+    landmarks: Array,
+    odometry: Array,
+    odometry_sigma: Array,
+    observed_pose: NDArray[np.int64],
+    observed_landmark: NDArray[np.int64],
+    z: Array,
+    sensor_sigma: Array,
+    dt: float,
+) -> Iterator[Event]:
+    """Lay out simulated arrays as a time-ordered event stream (pose i at t = i * dt)."""
+    yield Header(name=name, meta=meta)
+    yield Start(t=0.0, pose=tuple(map(float, truth[0])))
+    for j, position in enumerate(landmarks):
+        yield LandmarkTruth(landmark=j, position=tuple(map(float, position)))
+    odo_sigma = tuple(map(float, odometry_sigma))
+    obs_sigma = tuple(map(float, sensor_sigma))
+    bounds = np.searchsorted(observed_pose, np.arange(len(truth) + 1))
+    for i in range(len(truth)):
+        t = i * dt
+        if i > 0:
+            yield Odometry(t=t, delta=tuple(map(float, odometry[i - 1])), sigma=odo_sigma)
+        yield Truth(t=t, pose=tuple(map(float, truth[i])))
+        for k in range(bounds[i], bounds[i + 1]):
+            yield Observation(
+                t=t,
+                landmark=int(observed_landmark[k]),
+                range=float(z[k, 0]),
+                bearing=float(z[k, 1]),
+                sigma=obs_sigma,
+            )
+
+
+def square_world(seed: int = 1616) -> Iterator[Event]:
+    """The article's square path: 25 poses, 12 landmarks, 95 observations (with seed 1616).
+
+    Args:
+        seed: Seed of ``numpy.random.default_rng``; 1616 is the article's.
+
+    Yields:
+        Stream-v1 events, 1 s apart, truth included.
+    """
+    rng = np.random.default_rng(seed)
+    corners = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0], [0.0, 0.0]])
+    xy = np.vstack([np.linspace(corners[k], corners[k + 1], 6, endpoint=False) for k in range(4)] + [corners[-1:]])
+    yaw = np.r_[np.repeat([0.0, np.pi / 2, np.pi, -np.pi / 2], 6), 0.0]
+    truth = np.c_[xy, yaw]
+    landmarks = np.array(
+        [[-1.0, -1.0], [2.0, -1.0], [5.0, -1.0], [5.0, 2.0], [5.0, 5.0], [2.0, 5.0],
+         [-1.0, 5.0], [-1.0, 2.0], [1.0, 1.0], [3.0, 1.0], [3.0, 3.0], [1.0, 3.0]]
+    )  # fmt: skip
+    odometry_sigma = np.array([0.10, 0.10, 0.04])
+    sensor_sigma = np.array([0.06, np.deg2rad(0.8)])
+    odometry = between(truth[:-1], truth[1:])
+    # Draw order as in the article: all odometry noise first, then one (range, bearing) pair per observation.
+    odometry = odometry + rng.normal(size=odometry.shape) * odometry_sigma
+    counts = np.where(np.isin(np.arange(len(truth)), [0, 5, 10, 15, 20]), 3, 4)
+    distances = np.linalg.norm(landmarks[None, :, :] - truth[:, None, :2], axis=2)
+    nearest = [np.argsort(distances[i])[: counts[i]] for i in range(len(truth))]
+    observed_pose = np.repeat(np.arange(len(truth)), counts)
+    observed_landmark = np.concatenate(nearest)
+    z = range_bearing(truth[observed_pose], landmarks[observed_landmark])
+    z = z + rng.normal(size=z.shape) * sensor_sigma
+    z[:, 1] = wrap(z[:, 1])
+    meta = {"generator": "online-slam simulate square", "seed": seed}
+    yield from _events(
+        "square", meta, truth, landmarks, odometry, odometry_sigma,
+        observed_pose, observed_landmark, z, sensor_sigma, dt=1.0,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """A Manhattan-street world: the robot drives along a grid of streets, turning at random crossings."""
+
+    poses: int = 2000
+    """Number of poses (odometry steps + 1)."""
+    blocks: int = 6
+    """Streets form a ``blocks`` x ``blocks`` grid of square blocks."""
+    block_size: float = 10.0
+    """Edge length of one block, metres."""
+    step: float = 1.0
+    """Distance driven between poses, metres (must divide ``block_size``)."""
+    landmarks: int = 190
+    """Number of landmarks, placed uniformly at random over the area plus a margin of half a block."""
+    sensor_range: float = 11.0
+    """Landmarks within this distance are observed at every pose, metres."""
+    odometry_sigma: tuple[float, float, float] = (0.05, 0.05, 0.01)
+    """Standard deviations of each odometry increment (dx m, dy m, dtheta rad)."""
+    sensor_sigma: tuple[float, float] = (0.05, float(np.deg2rad(0.5)))
+    """Standard deviations of range (m) and bearing (rad)."""
+    seed: int = 7
+    """Seed of ``numpy.random.default_rng``."""
+    dt: float = 1.0
+    """Time between poses, seconds."""
+
+
+def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
+    """A configurable street-grid world for scale tests.
+
+    Args:
+        config: World settings; defaults give 2000 poses, ~190 landmarks, ~13 observations per pose.
+
+    Yields:
+        Stream-v1 events, truth included.
+    """
+    c = config or GridConfig()
+    per_block = round(c.block_size / c.step)
+    if c.poses < 1 or c.blocks < 1 or per_block < 1 or not np.isclose(per_block * c.step, c.block_size):
+        raise ValueError("grid world needs poses >= 1, blocks >= 1 and a step that divides block_size")
+    rng = np.random.default_rng(c.seed)
+    size = c.blocks * c.block_size
+    margin = c.block_size / 2
+    landmarks = rng.uniform(-margin, size + margin, size=(c.landmarks, 2))
+    headings = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
+    moves = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])
+    cell = np.array([0, 0])  # position in units of `step`
+    direction = 0
+    limit = c.blocks * per_block
+    truth = np.empty((c.poses, 3))
+    turns = rng.integers(0, 1 << 30, size=c.poses)
+    for i in range(c.poses):
+        truth[i] = [cell[0] * c.step, cell[1] * c.step, headings[direction]]
+        if i + 1 == c.poses:
+            break
+        cell = cell + moves[direction]
+        if cell[0] % per_block == 0 and cell[1] % per_block == 0:
+            # At a crossing: go straight, left or right (never back), staying inside the grid.
+            options = [d for d in (direction, (direction + 1) % 4, (direction + 3) % 4)
+                       if 0 <= cell[0] + moves[d][0] * per_block <= limit
+                       and 0 <= cell[1] + moves[d][1] * per_block <= limit]  # fmt: skip
+            direction = options[turns[i] % len(options)]
+    odometry_sigma = np.array(c.odometry_sigma, dtype=float)
+    sensor_sigma = np.array(c.sensor_sigma, dtype=float)
+    odometry = between(truth[:-1], truth[1:])
+    odometry = odometry + rng.normal(size=odometry.shape) * odometry_sigma
+    distances = np.linalg.norm(landmarks[None, :, :] - truth[:, None, :2], axis=2)
+    observed_pose, observed_landmark = np.nonzero(distances <= c.sensor_range)
+    z = range_bearing(truth[observed_pose], landmarks[observed_landmark])
+    z = z + rng.normal(size=z.shape) * sensor_sigma
+    z[:, 0] = np.abs(z[:, 0])
+    z[:, 1] = wrap(z[:, 1])
+    meta = {"generator": "online-slam simulate grid", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
+    meta["odometry_sigma"] = list(c.odometry_sigma)
+    meta["sensor_sigma"] = list(c.sensor_sigma)
+    yield from _events(
+        "grid", meta, truth, landmarks, odometry, odometry_sigma,
+        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
+    )  # fmt: skip
+
+
+WORLDS: dict[str, Callable[[], Iterator[Event]]] = {"square": square_world, "grid": grid_world}
+"""Built-in worlds by name, each with its default settings."""
