@@ -1,0 +1,151 @@
+"""The command line end to end, as a user runs it: tables, JSON, simulate -> replay, bad input."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from online_slam.sources import square_world, write_stream
+
+EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
+
+
+def cli(*args: str, stdin: str | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([*EXE, *args], input=stdin, capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def test_default_replay_prints_the_article_table() -> None:
+    done = cli("replay")
+    assert done.returncode == 0, done.stderr
+    rows = {line[:27].strip(): line.split()[-4:] for line in done.stdout.splitlines()}
+    assert rows["Position RMSE over the path"] == ["1.338", "m", "0.082", "m"]
+    assert rows["Estimated end-to-start gap"] == ["1.870", "m", "0.060", "m"]
+    assert "square: 25 poses, 12 landmarks, 95 observations" in done.stdout
+
+
+def test_no_command_means_replay() -> None:
+    done = cli()
+    assert done.returncode == 0 and "1.338 m" in done.stdout
+
+
+def test_first_observation_only_and_json(tmp_path: Path) -> None:
+    out = tmp_path / "r.json"
+    done = cli("replay", "--first-observation-only", "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    data = json.loads(out.read_text())
+    assert set(data) >= {"source", "poses", "landmarks", "observations", "odometry", "estimators"}
+    assert set(data["odometry"]) >= {"rmse_m", "endpoint_gap_m"}
+    assert set(data["estimators"]["batch"]) >= {"final_rmse_m", "endpoint_gap_m", "landmark_rmse_m", "total_s"}
+    assert f"{data['estimators']['batch']['final_rmse_m']:.3f}" == "1.338"
+    assert data["observations"] == 12 and data["error"] is None
+
+
+def test_simulate_then_replay_file_gz_and_stdin(tmp_path: Path) -> None:
+    plain, packed = tmp_path / "square.jsonl", tmp_path / "square.jsonl.gz"
+    assert cli("simulate", "square", "-o", str(plain)).returncode == 0
+    assert cli("simulate", "square", "-o", str(packed)).returncode == 0
+    expected = json.loads(cli("replay", "--json", "-", "--quiet").stdout)
+    for source, stdin in ((str(plain), None), (str(packed), None), ("-", plain.read_text())):
+        got = json.loads(cli("replay", source, "--json", "-", "--quiet", stdin=stdin).stdout)
+        assert got["odometry"] == expected["odometry"]
+        assert got["estimators"]["batch"]["final_rmse_m"] == expected["estimators"]["batch"]["final_rmse_m"]
+    assert gzip.decompress(packed.read_bytes()).decode() == plain.read_text()
+
+
+def test_simulate_grid_options(tmp_path: Path) -> None:
+    path = tmp_path / "g.jsonl"
+    done = cli("simulate", "grid", "--poses", "120", "--landmarks", "30", "--seed", "4", "-o", str(path))
+    assert done.returncode == 0, done.stderr
+    replayed = json.loads(cli("replay", str(path), "--json", "-", "--quiet").stdout)
+    assert replayed["poses"] == 120 and replayed["estimators"]["batch"]["converged"]
+    assert cli("simulate", "grid", "--sensor-range", "-1", "-o", str(path)).returncode == 2
+
+
+GOOD = [
+    {"type": "header", "format": "online-slam", "version": 1, "name": "bad-input"},
+    {"type": "observation", "t": 0, "landmark": 1, "range": 2.0, "bearing": 0.5, "sigma": [0.1, 0.01]},
+    {"type": "odometry", "t": 1, "delta": [1, 0, 0], "sigma": [0.1, 0.1, 0.01]},
+    {"type": "observation", "t": 1, "landmark": 1, "range": 1.5, "bearing": 0.8, "sigma": [0.1, 0.01]},
+    {"type": "odometry", "t": 2, "delta": [1, 0, 0], "sigma": [0.1, 0.1, 0.01]},
+]
+OBS = '{"type": "observation", "t": 2, "landmark": 1, "range": 1.0, "bearing": 0.1, "sigma": [0.1, 0.01]}'
+BAD = {
+    "bad_json": ('{"type": "odometry", "t": 3,', ":6: ", "invalid JSON"),
+    "unknown_type": ('{"type": "gps", "t": 3}', ":6: type: ", "unknown event type"),
+    "missing_field": ('{"type": "odometry", "t": 3, "sigma": [1, 1, 1]}', ":6: delta: ", "missing required field"),
+    "nan": (OBS.replace('"range": 1.0', '"range": NaN'), ":6: range: ", "finite"),
+    "negative_range": (OBS.replace('"range": 1.0', '"range": -1.0'), ":6: range: ", "range > 0"),
+    "non_pd_cov": (OBS.replace('"sigma": [0.1, 0.01]', '"cov": [[1, 2], [2, 1]]'), ":6: cov: ", "positive definite"),
+    "time_backwards": (OBS.replace('"t": 2', '"t": 1.5'), ":6: t: ", "time goes backwards"),
+}
+
+
+def write_lines(path: Path, lines: list[str]) -> None:
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_gives_one_line_and_exit_2(tmp_path: Path, case: str) -> None:
+    line, where, what = BAD[case]
+    path = tmp_path / f"{case}.jsonl"
+    write_lines(path, [json.dumps(g) for g in GOOD] + [line])
+    out = tmp_path / "partial.json"
+    done = cli("replay", str(path), "--json", str(out))
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr + done.stdout
+    errors = done.stderr.strip().splitlines()
+    assert len(errors) == 1
+    assert errors[0].startswith(f"online-slam: error: {path}{where}") and what in errors[0]
+    # What was estimated before the bad line is not lost: the two complete poses are reported.
+    partial = json.loads(out.read_text())
+    assert partial["poses"] == 2 and partial["error"] is not None and "batch" in partial["estimators"]
+
+
+def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
+    path = tmp_path / "cut.jsonl.gz"
+    write_stream(path, square_world())
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) * 2 // 3])
+    done = cli("replay", str(path))
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    errors = done.stderr.strip().splitlines()
+    assert len(errors) == 1 and errors[0].startswith(f"online-slam: error: {path}:")
+    assert "truncated or corrupt gzip" in errors[0]
+    assert "Position RMSE" in done.stdout  # the poses before the cut were still estimated and reported
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["replay", "/nonexistent/stream.jsonl"], "no such file"),
+        (["replay", "--estimators", "magic"], "unknown estimator"),
+    ],
+)
+def test_usage_errors_are_one_line(args: list[str], message: str) -> None:
+    done = cli(*args)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and message in done.stderr
+
+
+def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:
+    path = tmp_path / "empty.jsonl"
+    path.write_text("{oops\n")
+    done = cli("replay", str(path))
+    assert done.returncode == 2 and done.stdout == ""
+    assert (
+        done.stderr.strip()
+        == f"online-slam: error: {path}:1: invalid JSON (Expecting property name enclosed in double quotes at column 2)"
+    )
+
+
+def test_bench_prints_ratio_against_gtsam() -> None:
+    pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
+    done = cli("bench", "--poses", "200", "--repeats", "1")
+    assert done.returncode == 0, done.stderr
+    assert "online-slam LM" in done.stdout and "GTSAM LM" in done.stdout and "ratio online-slam / GTSAM" in done.stdout

@@ -1,0 +1,126 @@
+"""Factors and the sparse solver: whole-graph Jacobian vs numerical, fixed vs prior, convergence, edge cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import numerical_jacobian
+
+from online_slam.estimators import BatchEstimator
+from online_slam.factors import FactorGraph, evaluate, layout, linearize
+from online_slam.frontend import FrontEnd
+from online_slam.geometry import between, wrap
+from online_slam.solvers import SolverConfig, solve
+from online_slam.sources import GridConfig, grid_world, square_world
+
+
+def small_graph(rng: np.random.Generator, prior: bool) -> tuple[FactorGraph, np.ndarray, np.ndarray]:
+    n, m = 6, 4
+    poses = rng.normal(size=(n, 3)) * [3, 3, 2]
+    landmarks = rng.normal(size=(m, 2)) * 4
+    A = rng.normal(size=(n - 1, 3, 3)) * 0.1
+    odo_cov = A @ np.swapaxes(A, 1, 2) + 0.01 * np.eye(3)
+    B = rng.normal(size=(10, 2, 2)) * 0.1
+    obs_cov = B @ np.swapaxes(B, 1, 2) + 0.001 * np.eye(2)
+    kwargs = {"prior_pose": [0], "prior_mean": [[0.1, 0.2, 0.3]], "prior_cov": [np.diag([0.1, 0.2, 0.05])]}
+    graph = FactorGraph.build(
+        n,
+        m,
+        fixed_poses=[] if prior else [0],
+        **(kwargs if prior else {}),
+        odo_from=np.arange(n - 1),
+        odo_to=np.arange(1, n),
+        odo_delta=rng.normal(size=(n - 1, 3)),
+        odo_cov=odo_cov,
+        obs_pose=rng.integers(0, n, 10),
+        obs_landmark=np.r_[np.arange(m), rng.integers(0, m, 6)],
+        obs_z=np.c_[rng.uniform(1, 5, 10), rng.uniform(-3, 3, 10)],
+        obs_cov=obs_cov,
+    )
+    return graph, poses, landmarks
+
+
+@pytest.mark.parametrize("prior", [True, False])
+def test_graph_jacobian_matches_numerical(rng: np.random.Generator, prior: bool) -> None:
+    graph, poses, landmarks = small_graph(rng, prior)
+    sparse = layout(graph)
+    r, J = linearize(graph, sparse, poses, landmarks)
+    assert np.allclose(r, evaluate(graph, poses, landmarks))
+    free = sparse.pose_column >= 0
+
+    def f(x: np.ndarray) -> np.ndarray:
+        p = poses.copy()
+        p[free] = x[: 3 * free.sum()].reshape(-1, 3)
+        return evaluate(graph, p, x[3 * free.sum() :].reshape(-1, 2))
+
+    x0 = np.r_[poses[free].ravel(), landmarks.ravel()]
+    # Residual differences pass through wrap inside evaluate; use small steps away from the branch cut.
+    assert np.allclose(J.toarray(), numerical_jacobian(f, x0, eps=1e-7), atol=1e-5)
+    assert J.shape == (graph.n_residuals, sparse.n_columns)
+
+
+def test_solver_recovers_noise_free_problem(rng: np.random.Generator) -> None:
+    poses = np.c_[np.arange(10.0), np.zeros(10), wrap(np.linspace(0, 6, 10))]
+    landmarks = rng.uniform(-5, 15, size=(5, 2))
+    pi, li = np.repeat(np.arange(10), 5), np.tile(np.arange(5), 10)
+    d = landmarks[li] - poses[pi, :2]
+    z = np.c_[np.hypot(d[:, 0], d[:, 1]), wrap(np.arctan2(d[:, 1], d[:, 0]) - poses[pi, 2])]
+    graph = FactorGraph.build(
+        10,
+        5,
+        fixed_poses=[0],
+        odo_from=np.arange(9),
+        odo_to=np.arange(1, 10),
+        odo_delta=between(poses[:-1], poses[1:]),
+        odo_cov=np.tile(np.eye(3) * 0.01, (9, 1, 1)),
+        obs_pose=pi,
+        obs_landmark=li,
+        obs_z=z,
+        obs_cov=np.tile(np.eye(2) * 0.01, (50, 1, 1)),
+    )
+    start_poses = poses + rng.normal(size=poses.shape) * [0.3, 0.3, 0.1]
+    start_poses[0] = poses[0]
+    result = solve(graph, start_poses, landmarks + rng.normal(size=landmarks.shape) * 0.5)
+    assert result.converged and result.final_cost < 1e-16
+    assert np.allclose(result.poses[:, :2], poses[:, :2], atol=1e-8)
+    assert np.allclose(wrap(result.poses[:, 2] - poses[:, 2]), 0, atol=1e-9)
+    assert np.all((result.poses[:, 2] >= -np.pi) & (result.poses[:, 2] < np.pi))
+
+
+def test_fixed_pose_stays_put_and_gradient_vanishes_at_solution() -> None:
+    fe, batch = FrontEnd(), BatchEstimator()
+    for step in fe.steps(square_world()):
+        batch.step(step)
+    estimate = batch.finish()
+    assert np.array_equal(estimate.poses[0], np.zeros(3))
+    graph = batch.log.graph()
+    r, J = linearize(graph, layout(graph), estimate.poses, estimate.landmarks)
+    H = (J.T @ J).toarray()
+    newton_step = np.linalg.solve(H, -(J.T @ r))
+    assert np.max(np.abs(newton_step)) < 1e-8  # one more Gauss-Newton step would move nothing
+
+
+def test_levenberg_marquardt_and_gauss_newton_agree() -> None:
+    fe, batch = FrontEnd(), BatchEstimator()
+    for step in fe.steps(grid_world(GridConfig(poses=300, seed=3))):
+        batch.step(step)
+    graph, p0, l0 = batch.log.graph(), np.array(batch.log.poses), batch.log.landmarks
+    lm = solve(graph, p0, l0, SolverConfig(initial_lambda=1e-3))
+    gn = solve(graph, p0, l0, SolverConfig(initial_lambda=0.0))
+    assert lm.converged and gn.converged
+    assert np.max(np.abs(lm.poses[:, :2] - gn.poses[:, :2])) < 1e-7
+
+
+def test_solver_reports_non_convergence() -> None:
+    fe, batch = FrontEnd(), BatchEstimator()
+    for step in fe.steps(square_world()):
+        batch.step(step)
+    result = solve(batch.log.graph(), np.array(batch.log.poses), batch.log.landmarks, SolverConfig(max_iterations=1))
+    assert not result.converged and result.iterations == 1 and result.message == "maximum iterations reached"
+    assert result.final_cost < result.initial_cost
+
+
+def test_no_free_variables() -> None:
+    graph = FactorGraph.build(1, 0, fixed_poses=[0])
+    result = solve(graph, np.zeros((1, 3)), np.zeros((0, 2)))
+    assert result.converged and result.iterations == 0
