@@ -6,16 +6,19 @@ the JSON file and later sinks all read.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
+from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.evaluation.metrics import (
     align_se2,
@@ -23,15 +26,19 @@ from online_slam.evaluation.metrics import (
     apply_transform,
     endpoint_gap,
     landmark_rmse,
+    pose_nees,
     position_rmse,
+    transform_pose_covariance,
 )
-from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results
+from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Results
 from online_slam.frontend.steps import FrontEnd, FrontEndConfig, GroundTruth
 from online_slam.sources.events import Event
 from online_slam.sources.resolve import open_source
 
-ESTIMATORS = ("batch",)
-"""Names of the estimators ``replay`` can run."""
+Array = NDArray[np.float64]
+
+ESTIMATORS = ("ekf", "batch")
+"""Names of the estimators ``replay`` can run (all run by default)."""
 
 Sink = Callable[[Snapshot], None]
 """A consumer of step snapshots (Rerun logger, live plot, ...)."""
@@ -45,13 +52,18 @@ class ReplayConfig:
     """Estimators to run beside dead reckoning, by name."""
     frontend: FrontEndConfig = field(default_factory=FrontEndConfig)
     """How events become steps (keyframing, first-observation-only ablation)."""
+    ekf: EkfConfig = field(default_factory=EkfConfig)
+    """Settings of the EKF."""
     batch: BatchConfig = field(default_factory=BatchConfig)
     """Settings of the batch solver."""
     alignment: str = "anchor"
     """Frame for errors: ``anchor`` (first pose with truth) or ``se2`` (least-squares rigid alignment)."""
 
 
-def _make(name: str, config: ReplayConfig) -> Estimator:
+def make_estimator(name: str, config: ReplayConfig) -> Estimator:
+    """Build an estimator by name."""
+    if name == "ekf":
+        return EkfSlam(config.ekf)
     if name == "batch":
         return BatchEstimator(config.batch)
     raise OnlineSlamError(f"unknown estimator {name!r}; expected one of {', '.join(ESTIMATORS)}")
@@ -59,7 +71,7 @@ def _make(name: str, config: ReplayConfig) -> Estimator:
 
 @dataclass(frozen=True)
 class Errors:
-    """Errors of one estimate against truth."""
+    """Errors of one trajectory against truth."""
 
     rmse_m: float | None
     """Position RMSE over poses with truth (None without truth)."""
@@ -67,37 +79,71 @@ class Errors:
     """Landmark RMSE over landmarks with truth (None without)."""
     endpoint_gap_m: float
     """Last-to-first position distance of the estimate (needs no truth)."""
+    transform: Array | None = None
+    """The rigid motion ``[x, y, theta]`` that put the estimate in the truth's frame (None without truth)."""
+    indices: NDArray[np.int64] | None = None
+    """Poses that had truth."""
 
 
 def evaluate(estimate: Estimate, truth: GroundTruth, alignment: str = "anchor") -> Errors:
     """Compare an estimate with the truth gathered by the front-end.
 
     Args:
-        estimate: A final estimate.
+        estimate: A final (or online) estimate.
         truth: Ground truth by step index and landmark id.
         alignment: ``anchor`` or ``se2``.
 
     Returns:
         The errors; RMSEs are None where there is no truth to compare with.
     """
+    if alignment not in ("anchor", "se2"):
+        raise OnlineSlamError(f"unknown alignment {alignment!r}; expected anchor or se2")
     gap = endpoint_gap(estimate.poses) if len(estimate.poses) else float("nan")
-    indices = np.array(sorted(i for i in truth.poses if i < len(estimate.poses)), dtype=int)
+    indices = np.array(sorted(i for i in truth.poses if i < len(estimate.poses)), dtype=np.int64)
     if len(indices) == 0:
         return Errors(None, None, gap)
     true_poses = np.array([truth.poses[i] for i in indices])
     if alignment == "se2" and len(indices) >= 2:
         T = align_se2(estimate.poses[indices], true_poses)
-    elif alignment in ("anchor", "se2"):
-        T = anchor_transform(estimate.poses[indices[0]], true_poses[0])
     else:
-        raise OnlineSlamError(f"unknown alignment {alignment!r}; expected anchor or se2")
+        T = anchor_transform(estimate.poses[indices[0]], true_poses[0])
     rmse = position_rmse(apply_transform(T, estimate.poses[indices]), true_poses)
     common = [(k, lid) for k, lid in enumerate(estimate.landmark_ids) if lid in truth.landmarks]
     lm_rmse = None
     if common:
         est = apply_transform(T, estimate.landmarks[[k for k, _ in common]])
         lm_rmse = landmark_rmse(est, np.array([truth.landmarks[lid] for _, lid in common]))
-    return Errors(rmse, lm_rmse, gap)
+    return Errors(rmse, lm_rmse, gap, T, indices)
+
+
+@dataclass
+class _Track:
+    """What the pipeline records of one estimator while it runs."""
+
+    estimator: Estimator
+    poses: list[Array] = field(default_factory=list)
+    covariances: list[Array | None] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+
+    def record(self, snapshot: Snapshot, seconds: float) -> None:
+        self.poses.append(snapshot.pose)
+        self.covariances.append(snapshot.pose_cov)
+        self.seconds.append(seconds)
+
+
+def _online_figures(track: _Track, final: Estimate, truth: GroundTruth, alignment: str) -> tuple:
+    """Online RMSE, mean NEES and latency of an estimator whose snapshots are real-time estimates."""
+    online = Estimate(final.estimator, np.array(track.poses), final.landmark_ids, final.landmarks)
+    errors = evaluate(online, truth, alignment)
+    nees_mean = None
+    if errors.indices is not None and all(track.covariances[i] is not None for i in errors.indices):
+        covs = transform_pose_covariance(errors.transform, np.array([track.covariances[i] for i in errors.indices]))
+        moved = apply_transform(errors.transform, online.poses[errors.indices])
+        nees = pose_nees(moved, covs, np.array([truth.poses[i] for i in errors.indices]))
+        nees_mean = float(np.nanmean(nees)) if np.isfinite(nees).any() else None
+    ms = np.array(track.seconds) * 1e3
+    latency = Latency(float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max()))
+    return errors.rmse_m, nees_mean, latency
 
 
 def replay(
@@ -111,9 +157,9 @@ def replay(
 
     Args:
         source: A built-in world name, a stream path (``.gz`` allowed), ``-`` for stdin, or an iterable of events.
-        config: What to run; defaults run dead reckoning and the batch solver.
+        config: What to run; defaults run dead reckoning, the EKF and the batch solver.
         name: Source name for reports (defaults to the path or world name).
-        sinks: Callables given every snapshot of every estimator, in step order.
+        sinks: Callables given every snapshot of every estimator, in step order (with ``wall_s`` set).
 
     Returns:
         The results. When the input turns bad part-way, the results cover every step before the bad line
@@ -123,6 +169,7 @@ def replay(
         InputError: When the input is bad before the first step is complete (nothing to report).
     """
     cfg = config or ReplayConfig()
+    estimators = [make_estimator(n, cfg) for n in cfg.estimators]
     if isinstance(source, (str, Path)):
         label, events = open_source(source)
     else:
@@ -130,8 +177,7 @@ def replay(
     label = name or label
     frontend = FrontEnd(cfg.frontend)
     odometry = DeadReckoning()
-    estimators = [_make(n, cfg) for n in cfg.estimators]
-    spent = {e.name: 0.0 for e in estimators}
+    tracks = [_Track(e) for e in estimators]
     steps = observations = 0
     error: str | None = None
     try:
@@ -141,12 +187,15 @@ def replay(
             snapshot = odometry.step(step)
             for sink in sinks:
                 sink(snapshot)
-            for estimator in estimators:
+            for track in tracks:
                 started = time.perf_counter()
-                snapshot = estimator.step(step)
-                spent[estimator.name] += time.perf_counter() - started
-                for sink in sinks:
-                    sink(snapshot)
+                snapshot = track.estimator.step(step)
+                elapsed = time.perf_counter() - started
+                track.record(snapshot, elapsed)
+                if sinks:
+                    snapshot = dataclasses.replace(snapshot, wall_s=elapsed)
+                    for sink in sinks:
+                        sink(snapshot)
     except InputError as exc:
         if steps == 0:
             raise
@@ -155,17 +204,24 @@ def replay(
         raise InputError(label, 0, "", "the stream holds no pose")
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
     results: dict[str, EstimatorResult] = {}
-    for estimator in estimators:
+    for track in tracks:
+        estimator = track.estimator
         started = time.perf_counter()
         estimate = estimator.finish()
-        spent[estimator.name] += time.perf_counter() - started
+        final_s = time.perf_counter() - started
         estimates[estimator.name] = estimate
         errors = evaluate(estimate, frontend.truth, cfg.alignment)
+        online_rmse = nees_mean = latency = None
+        if getattr(estimator, "online", True):
+            online_rmse, nees_mean, latency = _online_figures(track, estimate, frontend.truth, cfg.alignment)
         results[estimator.name] = EstimatorResult(
             final_rmse_m=errors.rmse_m,
             endpoint_gap_m=errors.endpoint_gap_m,
             landmark_rmse_m=errors.landmark_rmse_m,
-            total_s=spent[estimator.name],
+            total_s=float(np.sum(track.seconds)) + final_s,
+            online_rmse_m=online_rmse,
+            nees_mean=nees_mean,
+            step_ms=latency,
             details=dict(estimate.info),
         )
     odo = evaluate(estimates["odometry"], frontend.truth, cfg.alignment)

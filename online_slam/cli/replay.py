@@ -8,7 +8,9 @@ import math
 import sys
 from pathlib import Path
 
+from online_slam.errors import OnlineSlamError
 from online_slam.estimators.batch import BatchConfig
+from online_slam.estimators.ekf import EkfConfig
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.pipeline import ESTIMATORS, ReplayConfig, replay
 from online_slam.reports.table import format_results
@@ -39,6 +41,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--keyframe-angle", type=float, metavar="RAD", help="... and up to RAD radians")
     p.add_argument("--keyframe-time", type=float, metavar="S", help="... and up to S seconds")
     p.add_argument("--max-iterations", type=int, default=SolverConfig.max_iterations, help="batch solver limit")
+    p.add_argument(
+        "--gate-probability",
+        type=float,
+        default=EkfConfig.gate_probability,
+        metavar="P",
+        help=f"EKF chi-square gate on each observation's NIS, 2 dof (default {EkfConfig.gate_probability}; 1 = off)",
+    )
+    p.add_argument(
+        "--ekf-update",
+        choices=("joint", "sequential"),
+        default=EkfConfig.update,
+        help="EKF: one update per step with all observations (joint, default) or one per observation",
+    )
     p.add_argument("--quiet", action="store_true", help="print no table")
 
 
@@ -53,9 +68,14 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
             max_time=args.keyframe_time if args.keyframe_time is not None else math.inf,
         )
     names = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
+    try:
+        ekf = EkfConfig(gate_probability=args.gate_probability, update=args.ekf_update)
+    except ValueError as exc:
+        raise OnlineSlamError(f"--gate-probability: {exc}") from None
     return ReplayConfig(
         estimators=names,
         frontend=FrontEndConfig(keyframing=keyframing, first_observation_only=args.first_observation_only),
+        ekf=ekf,
         batch=BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations)),
         alignment=args.align,
     )

@@ -2,6 +2,16 @@
 
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
+from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 
-__all__ = ["BatchConfig", "BatchEstimator", "DeadReckoning", "Estimate", "Estimator", "Snapshot"]
+__all__ = [
+    "BatchConfig",
+    "BatchEstimator",
+    "DeadReckoning",
+    "EkfConfig",
+    "EkfSlam",
+    "Estimate",
+    "Estimator",
+    "Snapshot",
+]

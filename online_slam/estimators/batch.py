@@ -29,6 +29,7 @@ class BatchEstimator:
     """
 
     name = "batch"
+    online = False
 
     def __init__(self, config: BatchConfig | None = None) -> None:
         self.config = config or BatchConfig()

@@ -13,6 +13,7 @@ class DeadReckoning:
     """The odometry-only baseline, following the estimator protocol."""
 
     name = "odometry"
+    online = True
 
     def __init__(self) -> None:
         self.log = ProblemLog()

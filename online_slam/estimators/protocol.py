@@ -37,6 +37,8 @@ class Snapshot:
     """Their 2x2 marginal covariances, shape (M, 2, 2), or None."""
     info: Mapping[str, Any] = field(default_factory=dict)
     """Estimator-specific figures for this step (e.g. NIS, gated observations, iterations)."""
+    wall_s: float | None = None
+    """Wall time the estimator spent on this step, seconds (set by the pipeline that timed it)."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +62,8 @@ class Estimator(Protocol):
     """Consumes steps one at a time; ``finish`` closes the stream and returns the final estimate."""
 
     name: str
+    online: bool
+    """True when step snapshots are real-time estimates (online figures are computed from them)."""
 
     def step(self, step: Step) -> Snapshot:
         """Consume the next step (indices arrive in order 0, 1, 2, ...) and report the current estimate."""

@@ -6,7 +6,9 @@ from online_slam.evaluation.metrics import (
     apply_transform,
     endpoint_gap,
     landmark_rmse,
+    pose_nees,
     position_rmse,
+    transform_pose_covariance,
 )
 
 __all__ = [
@@ -15,5 +17,7 @@ __all__ = [
     "apply_transform",
     "endpoint_gap",
     "landmark_rmse",
+    "pose_nees",
     "position_rmse",
+    "transform_pose_covariance",
 ]

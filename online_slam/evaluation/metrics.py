@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import compose, inverse, rotation
 
 Array = NDArray[np.float64]
@@ -82,3 +83,43 @@ def apply_transform(transform: ArrayLike, points_or_poses: ArrayLike) -> Array:
     if x.shape[-1] == 3:
         return compose(T, x)
     return x @ rotation(T[2]).T + T[:2]
+
+
+def transform_pose_covariance(transform: ArrayLike, covariances: ArrayLike) -> Array:
+    """Covariances of poses moved by a rigid motion ``T * p``: ``J C J^T`` with ``J = diag(R(T_theta), 1)``.
+
+    Args:
+        transform: ``[x, y, theta]``, shape (3,).
+        covariances: Pose covariances, shape (N, 3, 3).
+
+    Returns:
+        Shape (N, 3, 3).
+    """
+    J = np.eye(3)
+    J[:2, :2] = rotation(float(np.asarray(transform, dtype=float)[2]))
+    return J @ np.asarray(covariances, dtype=float) @ J.T
+
+
+def pose_nees(estimate: ArrayLike, covariances: ArrayLike, truth: ArrayLike) -> Array:
+    """Normalised estimation error squared of poses, ``e^T C^-1 e`` with the heading error wrapped.
+
+    Args:
+        estimate: Estimated poses, shape (N, 3).
+        covariances: Their covariances, shape (N, 3, 3); rows with a singular covariance give NaN.
+        truth: True poses, shape (N, 3).
+
+    Returns:
+        NEES per pose, shape (N,) (3 dof: mean 3 for a consistent estimator).
+    """
+    e = np.asarray(estimate, dtype=float) - np.asarray(truth, dtype=float)
+    e[:, 2] = wrap(e[:, 2])
+    C = np.asarray(covariances, dtype=float)
+    out = np.full(len(e), np.nan)
+    if len(e) == 0:
+        return out
+    # A covariance is usable when its smallest eigenvalue is a meaningful fraction of its largest.
+    eig = np.linalg.eigvalsh(C)
+    usable = eig[:, 0] > 1e-12 * np.maximum(eig[:, -1], 1e-300)
+    if usable.any():
+        out[usable] = np.einsum("ni,ni->n", e[usable], np.linalg.solve(C[usable], e[usable][..., None])[..., 0])
+    return out

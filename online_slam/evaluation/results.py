@@ -27,6 +27,22 @@ class OdometryResult:
 
 
 @dataclass(frozen=True)
+class Latency:
+    """Wall time per step, milliseconds."""
+
+    median: float
+    """Median over steps."""
+    p95: float
+    """95th percentile."""
+    max: float
+    """Largest."""
+
+    def to_json(self) -> dict[str, float]:
+        """The JSON object of these figures."""
+        return {"median": self.median, "p95": self.p95, "max": self.max}
+
+
+@dataclass(frozen=True)
 class EstimatorResult:
     """One estimator's figures over the whole stream."""
 
@@ -38,18 +54,30 @@ class EstimatorResult:
     """Landmark RMSE against truth, metres (None without landmark truth)."""
     total_s: float
     """Wall time spent in this estimator (every step plus the final solve), seconds."""
+    online_rmse_m: float | None = None
+    """Position RMSE of each pose as estimated when it was the newest (what the robot knew then); None for
+    estimators that only answer at the end (batch) or without truth."""
+    nees_mean: float | None = None
+    """Mean pose NEES (3 dof) over steps with truth and a covariance; None when unavailable."""
+    step_ms: Latency | None = None
+    """Per-step wall time; None for estimators whose work is all at the end."""
     details: dict[str, Any] = field(default_factory=dict)
-    """Estimator-specific report (iterations, convergence, costs, ...)."""
+    """Estimator-specific report (iterations, convergence, gated observations, ...)."""
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of this result."""
-        return {
+        out: dict[str, Any] = {
             "final_rmse_m": _finite_or_none(self.final_rmse_m),
             "endpoint_gap_m": self.endpoint_gap_m,
             "landmark_rmse_m": _finite_or_none(self.landmark_rmse_m),
             "total_s": self.total_s,
-            **self.details,
         }
+        if self.step_ms is not None:
+            out["online_rmse_m"] = _finite_or_none(self.online_rmse_m)
+            out["nees_mean"] = _finite_or_none(self.nees_mean)
+            out["step_ms"] = self.step_ms.to_json()
+        out.update(self.details)
+        return out
 
 
 @dataclass(frozen=True)

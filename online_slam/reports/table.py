@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
-from online_slam.evaluation.results import Results
+from online_slam.evaluation.results import EstimatorResult, Results
 
 
 def _metres(value: float | None) -> str:
     return "-" if value is None or value != value else f"{value:.3f} m"
+
+
+def _number(value: float | None) -> str:
+    return "-" if value is None or value != value else f"{value:.2f}"
+
+
+def _latency(result: EstimatorResult) -> str:
+    if result.step_ms is None:
+        return "-"
+    return f"{result.step_ms.median:.2f} / {result.step_ms.p95:.2f}"
 
 
 def format_results(results: Results) -> str:
@@ -19,22 +29,16 @@ def format_results(results: Results) -> str:
         Lines of text, ending without a newline.
     """
     columns = ["Odometry only", *results.estimators]
+    est = list(results.estimators.values())
+    odo = results.odometry
     rows: list[tuple[str, list[str]]] = [
-        (
-            "Position RMSE over the path",
-            [_metres(results.odometry.rmse_m)] + [_metres(r.final_rmse_m) for r in results.estimators.values()],
-        ),
-        (
-            "Estimated end-to-start gap",
-            [_metres(results.odometry.endpoint_gap_m)]
-            + [_metres(r.endpoint_gap_m) for r in results.estimators.values()],
-        ),
-        (
-            "Landmark RMSE",
-            [_metres(results.odometry.landmark_rmse_m)]
-            + [_metres(r.landmark_rmse_m) for r in results.estimators.values()],
-        ),
-        ("Time", ["-"] + [f"{r.total_s:.3f} s" for r in results.estimators.values()]),
+        ("Position RMSE over the path", [_metres(odo.rmse_m)] + [_metres(r.final_rmse_m) for r in est]),
+        ("Estimated end-to-start gap", [_metres(odo.endpoint_gap_m)] + [_metres(r.endpoint_gap_m) for r in est]),
+        ("Landmark RMSE", [_metres(odo.landmark_rmse_m)] + [_metres(r.landmark_rmse_m) for r in est]),
+        ("Online position RMSE", [_metres(odo.rmse_m)] + [_metres(r.online_rmse_m) for r in est]),
+        ("Pose NEES, mean (3 = consistent)", ["-"] + [_number(r.nees_mean) for r in est]),
+        ("Step time median / p95 (ms)", ["-"] + [_latency(r) for r in est]),
+        ("Total time", ["-"] + [f"{r.total_s:.3f} s" for r in est]),
     ]
     label_width = max(len("Metric"), *(len(label) for label, _ in rows))
     widths = [max(len(c), *(len(cells[k]) for _, cells in rows)) for k, c in enumerate(columns)]
@@ -57,6 +61,8 @@ def format_results(results: Results) -> str:
                 f"{name}: {state} in {d['iterations']} iterations "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
+        if "gated_observations" in d:
+            notes.append(f"{name}: {d['gated_observations']} observations rejected by the chi-square gate")
     if results.error:
         notes.append(f"stopped early at bad input; figures cover the {results.poses} poses before it")
     if notes:
