@@ -10,6 +10,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from scipy.stats import chi2
 
 import online_slam
+from online_slam.bench.ekf import random_state
 from online_slam.estimators import EkfConfig, EkfSlam
 from online_slam.frontend import FrontEnd, Step
 from online_slam.geometry import compose, compose_with_jacobians, wrap
@@ -20,15 +21,8 @@ from online_slam.sources import GridConfig, grid_world, square_world
 
 def random_filter(rng: np.random.Generator, m: int) -> EkfSlam:
     """A filter holding m landmarks with a random dense SPD covariance."""
-    ekf = EkfSlam(EkfConfig(gate_probability=1.0))
-    n = 3 + 2 * m
-    ekf.x = np.r_[rng.normal(size=2), rng.uniform(-3, 3), rng.uniform(-20, 20, 2 * m)].reshape(-1, 1)
-    A = rng.normal(size=(n, n)) * 0.05
-    ekf.P = A @ A.T + 0.01 * np.eye(n)
-    ekf.dim_x, ekf._I, ekf.F = n, np.eye(n), np.eye(n)
-    ekf.landmark_ids = list(range(m))
-    ekf._index = {j: j for j in range(m)}
-    return ekf
+    x, P = random_state(rng, m)
+    return EkfSlam.from_state(x, P, list(range(m)), EkfConfig(gate_probability=1.0))
 
 
 def dense_H(x: np.ndarray, indices: np.ndarray) -> np.ndarray:

@@ -5,34 +5,84 @@ from __future__ import annotations
 import argparse
 
 from online_slam.bench.batch import run_batch_bench
+from online_slam.bench.ekf import time_steps, time_updates
+from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
+
+SECTIONS = ("batch", "ekf-update", "ekf-step")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     p = sub.add_parser(
         "bench",
-        help="benchmark against peers (GTSAM, with the 'peers' extra) on a simulated grid world",
-        description="Measure solve times on a grid world beside GTSAM, in the same run, and print ratios.",
+        help="benchmark against peers (filterpy, GTSAM with the 'peers' extra) on simulated worlds",
+        description="Measure solve and step times beside peers, in the same run, and print ratios.",
     )
     p.add_argument("--poses", type=int, default=GridConfig.poses, help="poses of the grid world (default 2000)")
     p.add_argument("--seed", type=int, default=GridConfig.seed, help="seed of the grid world")
-    p.add_argument("--repeats", type=int, default=3, help="timed repeats per solver; the best counts (default 3)")
+    p.add_argument("--repeats", type=int, default=3, help="timed repeats per batch solver; the best counts (default 3)")
+    p.add_argument(
+        "--landmarks",
+        default="50,200,500,1000",
+        help="map sizes for the EKF update benchmark (default 50,200,500,1000)",
+    )
+    p.add_argument("--only", default=",".join(SECTIONS), help=f"sections to run (default all: {','.join(SECTIONS)})")
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the benchmarks and print their table."""
-    bench = run_batch_bench(GridConfig(poses=args.poses, seed=args.seed), repeats=max(1, args.repeats))
+def _batch(args: argparse.Namespace, world: GridConfig) -> None:
+    bench = run_batch_bench(world, repeats=max(1, args.repeats))
     print(
         f"batch solve: grid world, {bench.poses} poses, {bench.landmarks} landmarks, "
         f"{bench.observations} observations (best of {args.repeats}, from composed odometry)"
     )
     print(f"{'solver':<28}{'time s':>10}{'iterations':>12}{'final 0.5*chi2':>18}")
-    rows = [bench.ours] + ([bench.peer] if bench.peer else [])
-    for t in rows:
+    for t in [bench.ours] + ([bench.peer] if bench.peer else []):
         print(f"{t.label:<28}{t.seconds:>10.3f}{t.iterations:>12d}{t.final_cost:>18.3f}")
     if bench.peer:
         print(f"ratio online-slam / GTSAM: {bench.ours.seconds / bench.peer.seconds:.2f}x (target <= 2x)")
     else:
         print("GTSAM not installed: pip install '.[peers]' to measure the ratio")
+
+
+def _ekf_update(args: argparse.Namespace) -> None:
+    try:
+        counts = tuple(int(v) for v in args.landmarks.split(",") if v.strip())
+    except ValueError:
+        raise OnlineSlamError(f"--landmarks: expected comma-separated integers, got {args.landmarks!r}") from None
+    print("EKF update with one range-bearing observation: structured vs filterpy's stock ExtendedKalmanFilter.update")
+    print(f"{'landmarks':>10}{'state':>8}{'structured ms':>16}{'stock ms':>12}{'speed-up':>10}")
+    for t in time_updates(counts):
+        ratio = t.stock_ms / t.structured_ms
+        print(f"{t.landmarks:>10d}{3 + 2 * t.landmarks:>8d}{t.structured_ms:>16.3f}{t.stock_ms:>12.3f}{ratio:>9.1f}x")
+    print("target: >= 10x at 500 landmarks")
+
+
+def _ekf_step(args: argparse.Namespace, world: GridConfig) -> None:
+    n, rows = time_steps(world)
+    print(f"online step latency: grid world, {n} poses (one update per step; iSAM2 relinearizeSkip 1, threshold 0.01)")
+    print(f"{'estimator':<20}{'median ms':>11}{'p95 ms':>9}{'max ms':>9}{'online RMSE m':>15}")
+    for r in rows:
+        print(f"{r.label:<20}{r.median_ms:>11.3f}{r.p95_ms:>9.3f}{r.max_ms:>9.2f}{r.online_rmse_m:>15.4f}")
+    if len(rows) > 1:
+        print(f"ratio EKF / iSAM2 median: {rows[0].median_ms / rows[1].median_ms:.2f}x")
+    print(f"target: EKF median <= 2 ms: {'met' if rows[0].median_ms <= 2.0 else 'NOT met'}")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the selected benchmarks and print their tables."""
+    chosen = [s.strip() for s in args.only.split(",") if s.strip()]
+    unknown = sorted(set(chosen) - set(SECTIONS))
+    if unknown:
+        raise OnlineSlamError(f"--only: unknown section {unknown[0]!r}; expected some of {', '.join(SECTIONS)}")
+    world = GridConfig(poses=args.poses, seed=args.seed)
+    for k, section in enumerate(s for s in SECTIONS if s in chosen):
+        if k:
+            print()
+        if section == "batch":
+            _batch(args, world)
+        elif section == "ekf-update":
+            _ekf_update(args)
+        else:
+            _ekf_step(args, world)
     return 0

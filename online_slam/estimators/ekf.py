@@ -30,7 +30,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as la
 from filterpy.kalman import ExtendedKalmanFilter
 from numpy.typing import NDArray
 from scipy.stats import chi2
@@ -89,6 +88,32 @@ class EkfSlam(ExtendedKalmanFilter):
         self._poses: list[Array] = []
         self._times: list[float] = []
         self._blas = ThreadpoolController()
+
+    @classmethod
+    def from_state(cls, x: Array, P: Array, landmark_ids: list[LandmarkId], config: EkfConfig | None = None) -> EkfSlam:
+        """A filter holding a given state (e.g. to resume, or to benchmark at a chosen map size).
+
+        Args:
+            x: State ``[x, y, theta, l1x, l1y, ...]``, shape (3 + 2M,) or (3 + 2M, 1).
+            P: Its covariance, shape (3 + 2M, 3 + 2M), symmetric positive semi-definite.
+            landmark_ids: The M landmark ids in state order.
+            config: Filter settings.
+        """
+        ekf = cls(config)
+        x = np.asarray(x, dtype=float).reshape(-1, 1)
+        n = len(x)
+        if n != 3 + 2 * len(landmark_ids) or np.shape(P) != (n, n):
+            raise ValueError("x, P and landmark_ids disagree in size")
+        ekf.x, ekf.P, ekf.dim_x = x.copy(), np.array(P, dtype=float), n
+        ekf._I = ekf.F = np.eye(n)
+        ekf.Q = np.zeros((n, n))
+        ekf.landmark_ids = list(landmark_ids)
+        ekf._index = {lid: j for j, lid in enumerate(landmark_ids)}
+        return ekf
+
+    def single_threaded(self) -> object:
+        """Context manager limiting BLAS to one thread, as every ``step`` runs (see the module docstring)."""
+        return self._blas.limit(limits=1, user_api="blas")
 
     # -- state size -----------------------------------------------------------------------------
     def _grow(self, rows: Array, cross: Array, block: Array) -> None:
@@ -167,7 +192,9 @@ class EkfSlam(ExtendedKalmanFilter):
         k = len(indices)
         y, H_s, columns = self._innovation(indices, z)
         PHt = self.P[:, columns] @ H_s.T  # (n, 2k): only 3 + 2k columns of P are read
-        S = H_s @ PHt[columns] + la.block_diag(*R)
+        S = H_s @ PHt[columns]
+        diagonal = np.arange(k)
+        S.reshape(k, 2, k, 2)[diagonal, :, diagonal, :] += R  # + block_diag(R)
         blocks = S.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :]  # (k, 2, 2) marginal S of each
         nis = np.einsum("ki,ki->k", y, np.linalg.solve(blocks, y[..., None])[..., 0])
         accepted = nis <= self._gate
@@ -180,22 +207,21 @@ class EkfSlam(ExtendedKalmanFilter):
 
     def _apply(self, PHt: Array, S: Array, y: Array, H_s: Array) -> None:
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
-        L = np.linalg.cholesky(S)
-        W = la.solve_triangular(L, PHt.T, lower=True).T  # P H^T L^-T, (n, m)
-        v = la.solve_triangular(L, y, lower=True)
-        self.x[:, 0] += W @ v
+        L_inv = np.linalg.inv(np.linalg.cholesky(S))  # S^-1 = L^-T L^-1; S is small (2k x 2k)
+        W = PHt @ L_inv.T  # P H^T L^-T, (n, m)
+        self.x[:, 0] += W @ (L_inv @ y)
         self.x[2, 0] = wrap(self.x[2, 0])
-        self.P -= W @ W.T
+        self.P -= W @ W.T  # numpy computes W W^T with syrk: exactly symmetric, so P stays symmetric bit for bit
         # filterpy's view of the last update
         self.S, self.y = S, y.reshape(-1, 1)
-        self.K = la.solve_triangular(L, W.T, lower=True, trans="T").T
-        self.SI = None
+        self.K = W @ L_inv
+        self.SI = L_inv.T @ L_inv
         self._log_likelihood = self._likelihood = self._mahalanobis = None
 
     # -- protocol --------------------------------------------------------------------------------
     def step(self, step: Step) -> Snapshot:
         """Predict with the step's odometry, update with its observations, add new landmarks."""
-        with self._blas.limit(limits=1, user_api="blas"):
+        with self.single_threaded():
             return self._step(step)
 
     def _step(self, step: Step) -> Snapshot:
