@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
+from online_slam.factors.robust import RobustLoss
 from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
 
 Array = NDArray[np.float64]
@@ -211,7 +212,24 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     )
 
 
-def linearize(graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array) -> tuple[Array, sp.csr_matrix]:
+def cost(graph: FactorGraph, r: Array, loss: RobustLoss | None = None) -> float:
+    """``0.5 * |r|^2``, with the observations' part through the robust loss when one is given.
+
+    Args:
+        graph: The factor graph.
+        r: Whitened residuals from :func:`evaluate`, shape (n_residuals,).
+        loss: Robust loss on observations, or None.
+    """
+    if loss is None:
+        return 0.5 * float(r @ r)
+    split = 3 * len(graph.prior_pose) + 3 * len(graph.odo_from)
+    s = np.sum(r[split:].reshape(-1, 2) ** 2, axis=1)
+    return 0.5 * float(r[:split] @ r[:split]) + 0.5 * float(np.sum(loss.rho(s)))
+
+
+def linearize(
+    graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array, loss: RobustLoss | None = None
+) -> tuple[Array, sp.csr_matrix]:
     """Whitened residuals and their Jacobian with respect to the free variables.
 
     Args:
@@ -219,6 +237,7 @@ def linearize(graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks:
         sparse: Its layout (from :func:`layout`).
         poses: Pose values, shape (n_poses, 3).
         landmarks: Landmark values, shape (n_landmarks, 2).
+        loss: Robust loss on observations: their rows are scaled by ``sqrt(rho'(s))`` (IRLS).
 
     Returns:
         (r, J): residuals, shape (n_residuals,), and the Jacobian, sparse (n_residuals, n_columns).
@@ -230,6 +249,9 @@ def linearize(graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks:
     e_obs = z - graph.obs_z
     e_obs[:, 1] = wrap(e_obs[:, 1])
     W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
+    if loss is not None and len(e_obs):
+        s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
+        W_obs = W_obs * np.sqrt(loss.weight(s))[:, None, None]
     r = np.concatenate(
         [
             _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),

@@ -1,5 +1,5 @@
 """Sparse nonlinear least-squares solvers over a :class:`~online_slam.factors.FactorGraph`."""
 
-from online_slam.solvers.least_squares import SolverConfig, SolveResult, retract, solve
+from online_slam.solvers.least_squares import QuadraticPrior, SolveResult, SolverConfig, flatten, retract, solve
 
-__all__ = ["SolveResult", "SolverConfig", "retract", "solve"]
+__all__ = ["QuadraticPrior", "SolveResult", "SolverConfig", "flatten", "retract", "solve"]

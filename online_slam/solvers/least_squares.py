@@ -12,10 +12,12 @@ from dataclasses import dataclass
 
 import numpy as np
 import qdldl
+import scipy.linalg as la
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from online_slam.factors.graph import FactorGraph, SparseLayout, evaluate, layout, linearize
+from online_slam.factors.graph import FactorGraph, SparseLayout, cost, evaluate, layout, linearize
+from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 
 Array = NDArray[np.float64]
@@ -55,6 +57,50 @@ class SolveResult:
     """Cost at the returned values."""
     message: str
     """Why the solver stopped."""
+    information: Array | sp.csr_matrix | None = None
+    """``J^T J`` (plus the quadratic prior) at the solution, over the free columns; only when asked for."""
+
+
+@dataclass(frozen=True)
+class QuadraticPrior:
+    """A dense Gaussian prior on some state columns: ``0.5 d^T A d + b^T d`` with ``d = x[columns] - x_lin``.
+
+    Angle entries of d are wrapped. The linearization point ``x_lin`` stays fixed: the prior is a quadratic
+    in d whatever the current estimate (a marginalization prior keeps its first-estimate Jacobians).
+    """
+
+    columns: NDArray[np.int64]
+    """State columns (in the solver's layout) the prior is on, shape (c,)."""
+    x_lin: Array
+    """Linearization point of those columns, shape (c,)."""
+    angle: NDArray[np.bool_]
+    """Which of the columns are headings, shape (c,)."""
+    information: Array
+    """A, symmetric positive semi-definite, shape (c, c)."""
+    gradient: Array
+    """b, the gradient at d = 0, shape (c,)."""
+
+    def delta(self, x: Array) -> Array:
+        """d for a full free-state vector x, shape (n_columns,) -> (c,)."""
+        d = x[self.columns] - self.x_lin
+        d[self.angle] = wrap(d[self.angle])
+        return d
+
+    def cost(self, x: Array) -> float:
+        """The prior's cost at x (up to a constant)."""
+        d = self.delta(x)
+        return 0.5 * float(d @ self.information @ d) + float(self.gradient @ d)
+
+
+def flatten(graph_layout: SparseLayout, poses: Array, landmarks: Array) -> Array:
+    """The free-state vector (free poses, then landmarks) in the layout's column order, shape (n_columns,)."""
+    free = graph_layout.pose_column >= 0
+    x = np.empty(graph_layout.n_columns)
+    columns = graph_layout.pose_column[free]
+    x[columns[:, None] + np.arange(3)] = poses[free]
+    n_pose_cols = 3 * int(free.sum())
+    x[n_pose_cols:] = landmarks.reshape(-1)
+    return x
 
 
 def retract(graph_layout: SparseLayout, poses: Array, landmarks: Array, dx: Array) -> tuple[Array, Array]:
@@ -118,14 +164,26 @@ class SparseLDL:
         return x
 
 
-def solve(graph: FactorGraph, poses: Array, landmarks: Array, config: SolverConfig | None = None) -> SolveResult:
-    """Minimise ``0.5 * |r(x)|^2`` over the free poses and all landmarks.
+def solve(
+    graph: FactorGraph,
+    poses: Array,
+    landmarks: Array,
+    config: SolverConfig | None = None,
+    *,
+    loss: RobustLoss | None = None,
+    prior: QuadraticPrior | None = None,
+    return_information: bool = False,
+) -> SolveResult:
+    """Minimise ``0.5 * |r(x)|^2`` (robust on observations) plus an optional quadratic prior.
 
     Args:
         graph: The factor graph.
         poses: Initial poses, shape (n_poses, 3); fixed poses keep these values.
         landmarks: Initial landmarks, shape (n_landmarks, 2).
         config: Solver settings.
+        loss: Robust loss on observation factors, or None for plain least squares.
+        prior: A dense quadratic prior on some columns of ``layout(graph)``; the system is then solved densely.
+        return_information: Also return ``J^T J`` (+ prior) at the solution, for covariances.
 
     Returns:
         The solution and convergence report.
@@ -134,42 +192,55 @@ def solve(graph: FactorGraph, poses: Array, landmarks: Array, config: SolverConf
     poses = np.array(poses, dtype=float).reshape(graph.n_poses, 3)
     landmarks = np.array(landmarks, dtype=float).reshape(graph.n_landmarks, 2)
     sparse = layout(graph)
-    r, J = linearize(graph, sparse, poses, landmarks)
-    cost = initial_cost = 0.5 * float(r @ r)
+
+    def total_cost(p: Array, l: Array) -> float:
+        value = cost(graph, evaluate(graph, p, l), loss)
+        return value + prior.cost(flatten(sparse, p, l)) if prior is not None else value
+
+    def system(p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array]:
+        r, J = linearize(graph, sparse, p, l, loss)
+        H, g = J.T @ J, J.T @ r
+        if prior is not None:
+            H = H.toarray()
+            H[np.ix_(prior.columns, prior.columns)] += prior.information
+            g[prior.columns] += prior.information @ prior.delta(flatten(sparse, p, l)) + prior.gradient
+        return H, g
+
+    current = initial_cost = total_cost(poses, landmarks)
     if sparse.n_columns == 0:
-        return SolveResult(poses, landmarks, 0, True, cost, cost, "no free variables")
+        return SolveResult(poses, landmarks, 0, True, current, current, "no free variables")
     ldl = SparseLDL()
     lam, nu = cfg.initial_lambda, 2.0
     message = "maximum iterations reached"
     converged = False
     iterations = 0
+    H, g = system(poses, landmarks)
     while iterations < cfg.max_iterations:
         iterations += 1
-        H = (J.T @ J).tocsc()
-        g = J.T @ r
         if np.max(np.abs(g)) < cfg.gradient_tolerance:
             converged, message = True, "gradient below tolerance"
             break
         diagonal = np.maximum(H.diagonal(), 1e-12)
-        damped = H + sp.diags(lam * diagonal, format="csc")
         try:
-            dx = ldl.solve(damped, -g)
-        except ValueError:  # singular: damp harder
+            if prior is None:
+                dx = ldl.solve(H.tocsc() + sp.diags(lam * diagonal, format="csc"), -g)
+            else:
+                dx = la.cho_solve(la.cho_factor(H + np.diag(lam * diagonal)), -g)
+        except (ValueError, la.LinAlgError):  # singular or indefinite: damp harder
             lam, nu = max(lam, 1e-9) * nu, 2 * nu
             continue
         new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
-        r_new = evaluate(graph, new_poses, new_landmarks)
-        new_cost = 0.5 * float(r_new @ r_new)
+        new_cost = total_cost(new_poses, new_landmarks)
         predicted = -float(dx @ g) - 0.5 * float(dx @ (H @ dx))
-        actual = cost - new_cost
+        actual = current - new_cost
         if actual >= 0.0 and np.isfinite(new_cost):
             rho = actual / predicted if predicted > 0 else 1.0
-            poses, landmarks, cost = new_poses, new_landmarks, new_cost
+            poses, landmarks, current = new_poses, new_landmarks, new_cost
             lam = lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if lam > 0 else 0.0
             nu = 2.0
             small_step = np.max(np.abs(dx)) < cfg.step_tolerance
-            small_gain = actual <= cfg.relative_cost_tolerance * max(cost + actual, 1e-300)
-            r, J = linearize(graph, sparse, poses, landmarks)
+            small_gain = actual <= cfg.relative_cost_tolerance * max(current + actual, 1e-300)
+            H, g = system(poses, landmarks)
             if small_step or small_gain:
                 converged = True
                 message = "step below tolerance" if small_step else "cost change below tolerance"
@@ -179,4 +250,5 @@ def solve(graph: FactorGraph, poses: Array, landmarks: Array, config: SolverConf
                 converged, message = True, "step below tolerance"
                 break
             lam, nu = max(lam, 1e-9) * nu, 2 * nu
-    return SolveResult(poses, landmarks, iterations, converged, initial_cost, cost, message)
+    information = H if return_information else None
+    return SolveResult(poses, landmarks, iterations, converged, initial_cost, current, message, information)
