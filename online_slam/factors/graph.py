@@ -17,9 +17,9 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.factors.robust import RobustLoss
 from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
 
 Array = NDArray[np.float64]
@@ -270,3 +270,70 @@ def linearize(
     )[sparse.keep]
     J = sp.csr_matrix((data, (sparse.rows, sparse.cols)), shape=(graph.n_residuals, sparse.n_columns))
     return r, J
+
+
+def normal_equations(
+    graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array, loss: RobustLoss | None = None
+) -> tuple[Array, Array]:
+    """Dense Gauss-Newton normal equations ``H = J^T J`` and ``g = J^T r``, assembled block by block.
+
+    For small problems (a smoother's window) this avoids building the sparse Jacobian: each factor's whitened
+    Jacobian blocks are multiplied out and scattered into H with one ``bincount`` per block pair.
+
+    Args:
+        graph: The factor graph.
+        sparse: Its layout (from :func:`layout`).
+        poses: Pose values, shape (n_poses, 3).
+        landmarks: Landmark values, shape (n_landmarks, 2).
+        loss: Robust loss on observations (IRLS weights), or None.
+
+    Returns:
+        (H (n, n), g (n,)) over the free columns, n = ``sparse.n_columns``.
+    """
+    n = sparse.n_columns
+    H = np.zeros(n * n)
+    g = np.zeros(n)
+    e_prior = poses[graph.prior_pose] - graph.prior_mean
+    e_prior[:, 2] = wrap(e_prior[:, 2])
+    e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
+    z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
+    e_obs = z - graph.obs_z
+    e_obs[:, 1] = wrap(e_obs[:, 1])
+    W_obs = graph.obs_sqrt_info
+    if loss is not None and len(e_obs):
+        s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
+        W_obs = W_obs * np.sqrt(loss.weight(s))[:, None, None]
+    W_odo = graph.odo_sqrt_info
+    factors = [
+        (_whiten(graph.prior_sqrt_info, e_prior), [(sparse.pose_column[graph.prior_pose], graph.prior_sqrt_info)]),
+        (
+            _whiten(W_odo, e_odo),
+            [(sparse.pose_column[graph.odo_from], W_odo @ J_a), (sparse.pose_column[graph.odo_to], W_odo @ J_b)],
+        ),
+        (
+            _whiten(W_obs, e_obs),
+            [
+                (sparse.pose_column[graph.obs_pose], W_obs @ J_p),
+                (sparse.landmark_column[graph.obs_landmark], W_obs @ J_l),
+            ],
+        ),
+    ]
+    h_index, h_value, g_index, g_value = [], [], [], []
+    for r, blocks in factors:
+        if len(r) == 0:
+            continue
+        for first_a, J_a_ in blocks:
+            c_a = J_a_.shape[2]
+            ok_a = first_a >= 0
+            g_index.append((first_a[ok_a, None] + np.arange(c_a)).ravel())
+            g_value.append(np.einsum("kmi,km->ki", J_a_[ok_a], r[ok_a]).ravel())
+            for first_b, J_b_ in blocks:
+                c_b = J_b_.shape[2]
+                ok = ok_a & (first_b >= 0)
+                rows = first_a[ok, None, None] + np.arange(c_a)[:, None]
+                h_index.append((rows * n + first_b[ok, None, None] + np.arange(c_b)).ravel())
+                h_value.append(np.einsum("kmi,kmj->kij", J_a_[ok], J_b_[ok]).ravel())
+    if h_index:
+        H = np.bincount(np.concatenate(h_index), np.concatenate(h_value), minlength=n * n)
+        g = np.bincount(np.concatenate(g_index), np.concatenate(g_value), minlength=n)
+    return H.reshape(n, n), g

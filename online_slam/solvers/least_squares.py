@@ -16,11 +16,14 @@ import scipy.linalg as la
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from online_slam.factors.graph import FactorGraph, SparseLayout, cost, evaluate, layout, linearize
+from online_slam.factors.graph import FactorGraph, SparseLayout, cost, evaluate, layout, linearize, normal_equations
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 
 Array = NDArray[np.float64]
+
+DENSE_LIMIT = 600
+"""Problems with at most this many free variables are solved with dense normal equations."""
 
 
 @dataclass(frozen=True)
@@ -173,6 +176,7 @@ def solve(
     loss: RobustLoss | None = None,
     prior: QuadraticPrior | None = None,
     return_information: bool = False,
+    dense: bool | None = None,
 ) -> SolveResult:
     """Minimise ``0.5 * |r(x)|^2`` (robust on observations) plus an optional quadratic prior.
 
@@ -184,6 +188,8 @@ def solve(
         loss: Robust loss on observation factors, or None for plain least squares.
         prior: A dense quadratic prior on some columns of ``layout(graph)``; the system is then solved densely.
         return_information: Also return ``J^T J`` (+ prior) at the solution, for covariances.
+        dense: Assemble and factor the normal equations densely; default: when a prior is given or the
+            problem has at most ``DENSE_LIMIT`` free variables (a smoother's window), sparse otherwise.
 
     Returns:
         The solution and convergence report.
@@ -197,11 +203,15 @@ def solve(
         value = cost(graph, evaluate(graph, p, l), loss)
         return value + prior.cost(flatten(sparse, p, l)) if prior is not None else value
 
+    use_dense = dense if dense is not None else (prior is not None or sparse.n_columns <= DENSE_LIMIT)
+
     def system(p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array]:
-        r, J = linearize(graph, sparse, p, l, loss)
-        H, g = J.T @ J, J.T @ r
+        if use_dense:
+            H, g = normal_equations(graph, sparse, p, l, loss)
+        else:
+            r, J = linearize(graph, sparse, p, l, loss)
+            H, g = J.T @ J, J.T @ r
         if prior is not None:
-            H = H.toarray()
             H[np.ix_(prior.columns, prior.columns)] += prior.information
             g[prior.columns] += prior.information @ prior.delta(flatten(sparse, p, l)) + prior.gradient
         return H, g
@@ -222,7 +232,7 @@ def solve(
             break
         diagonal = np.maximum(H.diagonal(), 1e-12)
         try:
-            if prior is None:
+            if not use_dense:
                 dx = ldl.solve(H.tocsc() + sp.diags(lam * diagonal, format="csc"), -g)
             else:
                 dx = la.cho_solve(la.cho_factor(H + np.diag(lam * diagonal)), -g)

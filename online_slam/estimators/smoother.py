@@ -1,0 +1,388 @@
+"""Sliding-window least-squares smoother with Schur-complement marginalization.
+
+The smoother keeps the W newest poses and *every* landmark as variables. Each step adds the new pose
+(propagated by odometry from the latest estimate), new landmarks (inverse observation model) and their
+factors. Every K steps, and at the end of the stream, it relinearizes all factors in the window and iterates
+Levenberg-Marquardt to convergence. A pose is never marginalized before it has been optimized at least once.
+
+When the window holds more than W poses, the oldest is marginalized: its factors (odometry to the next pose,
+its observations, the previous marginal prior, a start prior) are linearized and its 3 variables eliminated by
+a Schur complement, leaving a dense Gaussian prior on the next pose and the landmarks it touched. The prior
+keeps its linearization point: variables already in it are linearized at their first estimate (FEJ) when
+later factors are folded in, and its residual is ``d = x - x_lin`` with the heading wrapped. Landmarks are never
+marginalized, so a re-observation long after the poses that saw a landmark left the window (a loop closure)
+still corrects the map and the current pose.
+
+Per-step cost depends on W and the size of the map, not on the length of the trajectory.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as la
+from numpy.typing import NDArray
+from threadpoolctl import ThreadpoolController
+
+from online_slam.estimators.protocol import Estimate, Snapshot
+from online_slam.factors.graph import FactorGraph, layout, sqrt_information
+from online_slam.factors.robust import RobustLoss
+from online_slam.frontend.steps import Step
+from online_slam.geometry.angles import wrap
+from online_slam.geometry.se2 import compose_with_jacobians
+from online_slam.models.motion import odometry_residual_with_jacobians
+from online_slam.models.range_bearing import landmark_from_observation, range_bearing_with_jacobians
+from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, solve
+from online_slam.sources.events import LandmarkId
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class SmootherConfig:
+    """Settings of the sliding-window smoother."""
+
+    window: int = 20
+    """W: poses kept as variables (>= 1); older ones are marginalized."""
+    relinearize_every: int = 1
+    """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
+    solver: SolverConfig = field(
+        default_factory=lambda: SolverConfig(max_iterations=10, relative_cost_tolerance=1e-6, step_tolerance=1e-5)
+    )
+    """Levenberg-Marquardt settings of each window solve during the stream (max iterations, tolerances)."""
+    final_solver: SolverConfig = field(default_factory=SolverConfig)
+    """Settings of the last solve, at the end of the stream (tight by default: it gives the final estimate)."""
+    loss: RobustLoss | None = None
+    """Robust loss on observations (Huber or Cauchy), or None for plain least squares."""
+
+    def __post_init__(self) -> None:
+        if self.window < 1:
+            raise ValueError("window must be >= 1")
+        if self.relinearize_every < 1:
+            raise ValueError("relinearize_every must be >= 1")
+
+
+@dataclass
+class _Prior:
+    """The marginal prior: ``0.5 d^T A d + b^T d`` over [pose, landmarks...], ``d = x - x_lin``."""
+
+    pose: int
+    landmarks: Index
+    x_lin: Array
+    A: Array
+    b: Array
+
+
+class SlidingWindowSmoother:
+    """Fixed-lag smoother over poses, keeping all landmarks; follows the estimator protocol."""
+
+    name = "smoother"
+    online = True
+
+    def __init__(self, config: SmootherConfig | None = None) -> None:
+        self.config = config or SmootherConfig()
+        self.window: list[int] = []
+        self.poses: dict[int, Array] = {}
+        self.final_poses: list[Array] = []
+        self.landmark_ids: list[LandmarkId] = []
+        self._index: dict[LandmarkId, int] = {}
+        self._landmarks = np.zeros((0, 2))
+        self._odometry: dict[int, tuple[Array, Array]] = {}  # keyed by the later pose
+        self._observations: dict[int, tuple[Index, Array, Array]] = {}
+        self._start: tuple[int, Array, Array | None] | None = None
+        self.prior: _Prior | None = None
+        self._pose_cov = np.zeros((3, 3))
+        self._since_solve = 0
+        self._unsolved: set[int] = set()
+        self.solves = self.marginalized = 0
+        self._blas = ThreadpoolController()
+
+    @property
+    def landmarks(self) -> Array:
+        """Current landmark estimates, shape (M, 2)."""
+        return self._landmarks
+
+    # -- building the window ---------------------------------------------------------------------
+    def _add_pose(self, step: Step) -> None:
+        i = step.index
+        if step.odometry is None:
+            pose = np.array(step.prior, dtype=float)
+            self._start = (i, pose.copy(), None if step.prior_cov is None else np.array(step.prior_cov))
+            self._pose_cov = np.zeros((3, 3)) if step.prior_cov is None else np.array(step.prior_cov)
+        else:
+            previous = self.window[-1]
+            pose, F, G = compose_with_jacobians(self.poses[previous], step.odometry)
+            self._pose_cov = F @ self._pose_cov @ F.T + G @ step.odometry_cov @ G.T
+            self._odometry[i] = (np.array(step.odometry), np.array(step.odometry_cov))
+        self.window.append(i)
+        self.poses[i] = pose
+        self.final_poses.append(pose)
+        self._unsolved.add(i)
+        if step.landmarks:
+            indices = []
+            for lid, z in zip(step.landmarks, step.z):
+                if lid not in self._index:
+                    self._index[lid] = len(self.landmark_ids)
+                    self.landmark_ids.append(lid)
+                    self._landmarks = np.vstack([self._landmarks, landmark_from_observation(pose, z)])
+                indices.append(self._index[lid])
+            self._observations[i] = (np.array(indices, dtype=np.int64), step.z, step.z_cov)
+
+    def _graph(self, active: Index) -> tuple[FactorGraph, dict[int, int]]:
+        """The window's factors as a graph over local pose indices and the active landmarks (local order)."""
+        local = {g: k for k, g in enumerate(self.window)}
+        to_local = np.full(len(self.landmark_ids), -1, dtype=np.int64)
+        to_local[active] = np.arange(len(active))
+        odo = [(local[j] - 1, local[j], *self._odometry[j]) for j in self.window[1:]]
+        obs = [(local[i], *self._observations[i]) for i in self.window if i in self._observations]
+        fixed, prior = [], {}
+        if self._start is not None and self._start[0] in local:
+            if self._start[2] is None:
+                fixed = [local[self._start[0]]]
+            else:
+                prior = {
+                    "prior_pose": [local[self._start[0]]],
+                    "prior_mean": [self._start[1]],
+                    "prior_cov": [self._start[2]],
+                }
+        graph = FactorGraph.build(
+            len(self.window),
+            len(active),
+            fixed_poses=fixed,
+            **prior,  # type: ignore[arg-type]
+            odo_from=[o[0] for o in odo],
+            odo_to=[o[1] for o in odo],
+            odo_delta=np.array([o[2] for o in odo]).reshape(-1, 3),
+            odo_cov=np.array([o[3] for o in odo]).reshape(-1, 3, 3),
+            obs_pose=np.concatenate([np.full(len(o[1]), o[0]) for o in obs]) if obs else [],
+            obs_landmark=to_local[np.concatenate([o[1] for o in obs])] if obs else [],
+            obs_z=np.concatenate([o[2] for o in obs]) if obs else np.zeros((0, 2)),
+            obs_cov=np.concatenate([o[3] for o in obs]) if obs else np.zeros((0, 2, 2)),
+        )
+        return graph, local
+
+    # -- solving ---------------------------------------------------------------------------------
+    def _solve(self, final: bool = False) -> dict[str, float]:
+        """Relinearize the window and solve.
+
+        Landmarks that no window pose observes (passive) appear only in the marginal prior, a quadratic: they
+        are eliminated from it exactly (Schur complement) before the iterations and recovered afterwards from
+        their conditional mean, so each iteration factors a system over the window poses and the observed
+        landmarks only. The result equals the solve over all landmarks.
+        """
+        observed = [self._observations[i][0] for i in self.window if i in self._observations]
+        active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+        graph, local = self._graph(active)
+        sparse = layout(graph)
+        quadratic, recover = None, None
+        if self.prior is not None:
+            quadratic, recover = self._reduced_prior(
+                active, sparse.pose_column[local[self.prior.pose]], sparse.landmark_column
+            )
+        poses = np.array([self.poses[g] for g in self.window])
+        result = solve(
+            graph,
+            poses,
+            self._landmarks[active],
+            self.config.final_solver if final else self.config.solver,
+            loss=self.config.loss,
+            prior=quadratic,
+            return_information=True,
+        )
+        for k, g in enumerate(self.window):
+            self.poses[g] = result.poses[k]
+            self.final_poses[g] = result.poses[k]
+        self._landmarks[active] = result.landmarks
+        if recover is not None:
+            recover(result.poses[0], result.landmarks)
+        newest = sparse.pose_column[len(self.window) - 1]
+        if newest >= 0 and result.information is not None:
+            H = result.information
+            H = H.toarray() if hasattr(H, "toarray") else H
+            unit = np.zeros((H.shape[0], 3))
+            unit[newest + np.arange(3), np.arange(3)] = 1.0
+            try:
+                cov = la.cho_solve(la.cho_factor(H), unit)[newest : newest + 3]
+                self._pose_cov = 0.5 * (cov + cov.T)
+            except la.LinAlgError:
+                self._pose_cov = np.full((3, 3), np.nan)
+        self._since_solve = 0
+        self._unsolved.clear()
+        self.solves += 1
+        return {"iterations": result.iterations, "cost_before": result.initial_cost, "cost_after": result.final_cost}
+
+    def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
+        """The marginal prior with its passive landmarks eliminated, and a function that recovers them."""
+        p = self.prior
+        assert p is not None
+        is_active = np.isin(p.landmarks, active)
+        n_a = 3 + 2 * int(is_active.sum())
+        order = np.r_[np.arange(3), (3 + 2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1)]
+        passive = (3 + 2 * np.flatnonzero(~is_active)[:, None] + np.arange(2)).reshape(-1)
+        A_aa, b_a = p.A[np.ix_(order, order)], p.b[order]
+        solve_pp = None
+        if len(passive):
+            A_pp, A_pa, b_p = p.A[np.ix_(passive, passive)], p.A[np.ix_(passive, order)], p.b[passive]
+            try:
+                factor = la.cho_factor(A_pp)
+                solve_pp = lambda rhs: la.cho_solve(factor, rhs)  # noqa: E731
+            except la.LinAlgError:  # rank-deficient: least-squares solution
+                pinv = np.linalg.pinv(A_pp, hermitian=True)
+                solve_pp = lambda rhs: pinv @ rhs  # noqa: E731
+            X = solve_pp(np.column_stack([A_pa, b_p]))
+            A_aa = A_aa - A_pa.T @ X[:, :-1]
+            b_a = b_a - A_pa.T @ X[:, -1]
+        local = np.searchsorted(active, p.landmarks[is_active])
+        columns = np.r_[pose_column + np.arange(3), (landmark_column[local][:, None] + np.arange(2)).reshape(-1)]
+        angle = np.zeros(n_a, dtype=bool)
+        angle[2] = True
+        quadratic = QuadraticPrior(columns, p.x_lin[order], angle, 0.5 * (A_aa + A_aa.T), b_a)
+        if solve_pp is None:
+            return quadratic, None
+        passive_ids = p.landmarks[~is_active]
+
+        def recover(oldest_pose: Array, active_landmarks: Array) -> None:
+            x_a = np.r_[oldest_pose, active_landmarks[local].reshape(-1)]
+            d_a = x_a - p.x_lin[order]
+            d_a[2] = wrap(d_a[2])
+            d_p = -solve_pp(A_pa @ d_a + b_p)
+            self._landmarks[passive_ids] = (p.x_lin[passive] + d_p).reshape(-1, 2)
+
+        return quadratic, recover
+
+    # -- marginalization -------------------------------------------------------------------------
+    def _marginalize_oldest(self) -> None:
+        """Eliminate the oldest window pose by a Schur complement into the marginal prior.
+
+        The system is built over ``[o, n1, prior landmarks..., new landmarks...]``: the old prior's landmarks
+        keep their order (so it lands in contiguous blocks) and landmarks it did not hold yet are appended.
+        """
+        o, n1 = self.window[0], self.window[1]
+        prior = self.prior
+        held = np.zeros(0, dtype=np.int64) if prior is None else prior.landmarks
+        obs = self._observations.get(o)
+        seen = np.zeros(0, dtype=np.int64) if obs is None else np.unique(obs[0])
+        touched = np.r_[held, seen[~np.isin(seen, held)]].astype(np.int64)
+        slot = np.full(len(self.landmark_ids), -1, dtype=np.int64)
+        slot[touched] = np.arange(len(touched))
+        m = 6 + 2 * len(touched)
+        H = np.zeros((m, m))
+        g = np.zeros(m)
+        # Linearization points: first estimates for what the prior already holds (FEJ), current values otherwise.
+        lin = np.empty(m)
+        lin[:3] = prior.x_lin[:3] if prior is not None and prior.pose == o else self.poses[o]
+        lin[3:6] = self.poses[n1]
+        lin[6:] = self._landmarks[touched].reshape(-1)
+        if prior is not None:
+            k = 2 * len(held)
+            lin[6 : 6 + k] = prior.x_lin[3:]
+            blocks = (slice(0, 3), slice(6, 6 + k))
+            sources = (slice(0, 3), slice(3, 3 + k))
+            for bi, si in zip(blocks, sources):
+                g[bi] += prior.b[si]
+                for bj, sj in zip(blocks, sources):
+                    H[bi, bj] += prior.A[si, sj]
+        if self._start is not None and self._start[0] == o and self._start[2] is not None:
+            W = sqrt_information(self._start[2])
+            e = lin[:3] - self._start[1]
+            e[2] = wrap(e[2])
+            H[:3, :3] += W.T @ W
+            g[:3] += W.T @ (W @ e)
+        delta, cov = self._odometry[n1]
+        e, J_a, J_b = odometry_residual_with_jacobians(lin[:3], lin[3:6], delta)
+        W = sqrt_information(cov)
+        J = W @ np.hstack([J_a, J_b])
+        H[:6, :6] += J.T @ J
+        g[:6] += J.T @ (W @ e)
+        if obs is not None:
+            indices, z, z_cov = obs
+            slots = slot[indices]
+            z_hat, J_p, J_l = range_bearing_with_jacobians(lin[:3], lin[6:].reshape(-1, 2)[slots])
+            e = z_hat - z
+            e[:, 1] = wrap(e[:, 1])
+            W = sqrt_information(z_cov)
+            r = np.einsum("kij,kj->ki", W, e)
+            if self.config.loss is not None:
+                W = W * np.sqrt(self.config.loss.weight(np.sum(r * r, axis=1)))[:, None, None]
+                r = np.einsum("kij,kj->ki", W, e)
+            Jp, Jl = W @ J_p, W @ J_l  # (k, 2, 3), (k, 2, 2)
+            H[:3, :3] += np.einsum("kai,kaj->ij", Jp, Jp)
+            g[:3] += np.einsum("kai,ka->i", Jp, r)
+            cols = 6 + 2 * slots[:, None] + np.arange(2)  # (k, 2)
+            np.add.at(H, (cols[:, :, None], cols[:, None, :]), np.einsum("kai,kaj->kij", Jl, Jl))
+            np.add.at(g, cols, np.einsum("kai,ka->ki", Jl, r))
+            cross = np.einsum("kai,kaj->kij", Jp, Jl)  # (k, 3, 2)
+            np.add.at(H, (np.arange(3)[None, :, None], cols[:, None, :]), cross)
+            np.add.at(H, (cols[:, :, None], np.arange(3)[None, None, :]), np.swapaxes(cross, 1, 2))
+        if self._start is not None and self._start[0] == o and self._start[2] is None:
+            A, b = H[3:, 3:], g[3:]  # conditioning on a known pose: nothing to eliminate
+        else:
+            H_mm_inv = np.linalg.pinv(H[:3, :3], hermitian=True)
+            K = H[3:, :3] @ H_mm_inv
+            A = H[3:, 3:] - K @ H[:3, 3:]
+            b = g[3:] - K @ g[:3]
+        self.prior = _Prior(n1, touched, lin[3:].copy(), 0.5 * (A + A.T), b)
+        self.final_poses[o] = self.poses.pop(o)
+        self._odometry.pop(n1)
+        self._observations.pop(o, None)
+        self.window.pop(0)
+        self.marginalized += 1
+
+    # -- protocol --------------------------------------------------------------------------------
+    def step(self, step: Step) -> Snapshot:
+        """Add the step; solve every K steps; marginalize beyond W poses."""
+        with self._blas.limit(limits=1, user_api="blas"):
+            self._add_pose(step)
+            self._since_solve += 1
+            report: dict[str, float] = {}
+            if self._since_solve >= self.config.relinearize_every:
+                report = self._solve()
+            marginalized = []
+            while len(self.window) > self.config.window:
+                if self.window[0] in self._unsolved:
+                    report = self._solve()
+                marginalized.append(self.window[0])
+                self._marginalize_oldest()
+            return self.snapshot(step, report, marginalized)
+
+    def snapshot(self, step: Step, report: dict[str, float], marginalized: list[int]) -> Snapshot:
+        """The current estimate as an immutable snapshot."""
+        return Snapshot(
+            estimator=self.name,
+            index=step.index,
+            t=step.t,
+            pose=self.poses[self.window[-1]].copy(),
+            pose_cov=self._pose_cov.copy(),
+            landmark_ids=tuple(self.landmark_ids),
+            landmarks=self._landmarks.copy(),
+            info={
+                "window": tuple(self.window),
+                "window_poses": np.array([self.poses[g] for g in self.window]),
+                "relinearized": bool(report),
+                "marginalized": tuple(marginalized),
+                **report,
+            },
+        )
+
+    def finish(self) -> Estimate:
+        """Solve once more if anything arrived since the last solve; each pose's last estimate is final."""
+        started = time.perf_counter()
+        if self.window:
+            with self._blas.limit(limits=1, user_api="blas"):
+                self._solve(final=True)
+        return Estimate(
+            self.name,
+            np.array(self.final_poses).reshape(-1, 3),
+            tuple(self.landmark_ids),
+            self._landmarks.copy(),
+            {
+                "solves": self.solves,
+                "marginalized_poses": self.marginalized,
+                "window": self.config.window,
+                "relinearize_every": self.config.relinearize_every,
+                "final_solve_s": time.perf_counter() - started,
+            },
+        )
