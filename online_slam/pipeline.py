@@ -20,6 +20,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
+from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.evaluation.metrics import (
     align_se2,
     anchor_transform,
@@ -37,7 +38,7 @@ from online_slam.sources.resolve import open_source
 
 Array = NDArray[np.float64]
 
-ESTIMATORS = ("ekf", "batch")
+ESTIMATORS = ("ekf", "smoother", "batch")
 """Names of the estimators ``replay`` can run (all run by default)."""
 
 Sink = Callable[[Snapshot], None]
@@ -54,6 +55,8 @@ class ReplayConfig:
     """How events become steps (keyframing, first-observation-only ablation)."""
     ekf: EkfConfig = field(default_factory=EkfConfig)
     """Settings of the EKF."""
+    smoother: SmootherConfig = field(default_factory=SmootherConfig)
+    """Settings of the sliding-window smoother."""
     batch: BatchConfig = field(default_factory=BatchConfig)
     """Settings of the batch solver."""
     alignment: str = "anchor"
@@ -64,6 +67,8 @@ def make_estimator(name: str, config: ReplayConfig) -> Estimator:
     """Build an estimator by name."""
     if name == "ekf":
         return EkfSlam(config.ekf)
+    if name == "smoother":
+        return SlidingWindowSmoother(config.smoother)
     if name == "batch":
         return BatchEstimator(config.batch)
     raise OnlineSlamError(f"unknown estimator {name!r}; expected one of {', '.join(ESTIMATORS)}")
@@ -157,7 +162,7 @@ def replay(
 
     Args:
         source: A built-in world name, a stream path (``.gz`` allowed), ``-`` for stdin, or an iterable of events.
-        config: What to run; defaults run dead reckoning, the EKF and the batch solver.
+        config: What to run; defaults run dead reckoning, the EKF, the smoother and the batch solver.
         name: Source name for reports (defaults to the path or world name).
         sinks: Callables given every snapshot of every estimator, in step order (with ``wall_s`` set).
 

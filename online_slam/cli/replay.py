@@ -11,6 +11,8 @@ from pathlib import Path
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig
+from online_slam.estimators.smoother import SmootherConfig
+from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.pipeline import ESTIMATORS, ReplayConfig, replay
 from online_slam.reports.table import format_results
@@ -48,6 +50,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="P",
         help=f"EKF chi-square gate on each observation's NIS, 2 dof (default {EkfConfig.gate_probability}; 1 = off)",
     )
+    p.add_argument("--window", type=int, default=SmootherConfig.window, help="smoother: poses kept in the window (W)")
+    p.add_argument(
+        "--relinearize-every",
+        type=int,
+        default=SmootherConfig.relinearize_every,
+        metavar="K",
+        help="smoother: relinearize and solve every K steps (default 1)",
+    )
+    p.add_argument(
+        "--robust",
+        choices=("none", "huber", "cauchy"),
+        default="none",
+        help="robust loss on observations for the smoother and the batch solver (default none)",
+    )
+    p.add_argument(
+        "--robust-scale", type=float, default=RobustLoss.scale, help="robust loss threshold in sigmas (default 1.345)"
+    )
     p.add_argument(
         "--ekf-update",
         choices=("joint", "sequential"),
@@ -70,13 +89,16 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
     names = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
     try:
         ekf = EkfConfig(gate_probability=args.gate_probability, update=args.ekf_update)
+        loss = None if args.robust == "none" else RobustLoss(args.robust, args.robust_scale)
+        smoother = SmootherConfig(window=args.window, relinearize_every=args.relinearize_every, loss=loss)
     except ValueError as exc:
-        raise OnlineSlamError(f"--gate-probability: {exc}") from None
+        raise OnlineSlamError(f"replay: {exc}") from None
     return ReplayConfig(
         estimators=names,
         frontend=FrontEndConfig(keyframing=keyframing, first_observation_only=args.first_observation_only),
         ekf=ekf,
-        batch=BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations)),
+        smoother=smoother,
+        batch=BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), loss=loss),
         alignment=args.align,
     )
 

@@ -4,6 +4,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
+from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 
 __all__ = [
     "BatchConfig",
@@ -13,5 +14,7 @@ __all__ = [
     "EkfSlam",
     "Estimate",
     "Estimator",
+    "SlidingWindowSmoother",
+    "SmootherConfig",
     "Snapshot",
 ]

@@ -9,6 +9,7 @@ import numpy as np
 
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
+from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import Step
 from online_slam.solvers.least_squares import SolverConfig, solve
 
@@ -19,6 +20,8 @@ class BatchConfig:
 
     solver: SolverConfig = field(default_factory=SolverConfig)
     """Settings of the sparse Levenberg-Marquardt solver."""
+    loss: RobustLoss | None = None
+    """Robust loss on observations (Huber or Cauchy), or None for plain least squares."""
 
 
 class BatchEstimator:
@@ -44,7 +47,13 @@ class BatchEstimator:
         """Solve the full problem from the composed-odometry initial values."""
         started = time.perf_counter()
         graph = self.log.graph()
-        result = solve(graph, np.array(self.log.poses).reshape(-1, 3), self.log.landmarks, self.config.solver)
+        result = solve(
+            graph,
+            np.array(self.log.poses).reshape(-1, 3),
+            self.log.landmarks,
+            self.config.solver,
+            loss=self.config.loss,
+        )
         info = {
             "iterations": result.iterations,
             "converged": result.converged,

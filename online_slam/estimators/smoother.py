@@ -6,12 +6,19 @@ factors. Every K steps, and at the end of the stream, it relinearizes all factor
 Levenberg-Marquardt to convergence. A pose is never marginalized before it has been optimized at least once.
 
 When the window holds more than W poses, the oldest is marginalized: its factors (odometry to the next pose,
-its observations, the previous marginal prior, a start prior) are linearized and its 3 variables eliminated by
-a Schur complement, leaving a dense Gaussian prior on the next pose and the landmarks it touched. The prior
-keeps its linearization point: variables already in it are linearized at their first estimate (FEJ) when
-later factors are folded in, and its residual is ``d = x - x_lin`` with the heading wrapped. Landmarks are never
-marginalized, so a re-observation long after the poses that saw a landmark left the window (a loop closure)
-still corrects the map and the current pose.
+its observations, a start prior) are linearized and folded into the marginal prior, and its 3 variables are
+eliminated. The prior is a Gaussian ``d ~ N(mu, Sigma)`` on ``d = x - x_lin`` (heading wrapped) over the oldest
+window pose and every landmark it has touched, kept in covariance form: folding a factor in is an exact
+linear-Gaussian update (the next pose and new landmarks are appended through their factor, the other
+observations update it like a Kalman filter), and eliminating a pose is dropping its rows — the same result
+as a Schur complement of the information matrix, at O(n^2) per factor. The prior keeps its linearization
+point: variables already in it are linearized at their first estimate (FEJ) when later factors are folded in.
+Landmarks are never marginalized, so a re-observation long after the poses that saw a landmark left the
+window (a loop closure) still corrects the map and the current pose.
+
+Each solve eliminates from the prior the landmarks no window pose observes (its marginal on the rest is
+``N(mu_a, Sigma_aa)``, read off directly) and recovers them afterwards from their conditional mean, so each
+iteration factors a system over the window poses and the observed landmarks only.
 
 Per-step cost depends on W and the size of the map, not on the length of the trajectory.
 """
@@ -57,6 +64,9 @@ class SmootherConfig:
     """Settings of the last solve, at the end of the stream (tight by default: it gives the final estimate)."""
     loss: RobustLoss | None = None
     """Robust loss on observations (Huber or Cauchy), or None for plain least squares."""
+    first_estimate_jacobians: bool = True
+    """Linearize factors folded into the prior at the prior's own linearization point (FEJ). False re-centres
+    the prior at the current estimate first (exact for a Gaussian) and linearizes there."""
 
     def __post_init__(self) -> None:
         if self.window < 1:
@@ -67,13 +77,13 @@ class SmootherConfig:
 
 @dataclass
 class _Prior:
-    """The marginal prior: ``0.5 d^T A d + b^T d`` over [pose, landmarks...], ``d = x - x_lin``."""
+    """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[pose, landmarks...]``."""
 
     pose: int
     landmarks: Index
     x_lin: Array
-    A: Array
-    b: Array
+    mu: Array
+    Sigma: Array
 
 
 class SlidingWindowSmoother:
@@ -215,116 +225,133 @@ class SlidingWindowSmoother:
         return {"iterations": result.iterations, "cost_before": result.initial_cost, "cost_after": result.final_cost}
 
     def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
-        """The marginal prior with its passive landmarks eliminated, and a function that recovers them."""
+        """The prior's marginal on its pose and the active landmarks, and a function recovering the others."""
         p = self.prior
         assert p is not None
         is_active = np.isin(p.landmarks, active)
-        n_a = 3 + 2 * int(is_active.sum())
         order = np.r_[np.arange(3), (3 + 2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1)]
         passive = (3 + 2 * np.flatnonzero(~is_active)[:, None] + np.arange(2)).reshape(-1)
-        A_aa, b_a = p.A[np.ix_(order, order)], p.b[order]
-        solve_pp = None
-        if len(passive):
-            A_pp, A_pa, b_p = p.A[np.ix_(passive, passive)], p.A[np.ix_(passive, order)], p.b[passive]
-            try:
-                factor = la.cho_factor(A_pp)
-                solve_pp = lambda rhs: la.cho_solve(factor, rhs)  # noqa: E731
-            except la.LinAlgError:  # rank-deficient: least-squares solution
-                pinv = np.linalg.pinv(A_pp, hermitian=True)
-                solve_pp = lambda rhs: pinv @ rhs  # noqa: E731
-            X = solve_pp(np.column_stack([A_pa, b_p]))
-            A_aa = A_aa - A_pa.T @ X[:, :-1]
-            b_a = b_a - A_pa.T @ X[:, -1]
+        S_aa = p.Sigma[np.ix_(order, order)]
+        try:
+            A = la.cho_solve(la.cho_factor(S_aa), np.eye(len(order)))
+        except la.LinAlgError:  # rank-deficient: the information of the directions it has
+            A = np.linalg.pinv(S_aa, hermitian=True)
+        A = 0.5 * (A + A.T)
+        mu_a = p.mu[order]
         local = np.searchsorted(active, p.landmarks[is_active])
         columns = np.r_[pose_column + np.arange(3), (landmark_column[local][:, None] + np.arange(2)).reshape(-1)]
-        angle = np.zeros(n_a, dtype=bool)
+        angle = np.zeros(len(order), dtype=bool)
         angle[2] = True
-        quadratic = QuadraticPrior(columns, p.x_lin[order], angle, 0.5 * (A_aa + A_aa.T), b_a)
-        if solve_pp is None:
+        quadratic = QuadraticPrior(columns, p.x_lin[order], angle, A, -A @ mu_a)
+        if len(passive) == 0:
             return quadratic, None
+        gain = p.Sigma[np.ix_(passive, order)] @ A  # conditional mean of the passive given the active
         passive_ids = p.landmarks[~is_active]
 
         def recover(oldest_pose: Array, active_landmarks: Array) -> None:
-            x_a = np.r_[oldest_pose, active_landmarks[local].reshape(-1)]
-            d_a = x_a - p.x_lin[order]
+            d_a = np.r_[oldest_pose, active_landmarks[local].reshape(-1)] - p.x_lin[order]
             d_a[2] = wrap(d_a[2])
-            d_p = -solve_pp(A_pa @ d_a + b_p)
+            d_p = p.mu[passive] + gain @ (d_a - mu_a)
             self._landmarks[passive_ids] = (p.x_lin[passive] + d_p).reshape(-1, 2)
 
         return quadratic, recover
 
     # -- marginalization -------------------------------------------------------------------------
-    def _marginalize_oldest(self) -> None:
-        """Eliminate the oldest window pose by a Schur complement into the marginal prior.
+    def _initial_prior(self) -> _Prior:
+        """The prior before any marginalization: the start pose, fixed (Sigma = 0) or with its prior."""
+        assert self._start is not None
+        index, mean, cov = self._start
+        x_lin = self.poses[index].copy()
+        mu = mean - x_lin
+        mu[2] = wrap(mu[2])
+        Sigma = np.zeros((3, 3)) if cov is None else np.array(cov, dtype=float)
+        return _Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
 
-        The system is built over ``[o, n1, prior landmarks..., new landmarks...]``: the old prior's landmarks
-        keep their order (so it lands in contiguous blocks) and landmarks it did not hold yet are appended.
+    def _marginalize_oldest(self) -> None:
+        """Fold the oldest window pose's factors into the prior, then eliminate the pose.
+
+        State of the prior during the fold: ``[o, landmarks held..., new landmarks..., n1]``. New variables are
+        appended through the factor that determines them (``d_new = -J_new^-1 (r0 + J_o d_o + v)``); the other
+        observations of o update the prior jointly like a Kalman filter; finally o's rows are dropped and n1
+        moves to the front.
         """
         o, n1 = self.window[0], self.window[1]
-        prior = self.prior
-        held = np.zeros(0, dtype=np.int64) if prior is None else prior.landmarks
+        p = self.prior if self.prior is not None else self._initial_prior()
+        assert p.pose == o
+        x_lin, mu, Sigma = p.x_lin, p.mu, p.Sigma
+        if not self.config.first_estimate_jacobians:
+            current = np.r_[self.poses[o], self._landmarks[p.landmarks].reshape(-1)]
+            shift = current - x_lin
+            shift[2] = wrap(shift[2])
+            x_lin, mu = current, mu - shift
+        landmarks = list(p.landmarks)
+        slot = {int(j): k for k, j in enumerate(landmarks)}
+
+        def append(r0: Array, J_o: Array, J_new: Array, lin_new: Array) -> None:
+            """Append variables fixed by one whitened factor ``r0 + J_o d_o + J_new d_new + v = 0``."""
+            nonlocal x_lin, mu, Sigma
+            inv = np.linalg.inv(J_new)
+            M = -inv @ J_o  # d_new = M d_o - inv (r0 + v)
+            cross = M @ Sigma[:3, :]
+            block = cross[:, :3] @ M.T + inv @ inv.T
+            mu = np.r_[mu, M @ mu[:3] - inv @ r0]
+            n, m = len(Sigma), len(block)
+            grown = np.empty((n + m, n + m))
+            grown[:n, :n], grown[n:, :n], grown[:n, n:], grown[n:, n:] = Sigma, cross, cross.T, 0.5 * (block + block.T)
+            Sigma = grown
+            x_lin = np.r_[x_lin, lin_new]
+
         obs = self._observations.get(o)
-        seen = np.zeros(0, dtype=np.int64) if obs is None else np.unique(obs[0])
-        touched = np.r_[held, seen[~np.isin(seen, held)]].astype(np.int64)
-        slot = np.full(len(self.landmark_ids), -1, dtype=np.int64)
-        slot[touched] = np.arange(len(touched))
-        m = 6 + 2 * len(touched)
-        H = np.zeros((m, m))
-        g = np.zeros(m)
-        # Linearization points: first estimates for what the prior already holds (FEJ), current values otherwise.
-        lin = np.empty(m)
-        lin[:3] = prior.x_lin[:3] if prior is not None and prior.pose == o else self.poses[o]
-        lin[3:6] = self.poses[n1]
-        lin[6:] = self._landmarks[touched].reshape(-1)
-        if prior is not None:
-            k = 2 * len(held)
-            lin[6 : 6 + k] = prior.x_lin[3:]
-            blocks = (slice(0, 3), slice(6, 6 + k))
-            sources = (slice(0, 3), slice(3, 3 + k))
-            for bi, si in zip(blocks, sources):
-                g[bi] += prior.b[si]
-                for bj, sj in zip(blocks, sources):
-                    H[bi, bj] += prior.A[si, sj]
-        if self._start is not None and self._start[0] == o and self._start[2] is not None:
-            W = sqrt_information(self._start[2])
-            e = lin[:3] - self._start[1]
-            e[2] = wrap(e[2])
-            H[:3, :3] += W.T @ W
-            g[:3] += W.T @ (W @ e)
-        delta, cov = self._odometry[n1]
-        e, J_a, J_b = odometry_residual_with_jacobians(lin[:3], lin[3:6], delta)
-        W = sqrt_information(cov)
-        J = W @ np.hstack([J_a, J_b])
-        H[:6, :6] += J.T @ J
-        g[:6] += J.T @ (W @ e)
         if obs is not None:
             indices, z, z_cov = obs
-            slots = slot[indices]
-            z_hat, J_p, J_l = range_bearing_with_jacobians(lin[:3], lin[6:].reshape(-1, 2)[slots])
+            W = sqrt_information(z_cov)
+            lin_o = x_lin[:3]
+            fresh = np.zeros(len(indices), dtype=bool)
+            for k, j in enumerate(indices):  # first sight of a landmark the prior does not hold yet
+                if int(j) not in slot:
+                    slot[int(j)] = len(landmarks)
+                    landmarks.append(int(j))
+                    fresh[k] = True
+            lin_l = np.array(
+                [
+                    x_lin[3 + 2 * slot[int(j)] : 5 + 2 * slot[int(j)]] if not fresh[k] else self._landmarks[j]
+                    for k, j in enumerate(indices)
+                ]
+            )
+            z_hat, J_p, J_l = range_bearing_with_jacobians(lin_o, lin_l)
             e = z_hat - z
             e[:, 1] = wrap(e[:, 1])
-            W = sqrt_information(z_cov)
-            r = np.einsum("kij,kj->ki", W, e)
+            r0 = np.einsum("kij,kj->ki", W, e)
             if self.config.loss is not None:
-                W = W * np.sqrt(self.config.loss.weight(np.sum(r * r, axis=1)))[:, None, None]
-                r = np.einsum("kij,kj->ki", W, e)
-            Jp, Jl = W @ J_p, W @ J_l  # (k, 2, 3), (k, 2, 2)
-            H[:3, :3] += np.einsum("kai,kaj->ij", Jp, Jp)
-            g[:3] += np.einsum("kai,ka->i", Jp, r)
-            cols = 6 + 2 * slots[:, None] + np.arange(2)  # (k, 2)
-            np.add.at(H, (cols[:, :, None], cols[:, None, :]), np.einsum("kai,kaj->kij", Jl, Jl))
-            np.add.at(g, cols, np.einsum("kai,ka->ki", Jl, r))
-            cross = np.einsum("kai,kaj->kij", Jp, Jl)  # (k, 3, 2)
-            np.add.at(H, (np.arange(3)[None, :, None], cols[:, None, :]), cross)
-            np.add.at(H, (cols[:, :, None], np.arange(3)[None, None, :]), np.swapaxes(cross, 1, 2))
-        if self._start is not None and self._start[0] == o and self._start[2] is None:
-            A, b = H[3:, 3:], g[3:]  # conditioning on a known pose: nothing to eliminate
-        else:
-            H_mm_inv = np.linalg.pinv(H[:3, :3], hermitian=True)
-            K = H[3:, :3] @ H_mm_inv
-            A = H[3:, 3:] - K @ H[:3, 3:]
-            b = g[3:] - K @ g[:3]
-        self.prior = _Prior(n1, touched, lin[3:].copy(), 0.5 * (A + A.T), b)
+                W = W * np.sqrt(self.config.loss.weight(np.sum(r0 * r0, axis=1)))[:, None, None]
+                r0 = np.einsum("kij,kj->ki", W, e)
+            Jp, Jl = W @ J_p, W @ J_l
+            for k in np.flatnonzero(fresh):
+                append(r0[k], Jp[k], Jl[k], lin_l[k])
+            rest = np.flatnonzero(~fresh)
+            if len(rest):
+                cols = np.r_[
+                    np.arange(3),
+                    (3 + 2 * np.array([slot[int(indices[k])] for k in rest])[:, None] + np.arange(2)).reshape(-1),
+                ]
+                J_s = np.zeros((2 * len(rest), len(cols)))
+                J_s[:, :3] = Jp[rest].reshape(-1, 3)
+                rows = np.arange(2 * len(rest))
+                J_s[rows[:, None], 3 + 2 * (rows[:, None] // 2) + np.arange(2)] = Jl[rest].reshape(-1, 2)
+                PHt = Sigma[:, cols] @ J_s.T
+                S = J_s @ PHt[cols] + np.eye(len(rows))
+                L_inv = np.linalg.inv(np.linalg.cholesky(S))
+                G = PHt @ L_inv.T
+                y = -(r0[rest].reshape(-1) + J_s @ mu[cols])
+                mu = mu + G @ (L_inv @ y)
+                Sigma = Sigma - G @ G.T
+        delta, cov = self._odometry[n1]
+        e, J_a, J_b = odometry_residual_with_jacobians(x_lin[:3], self.poses[n1], delta)
+        W = sqrt_information(cov)
+        append(W @ e, W @ J_a, W @ J_b, self.poses[n1])
+        n = len(Sigma)
+        keep = np.r_[np.arange(n - 3, n), np.arange(3, n - 3)]
+        self.prior = _Prior(n1, np.array(landmarks, dtype=np.int64), x_lin[keep], mu[keep], Sigma[np.ix_(keep, keep)])
         self.final_poses[o] = self.poses.pop(o)
         self._odometry.pop(n1)
         self._observations.pop(o, None)

@@ -148,7 +148,7 @@ def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
     landmarks = rng.uniform(-margin, size + margin, size=(c.landmarks, 2))
     headings = np.array([0.0, np.pi / 2, np.pi, -np.pi / 2])
     moves = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])
-    cell = np.array([0, 0])  # position in units of `step`
+    cell = np.array([c.blocks // 2, c.blocks // 2]) * per_block  # start at the central crossing (units of `step`)
     direction = 0
     limit = c.blocks * per_block
     truth = np.empty((c.poses, 3))
