@@ -77,13 +77,39 @@ class SmootherConfig:
 
 @dataclass
 class _Prior:
-    """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[pose, landmarks...]``."""
+    """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[landmarks..., pose]``.
+
+    The pose comes last so that dropping it is a slice, not a copy.
+    """
 
     pose: int
     landmarks: Index
     x_lin: Array
     mu: Array
     Sigma: Array
+
+
+def _fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array, Array]:
+    """Merge repeated observations of one landmark from one pose into a single equivalent observation.
+
+    Both measure the same ``h(pose, landmark)``, so their two quadratics sum to one with information
+    ``R1^-1 + R2^-1`` centred on the information-weighted mean (bearings averaged relative to the first).
+    """
+    if len(np.unique(indices)) == len(indices):
+        return indices, z, z_cov
+    keep_i, keep_z, keep_c = [], [], []
+    for j in dict.fromkeys(indices.tolist()):
+        rows = np.flatnonzero(indices == j)
+        info = np.linalg.inv(z_cov[rows])
+        offsets = z[rows] - z[rows[0]]
+        offsets[:, 1] = wrap(offsets[:, 1])
+        cov = np.linalg.inv(info.sum(axis=0))
+        mean = z[rows[0]] + cov @ np.einsum("kij,kj->i", info, offsets)
+        mean[1] = wrap(mean[1])
+        keep_i.append(j)
+        keep_z.append(mean)
+        keep_c.append(0.5 * (cov + cov.T))
+    return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c)
 
 
 class SlidingWindowSmoother:
@@ -228,9 +254,10 @@ class SlidingWindowSmoother:
         """The prior's marginal on its pose and the active landmarks, and a function recovering the others."""
         p = self.prior
         assert p is not None
+        n = len(p.mu)
         is_active = np.isin(p.landmarks, active)
-        order = np.r_[np.arange(3), (3 + 2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1)]
-        passive = (3 + 2 * np.flatnonzero(~is_active)[:, None] + np.arange(2)).reshape(-1)
+        order = np.r_[(2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1), np.arange(n - 3, n)]
+        passive = (2 * np.flatnonzero(~is_active)[:, None] + np.arange(2)).reshape(-1)
         S_aa = p.Sigma[np.ix_(order, order)]
         try:
             A = la.cho_solve(la.cho_factor(S_aa), np.eye(len(order)))
@@ -239,9 +266,9 @@ class SlidingWindowSmoother:
         A = 0.5 * (A + A.T)
         mu_a = p.mu[order]
         local = np.searchsorted(active, p.landmarks[is_active])
-        columns = np.r_[pose_column + np.arange(3), (landmark_column[local][:, None] + np.arange(2)).reshape(-1)]
+        columns = np.r_[(landmark_column[local][:, None] + np.arange(2)).reshape(-1), pose_column + np.arange(3)]
         angle = np.zeros(len(order), dtype=bool)
-        angle[2] = True
+        angle[-1] = True
         quadratic = QuadraticPrior(columns, p.x_lin[order], angle, A, -A @ mu_a)
         if len(passive) == 0:
             return quadratic, None
@@ -249,8 +276,8 @@ class SlidingWindowSmoother:
         passive_ids = p.landmarks[~is_active]
 
         def recover(oldest_pose: Array, active_landmarks: Array) -> None:
-            d_a = np.r_[oldest_pose, active_landmarks[local].reshape(-1)] - p.x_lin[order]
-            d_a[2] = wrap(d_a[2])
+            d_a = np.r_[active_landmarks[local].reshape(-1), oldest_pose] - p.x_lin[order]
+            d_a[-1] = wrap(d_a[-1])
             d_p = p.mu[passive] + gain @ (d_a - mu_a)
             self._landmarks[passive_ids] = (p.x_lin[passive] + d_p).reshape(-1, 2)
 
@@ -268,90 +295,91 @@ class SlidingWindowSmoother:
         return _Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
 
     def _marginalize_oldest(self) -> None:
-        """Fold the oldest window pose's factors into the prior, then eliminate the pose.
+        """Fold the oldest window pose o's factors into the prior ``[landmarks..., o]``, then eliminate o.
 
-        State of the prior during the fold: ``[o, landmarks held..., new landmarks..., n1]``. New variables are
-        appended through the factor that determines them (``d_new = -J_new^-1 (r0 + J_o d_o + v)``); the other
-        observations of o update the prior jointly like a Kalman filter; finally o's rows are dropped and n1
-        moves to the front.
+        First o's observations of landmarks the prior holds update it jointly (a Kalman update). Then every
+        variable that o's remaining factors determine — landmarks seen for the first time, and the next pose
+        n1 through the odometry — is appended from its factor, ``d_new = M d_o - J_new^-1 (r0 + v)`` with
+        ``M = -J_new^-1 J_o``; their noises are independent, so one growth of Sigma serves them all and drops o
+        on the way: ``[landmarks..., new landmarks..., n1]``.
         """
         o, n1 = self.window[0], self.window[1]
         p = self.prior if self.prior is not None else self._initial_prior()
         assert p.pose == o
         x_lin, mu, Sigma = p.x_lin, p.mu, p.Sigma
+        n = len(mu)
         if not self.config.first_estimate_jacobians:
-            current = np.r_[self.poses[o], self._landmarks[p.landmarks].reshape(-1)]
+            current = np.r_[self._landmarks[p.landmarks].reshape(-1), self.poses[o]]
             shift = current - x_lin
-            shift[2] = wrap(shift[2])
+            shift[-1] = wrap(shift[-1])
             x_lin, mu = current, mu - shift
+        lin_o = x_lin[n - 3 :]
         landmarks = list(p.landmarks)
         slot = {int(j): k for k, j in enumerate(landmarks)}
-
-        def append(r0: Array, J_o: Array, J_new: Array, lin_new: Array) -> None:
-            """Append variables fixed by one whitened factor ``r0 + J_o d_o + J_new d_new + v = 0``."""
-            nonlocal x_lin, mu, Sigma
-            inv = np.linalg.inv(J_new)
-            M = -inv @ J_o  # d_new = M d_o - inv (r0 + v)
-            cross = M @ Sigma[:3, :]
-            block = cross[:, :3] @ M.T + inv @ inv.T
-            mu = np.r_[mu, M @ mu[:3] - inv @ r0]
-            n, m = len(Sigma), len(block)
-            grown = np.empty((n + m, n + m))
-            grown[:n, :n], grown[n:, :n], grown[:n, n:], grown[n:, n:] = Sigma, cross, cross.T, 0.5 * (block + block.T)
-            Sigma = grown
-            x_lin = np.r_[x_lin, lin_new]
-
+        # factors that append a variable: (r0, J_o, J_new, lin_new)
+        appended: list[tuple[Array, Array, Array, Array]] = []
         obs = self._observations.get(o)
         if obs is not None:
-            indices, z, z_cov = obs
-            W = sqrt_information(z_cov)
-            lin_o = x_lin[:3]
-            fresh = np.zeros(len(indices), dtype=bool)
-            for k, j in enumerate(indices):  # first sight of a landmark the prior does not hold yet
-                if int(j) not in slot:
-                    slot[int(j)] = len(landmarks)
-                    landmarks.append(int(j))
-                    fresh[k] = True
+            indices, z, z_cov = _fuse_repeats(*obs)
+            held = np.array([int(j) in slot for j in indices], dtype=bool)
+            first = ~held  # first sight (repeats are fused): appends the landmark
+            for j in indices[first]:
+                slot[int(j)] = len(landmarks)
+                landmarks.append(int(j))
             lin_l = np.array(
                 [
-                    x_lin[3 + 2 * slot[int(j)] : 5 + 2 * slot[int(j)]] if not fresh[k] else self._landmarks[j]
+                    self._landmarks[j] if first[k] else x_lin[2 * slot[int(j)] : 2 * slot[int(j)] + 2]
                     for k, j in enumerate(indices)
                 ]
             )
             z_hat, J_p, J_l = range_bearing_with_jacobians(lin_o, lin_l)
             e = z_hat - z
             e[:, 1] = wrap(e[:, 1])
+            W = sqrt_information(z_cov)
             r0 = np.einsum("kij,kj->ki", W, e)
             if self.config.loss is not None:
                 W = W * np.sqrt(self.config.loss.weight(np.sum(r0 * r0, axis=1)))[:, None, None]
                 r0 = np.einsum("kij,kj->ki", W, e)
             Jp, Jl = W @ J_p, W @ J_l
-            for k in np.flatnonzero(fresh):
-                append(r0[k], Jp[k], Jl[k], lin_l[k])
-            rest = np.flatnonzero(~fresh)
-            if len(rest):
+            update = np.flatnonzero(held)
+            if len(update):
                 cols = np.r_[
-                    np.arange(3),
-                    (3 + 2 * np.array([slot[int(indices[k])] for k in rest])[:, None] + np.arange(2)).reshape(-1),
+                    (2 * np.array([slot[int(indices[k])] for k in update])[:, None] + np.arange(2)).reshape(-1),
+                    np.arange(n - 3, n),
                 ]
-                J_s = np.zeros((2 * len(rest), len(cols)))
-                J_s[:, :3] = Jp[rest].reshape(-1, 3)
-                rows = np.arange(2 * len(rest))
-                J_s[rows[:, None], 3 + 2 * (rows[:, None] // 2) + np.arange(2)] = Jl[rest].reshape(-1, 2)
+                m = 2 * len(update)
+                J_s = np.zeros((m, len(cols)))
+                J_s[:, -3:] = Jp[update].reshape(-1, 3)
+                rows = np.arange(m)
+                J_s[rows[:, None], 2 * (rows[:, None] // 2) + np.arange(2)] = Jl[update].reshape(-1, 2)
                 PHt = Sigma[:, cols] @ J_s.T
-                S = J_s @ PHt[cols] + np.eye(len(rows))
+                S = J_s @ PHt[cols] + np.eye(m)
                 L_inv = np.linalg.inv(np.linalg.cholesky(S))
                 G = PHt @ L_inv.T
-                y = -(r0[rest].reshape(-1) + J_s @ mu[cols])
-                mu = mu + G @ (L_inv @ y)
+                mu = mu + G @ (L_inv @ -(r0[update].reshape(-1) + J_s @ mu[cols]))
                 Sigma = Sigma - G @ G.T
+            appended += [(r0[k], Jp[k], Jl[k], lin_l[k]) for k in np.flatnonzero(first)]
         delta, cov = self._odometry[n1]
-        e, J_a, J_b = odometry_residual_with_jacobians(x_lin[:3], self.poses[n1], delta)
+        e, J_a, J_b = odometry_residual_with_jacobians(lin_o, self.poses[n1], delta)
         W = sqrt_information(cov)
-        append(W @ e, W @ J_a, W @ J_b, self.poses[n1])
-        n = len(Sigma)
-        keep = np.r_[np.arange(n - 3, n), np.arange(3, n - 3)]
-        self.prior = _Prior(n1, np.array(landmarks, dtype=np.int64), x_lin[keep], mu[keep], Sigma[np.ix_(keep, keep)])
+        appended.append((W @ e, W @ J_a, W @ J_b, self.poses[n1]))
+        # One growth: keep the landmarks, append the new variables, drop o.
+        inv = [np.linalg.inv(a[2]) for a in appended]
+        M = np.vstack([-i @ a[1] for i, a in zip(inv, appended)])  # (q, 3)
+        offset = np.concatenate([-i @ a[0] for i, a in zip(inv, appended)])
+        noise = la.block_diag(*[i @ i.T for i in inv])
+        keep = n - 3
+        S_oo, S_lo = Sigma[keep:, keep:], Sigma[:keep, keep:]
+        q = len(M)
+        grown = np.empty((keep + q, keep + q))
+        grown[:keep, :keep] = Sigma[:keep, :keep]
+        grown[keep:, :keep] = M @ S_lo.T
+        grown[:keep, keep:] = grown[keep:, :keep].T
+        block = M @ S_oo @ M.T + noise
+        grown[keep:, keep:] = 0.5 * (block + block.T)
+        mu = np.r_[mu[:keep], M @ mu[keep:] + offset]
+        x_lin = np.r_[x_lin[:keep], np.concatenate([a[3] for a in appended])]
+        self.prior = _Prior(n1, np.array(landmarks, dtype=np.int64), x_lin, mu, grown)
         self.final_poses[o] = self.poses.pop(o)
         self._odometry.pop(n1)
         self._observations.pop(o, None)

@@ -272,68 +272,86 @@ def linearize(
     return r, J
 
 
-def normal_equations(
-    graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array, loss: RobustLoss | None = None
-) -> tuple[Array, Array]:
-    """Dense Gauss-Newton normal equations ``H = J^T J`` and ``g = J^T r``, assembled block by block.
+class DenseAssembler:
+    """Dense Gauss-Newton normal equations ``H = J^T J``, ``g = J^T r`` and the cost, assembled block by block.
 
     For small problems (a smoother's window) this avoids building the sparse Jacobian: each factor's whitened
-    Jacobian blocks are multiplied out and scattered into H with one ``bincount`` per block pair.
+    Jacobian blocks are multiplied out and scattered into H with one ``bincount``. Where each block lands is
+    worked out once, at construction, and reused for every linearization of the same graph.
 
     Args:
         graph: The factor graph.
         sparse: Its layout (from :func:`layout`).
-        poses: Pose values, shape (n_poses, 3).
-        landmarks: Landmark values, shape (n_landmarks, 2).
-        loss: Robust loss on observations (IRLS weights), or None.
-
-    Returns:
-        (H (n, n), g (n,)) over the free columns, n = ``sparse.n_columns``.
     """
-    n = sparse.n_columns
-    H = np.zeros(n * n)
-    g = np.zeros(n)
-    e_prior = poses[graph.prior_pose] - graph.prior_mean
-    e_prior[:, 2] = wrap(e_prior[:, 2])
-    e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
-    z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
-    e_obs = z - graph.obs_z
-    e_obs[:, 1] = wrap(e_obs[:, 1])
-    W_obs = graph.obs_sqrt_info
-    if loss is not None and len(e_obs):
-        s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
-        W_obs = W_obs * np.sqrt(loss.weight(s))[:, None, None]
-    W_odo = graph.odo_sqrt_info
-    factors = [
-        (_whiten(graph.prior_sqrt_info, e_prior), [(sparse.pose_column[graph.prior_pose], graph.prior_sqrt_info)]),
-        (
-            _whiten(W_odo, e_odo),
-            [(sparse.pose_column[graph.odo_from], W_odo @ J_a), (sparse.pose_column[graph.odo_to], W_odo @ J_b)],
-        ),
-        (
-            _whiten(W_obs, e_obs),
-            [
-                (sparse.pose_column[graph.obs_pose], W_obs @ J_p),
-                (sparse.landmark_column[graph.obs_landmark], W_obs @ J_l),
-            ],
-        ),
-    ]
-    h_index, h_value, g_index, g_value = [], [], [], []
-    for r, blocks in factors:
-        if len(r) == 0:
-            continue
-        for first_a, J_a_ in blocks:
-            c_a = J_a_.shape[2]
-            ok_a = first_a >= 0
-            g_index.append((first_a[ok_a, None] + np.arange(c_a)).ravel())
-            g_value.append(np.einsum("kmi,km->ki", J_a_[ok_a], r[ok_a]).ravel())
-            for first_b, J_b_ in blocks:
-                c_b = J_b_.shape[2]
-                ok = ok_a & (first_b >= 0)
-                rows = first_a[ok, None, None] + np.arange(c_a)[:, None]
-                h_index.append((rows * n + first_b[ok, None, None] + np.arange(c_b)).ravel())
-                h_value.append(np.einsum("kmi,kmj->kij", J_a_[ok], J_b_[ok]).ravel())
-    if h_index:
-        H = np.bincount(np.concatenate(h_index), np.concatenate(h_value), minlength=n * n)
-        g = np.bincount(np.concatenate(g_index), np.concatenate(g_value), minlength=n)
-    return H.reshape(n, n), g
+
+    def __init__(self, graph: FactorGraph, sparse: SparseLayout) -> None:
+        self.graph, self.n = graph, sparse.n_columns
+        n = self.n
+        self._blocks = {
+            "prior": [(sparse.pose_column[graph.prior_pose], 3)],
+            "odometry": [(sparse.pose_column[graph.odo_from], 3), (sparse.pose_column[graph.odo_to], 3)],
+            "observation": [(sparse.pose_column[graph.obs_pose], 3), (sparse.landmark_column[graph.obs_landmark], 2)],
+        }
+        h_index, g_index = [], []
+        self._masks: dict[str, list[tuple[NDArray[np.bool_], list[NDArray[np.bool_]]]]] = {}
+        for kind, blocks in self._blocks.items():
+            self._masks[kind] = []
+            for first_a, c_a in blocks:
+                ok_a = first_a >= 0
+                g_index.append((first_a[ok_a, None] + np.arange(c_a)).ravel())
+                pair_masks = []
+                for first_b, c_b in blocks:
+                    ok = ok_a & (first_b >= 0)
+                    rows = first_a[ok, None, None] + np.arange(c_a)[:, None]
+                    h_index.append((rows * n + first_b[ok, None, None] + np.arange(c_b)).ravel())
+                    pair_masks.append(ok)
+                self._masks[kind].append((ok_a, pair_masks))
+        self._h_index = np.concatenate(h_index) if h_index else np.zeros(0, dtype=np.int64)
+        self._g_index = np.concatenate(g_index) if g_index else np.zeros(0, dtype=np.int64)
+
+    def __call__(self, poses: Array, landmarks: Array, loss: RobustLoss | None = None) -> tuple[Array, Array, float]:
+        """(H (n, n), g (n,), cost) at the given values; cost as :func:`cost`.
+
+        Args:
+            poses: Pose values, shape (n_poses, 3).
+            landmarks: Landmark values, shape (n_landmarks, 2).
+            loss: Robust loss on observations (IRLS weights), or None.
+        """
+        graph, n = self.graph, self.n
+        e_prior = poses[graph.prior_pose] - graph.prior_mean
+        e_prior[:, 2] = wrap(e_prior[:, 2])
+        e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
+        z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
+        e_obs = z - graph.obs_z
+        e_obs[:, 1] = wrap(e_obs[:, 1])
+        W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
+        r_prior, r_odo, r_obs = _whiten(graph.prior_sqrt_info, e_prior), _whiten(W_odo, e_odo), _whiten(W_obs, e_obs)
+        total = 0.5 * float(np.sum(r_prior**2) + np.sum(r_odo**2))
+        if loss is not None and len(e_obs):
+            s = np.sum(r_obs**2, axis=1)
+            total += 0.5 * float(np.sum(loss.rho(s)))
+            sqrt_w = np.sqrt(loss.weight(s))
+            W_obs, r_obs = W_obs * sqrt_w[:, None, None], r_obs * sqrt_w[:, None]
+        else:
+            total += 0.5 * float(np.sum(r_obs**2))
+        jacobians = {
+            "prior": (r_prior, [graph.prior_sqrt_info]),
+            "odometry": (r_odo, [W_odo @ J_a, W_odo @ J_b]),
+            "observation": (r_obs, [W_obs @ J_p, W_obs @ J_l]),
+        }
+        h_value, g_value = [], []
+        for kind, (r, blocks) in jacobians.items():
+            for (ok_a, pair_masks), J_1 in zip(self._masks[kind], blocks):
+                g_value.append(np.einsum("kmi,km->ki", J_1[ok_a], r[ok_a]).ravel())
+                for ok, J_2 in zip(pair_masks, blocks):
+                    h_value.append(np.einsum("kmi,kmj->kij", J_1[ok], J_2[ok]).ravel())
+        H = np.bincount(self._h_index, np.concatenate(h_value), minlength=n * n).reshape(n, n)
+        g = np.bincount(self._g_index, np.concatenate(g_value), minlength=n)
+        return H, g, total
+
+
+def normal_equations(
+    graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array, loss: RobustLoss | None = None
+) -> tuple[Array, Array, float]:
+    """Dense normal equations and cost in one call (see :class:`DenseAssembler`, which caches the layout)."""
+    return DenseAssembler(graph, sparse)(poses, landmarks, loss)

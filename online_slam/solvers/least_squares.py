@@ -16,7 +16,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from online_slam.factors.graph import FactorGraph, SparseLayout, cost, evaluate, layout, linearize, normal_equations
+from online_slam.factors.graph import DenseAssembler, FactorGraph, SparseLayout, cost, evaluate, layout, linearize
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 
@@ -199,24 +199,26 @@ def solve(
     landmarks = np.array(landmarks, dtype=float).reshape(graph.n_landmarks, 2)
     sparse = layout(graph)
 
-    def total_cost(p: Array, l: Array) -> float:
-        value = cost(graph, evaluate(graph, p, l), loss)
-        return value + prior.cost(flatten(sparse, p, l)) if prior is not None else value
-
     use_dense = dense if dense is not None else (prior is not None or sparse.n_columns <= DENSE_LIMIT)
+    assemble = DenseAssembler(graph, sparse) if use_dense else None
 
-    def system(p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array]:
-        if use_dense:
-            H, g = normal_equations(graph, sparse, p, l, loss)
+    def system(p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array, float]:
+        """Normal equations and cost at (p, l), in one pass over the factors."""
+        if assemble is not None:
+            H, g, value = assemble(p, l, loss)
         else:
             r, J = linearize(graph, sparse, p, l, loss)
             H, g = J.T @ J, J.T @ r
+            value = 0.5 * float(r @ r) if loss is None else cost(graph, evaluate(graph, p, l), loss)
         if prior is not None:
+            x = flatten(sparse, p, l)
             H[np.ix_(prior.columns, prior.columns)] += prior.information
-            g[prior.columns] += prior.information @ prior.delta(flatten(sparse, p, l)) + prior.gradient
-        return H, g
+            g[prior.columns] += prior.information @ prior.delta(x) + prior.gradient
+            value += prior.cost(x)
+        return H, g, value
 
-    current = initial_cost = total_cost(poses, landmarks)
+    H, g, current = system(poses, landmarks)
+    initial_cost = current
     if sparse.n_columns == 0:
         return SolveResult(poses, landmarks, 0, True, current, current, "no free variables")
     ldl = SparseLDL()
@@ -224,7 +226,6 @@ def solve(
     message = "maximum iterations reached"
     converged = False
     iterations = 0
-    H, g = system(poses, landmarks)
     while iterations < cfg.max_iterations:
         iterations += 1
         if np.max(np.abs(g)) < cfg.gradient_tolerance:
@@ -239,18 +240,21 @@ def solve(
         except (ValueError, la.LinAlgError):  # singular or indefinite: damp harder
             lam, nu = max(lam, 1e-9) * nu, 2 * nu
             continue
-        new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
-        new_cost = total_cost(new_poses, new_landmarks)
         predicted = -float(dx @ g) - 0.5 * float(dx @ (H @ dx))
+        if lam <= cfg.initial_lambda and 0.0 <= predicted <= 0.1 * cfg.relative_cost_tolerance * max(current, 1e-300):
+            # The (barely damped) quadratic model promises no meaningful decrease: the point is converged.
+            converged, message = True, "predicted decrease below tolerance"
+            break
+        new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
+        new_H, new_g, new_cost = system(new_poses, new_landmarks)
         actual = current - new_cost
         if actual >= 0.0 and np.isfinite(new_cost):
             rho = actual / predicted if predicted > 0 else 1.0
-            poses, landmarks, current = new_poses, new_landmarks, new_cost
+            poses, landmarks, current, H, g = new_poses, new_landmarks, new_cost, new_H, new_g
             lam = lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if lam > 0 else 0.0
             nu = 2.0
             small_step = np.max(np.abs(dx)) < cfg.step_tolerance
             small_gain = actual <= cfg.relative_cost_tolerance * max(current + actual, 1e-300)
-            H, g = system(poses, landmarks)
             if small_step or small_gain:
                 converged = True
                 message = "step below tolerance" if small_step else "cost change below tolerance"
