@@ -130,3 +130,22 @@ def time_steps(config: GridConfig, with_peer: bool = True) -> tuple[int, list[St
         peer = gtsam_peer.isam2_online(steps)
         rows.append(_latency("GTSAM iSAM2", peer.step_s, peer.poses, truth))
     return len(steps), rows
+
+
+def time_smoother(config: GridConfig, windows: tuple[int, ...] = (10, 20, 50)) -> list[StepLatency]:
+    """Per-step latency and online RMSE of the sliding-window smoother at several window sizes."""
+    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+
+    frontend = FrontEnd()
+    steps = list(frontend.steps(grid_world(config)))
+    truth = np.array([frontend.truth.poses[s.index] for s in steps])
+    rows = []
+    for window in windows:
+        smoother = SlidingWindowSmoother(SmootherConfig(window=window))
+        seconds, poses = [], []
+        for step in steps:
+            started = time.perf_counter()
+            poses.append(smoother.step(step).pose)
+            seconds.append(time.perf_counter() - started)
+        rows.append(_latency(f"smoother W={window}", np.array(seconds), np.array(poses), truth))
+    return rows

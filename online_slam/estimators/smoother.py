@@ -57,7 +57,7 @@ class SmootherConfig:
     relinearize_every: int = 1
     """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
     solver: SolverConfig = field(
-        default_factory=lambda: SolverConfig(max_iterations=10, relative_cost_tolerance=1e-6, step_tolerance=1e-5)
+        default_factory=lambda: SolverConfig(max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5)
     )
     """Levenberg-Marquardt settings of each window solve during the stream (max iterations, tolerances)."""
     final_solver: SolverConfig = field(default_factory=SolverConfig)
@@ -87,6 +87,18 @@ class _Prior:
     x_lin: Array
     mu: Array
     Sigma: Array
+    """A view of the top-left n x n of a larger buffer, so that the prior can grow without copying."""
+
+
+def _grow_buffer(Sigma: Array, size: int) -> Array:
+    """A view of size x size whose top-left block holds Sigma; reallocates (doubling) only when needed."""
+    base = Sigma.base if Sigma.base is not None else Sigma
+    if base.shape[0] >= size:
+        return base[:size, :size]
+    grown = np.empty((max(size, 2 * base.shape[0]),) * 2)
+    n = len(Sigma)
+    grown[:n, :n] = Sigma
+    return grown[:size, :size]
 
 
 def _fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array, Array]:
@@ -126,8 +138,9 @@ class SlidingWindowSmoother:
         self.landmark_ids: list[LandmarkId] = []
         self._index: dict[LandmarkId, int] = {}
         self._landmarks = np.zeros((0, 2))
-        self._odometry: dict[int, tuple[Array, Array]] = {}  # keyed by the later pose
-        self._observations: dict[int, tuple[Index, Array, Array]] = {}
+        # Window factors with their square-root information: odometry keyed by the later pose.
+        self._odometry: dict[int, tuple[Array, Array, Array]] = {}
+        self._observations: dict[int, tuple[Index, Array, Array, Array]] = {}
         self._start: tuple[int, Array, Array | None] | None = None
         self.prior: _Prior | None = None
         self._pose_cov = np.zeros((3, 3))
@@ -152,7 +165,11 @@ class SlidingWindowSmoother:
             previous = self.window[-1]
             pose, F, G = compose_with_jacobians(self.poses[previous], step.odometry)
             self._pose_cov = F @ self._pose_cov @ F.T + G @ step.odometry_cov @ G.T
-            self._odometry[i] = (np.array(step.odometry), np.array(step.odometry_cov))
+            self._odometry[i] = (
+                np.array(step.odometry),
+                np.array(step.odometry_cov),
+                sqrt_information(step.odometry_cov),
+            )
         self.window.append(i)
         self.poses[i] = pose
         self.final_poses.append(pose)
@@ -165,7 +182,12 @@ class SlidingWindowSmoother:
                     self.landmark_ids.append(lid)
                     self._landmarks = np.vstack([self._landmarks, landmark_from_observation(pose, z)])
                 indices.append(self._index[lid])
-            self._observations[i] = (np.array(indices, dtype=np.int64), step.z, step.z_cov)
+            self._observations[i] = (
+                np.array(indices, dtype=np.int64),
+                step.z,
+                step.z_cov,
+                sqrt_information(step.z_cov),
+            )
 
     def _graph(self, active: Index) -> tuple[FactorGraph, dict[int, int]]:
         """The window's factors as a graph over local pose indices and the active landmarks (local order)."""
@@ -174,29 +196,31 @@ class SlidingWindowSmoother:
         to_local[active] = np.arange(len(active))
         odo = [(local[j] - 1, local[j], *self._odometry[j]) for j in self.window[1:]]
         obs = [(local[i], *self._observations[i]) for i in self.window if i in self._observations]
-        fixed, prior = [], {}
+        fixed: list[int] = []
+        prior_pose, prior_mean, prior_W = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3))
         if self._start is not None and self._start[0] in local:
             if self._start[2] is None:
                 fixed = [local[self._start[0]]]
             else:
-                prior = {
-                    "prior_pose": [local[self._start[0]]],
-                    "prior_mean": [self._start[1]],
-                    "prior_cov": [self._start[2]],
-                }
-        graph = FactorGraph.build(
-            len(self.window),
-            len(active),
-            fixed_poses=fixed,
-            **prior,  # type: ignore[arg-type]
-            odo_from=[o[0] for o in odo],
-            odo_to=[o[1] for o in odo],
+                prior_pose = np.array([local[self._start[0]]])
+                prior_mean, prior_W = self._start[1][None], sqrt_information(self._start[2])[None]
+        graph = FactorGraph(
+            n_poses=len(self.window),
+            n_landmarks=len(active),
+            fixed_poses=np.array(fixed, dtype=np.int64),
+            prior_pose=prior_pose,
+            prior_mean=prior_mean,
+            prior_sqrt_info=prior_W,
+            odo_from=np.array([o[0] for o in odo], dtype=np.int64),
+            odo_to=np.array([o[1] for o in odo], dtype=np.int64),
             odo_delta=np.array([o[2] for o in odo]).reshape(-1, 3),
-            odo_cov=np.array([o[3] for o in odo]).reshape(-1, 3, 3),
-            obs_pose=np.concatenate([np.full(len(o[1]), o[0]) for o in obs]) if obs else [],
-            obs_landmark=to_local[np.concatenate([o[1] for o in obs])] if obs else [],
+            odo_sqrt_info=np.array([o[4] for o in odo]).reshape(-1, 3, 3),
+            obs_pose=np.concatenate([np.full(len(o[1]), o[0]) for o in obs]).astype(np.int64)
+            if obs
+            else np.zeros(0, dtype=np.int64),
+            obs_landmark=to_local[np.concatenate([o[1] for o in obs])] if obs else np.zeros(0, dtype=np.int64),
             obs_z=np.concatenate([o[2] for o in obs]) if obs else np.zeros((0, 2)),
-            obs_cov=np.concatenate([o[3] for o in obs]) if obs else np.zeros((0, 2, 2)),
+            obs_sqrt_info=np.concatenate([o[4] for o in obs]) if obs else np.zeros((0, 2, 2)),
         )
         return graph, local
 
@@ -227,6 +251,7 @@ class SlidingWindowSmoother:
             loss=self.config.loss,
             prior=quadratic,
             return_information=True,
+            graph_layout=sparse,
         )
         for k, g in enumerate(self.window):
             self.poses[g] = result.poses[k]
@@ -291,7 +316,9 @@ class SlidingWindowSmoother:
         x_lin = self.poses[index].copy()
         mu = mean - x_lin
         mu[2] = wrap(mu[2])
-        Sigma = np.zeros((3, 3)) if cov is None else np.array(cov, dtype=float)
+        Sigma = np.zeros((64, 64))[:3, :3]
+        if cov is not None:
+            Sigma[:] = cov
         return _Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
 
     def _marginalize_oldest(self) -> None:
@@ -320,7 +347,7 @@ class SlidingWindowSmoother:
         appended: list[tuple[Array, Array, Array, Array]] = []
         obs = self._observations.get(o)
         if obs is not None:
-            indices, z, z_cov = _fuse_repeats(*obs)
+            indices, z, z_cov = _fuse_repeats(*obs[:3])
             held = np.array([int(j) in slot for j in indices], dtype=bool)
             first = ~held  # first sight (repeats are fused): appends the landmark
             for j in indices[first]:
@@ -357,11 +384,10 @@ class SlidingWindowSmoother:
                 L_inv = np.linalg.inv(np.linalg.cholesky(S))
                 G = PHt @ L_inv.T
                 mu = mu + G @ (L_inv @ -(r0[update].reshape(-1) + J_s @ mu[cols]))
-                Sigma = Sigma - G @ G.T
+                Sigma -= G @ G.T  # in place: the prior owns its buffer
             appended += [(r0[k], Jp[k], Jl[k], lin_l[k]) for k in np.flatnonzero(first)]
-        delta, cov = self._odometry[n1]
+        delta, _, W = self._odometry[n1]
         e, J_a, J_b = odometry_residual_with_jacobians(lin_o, self.poses[n1], delta)
-        W = sqrt_information(cov)
         appended.append((W @ e, W @ J_a, W @ J_b, self.poses[n1]))
         # One growth: keep the landmarks, append the new variables, drop o.
         inv = [np.linalg.inv(a[2]) for a in appended]
@@ -369,13 +395,12 @@ class SlidingWindowSmoother:
         offset = np.concatenate([-i @ a[0] for i, a in zip(inv, appended)])
         noise = la.block_diag(*[i @ i.T for i in inv])
         keep = n - 3
-        S_oo, S_lo = Sigma[keep:, keep:], Sigma[:keep, keep:]
         q = len(M)
-        grown = np.empty((keep + q, keep + q))
-        grown[:keep, :keep] = Sigma[:keep, :keep]
-        grown[keep:, :keep] = M @ S_lo.T
-        grown[:keep, keep:] = grown[keep:, :keep].T
-        block = M @ S_oo @ M.T + noise
+        cross = M @ Sigma[:keep, keep:].T  # (q, keep): read o's rows before they are overwritten
+        block = M @ Sigma[keep:, keep:] @ M.T + noise
+        grown = _grow_buffer(Sigma, keep + q)  # o's rows and columns are reused in place
+        grown[keep:, :keep] = cross
+        grown[:keep, keep:] = cross.T
         grown[keep:, keep:] = 0.5 * (block + block.T)
         mu = np.r_[mu[:keep], M @ mu[keep:] + offset]
         x_lin = np.r_[x_lin[:keep], np.concatenate([a[3] for a in appended])]

@@ -293,7 +293,8 @@ class DenseAssembler:
             "observation": [(sparse.pose_column[graph.obs_pose], 3), (sparse.landmark_column[graph.obs_landmark], 2)],
         }
         h_index, g_index = [], []
-        self._masks: dict[str, list[tuple[NDArray[np.bool_], list[NDArray[np.bool_]]]]] = {}
+        # Which factors of each block take part (None: all of them, the common case).
+        self._masks: dict[str, list[tuple[NDArray[np.bool_] | None, list[NDArray[np.bool_] | None]]]] = {}
         for kind, blocks in self._blocks.items():
             self._masks[kind] = []
             for first_a, c_a in blocks:
@@ -304,8 +305,8 @@ class DenseAssembler:
                     ok = ok_a & (first_b >= 0)
                     rows = first_a[ok, None, None] + np.arange(c_a)[:, None]
                     h_index.append((rows * n + first_b[ok, None, None] + np.arange(c_b)).ravel())
-                    pair_masks.append(ok)
-                self._masks[kind].append((ok_a, pair_masks))
+                    pair_masks.append(None if ok.all() else ok)
+                self._masks[kind].append((None if ok_a.all() else ok_a, pair_masks))
         self._h_index = np.concatenate(h_index) if h_index else np.zeros(0, dtype=np.int64)
         self._g_index = np.concatenate(g_index) if g_index else np.zeros(0, dtype=np.int64)
 
@@ -342,9 +343,15 @@ class DenseAssembler:
         h_value, g_value = [], []
         for kind, (r, blocks) in jacobians.items():
             for (ok_a, pair_masks), J_1 in zip(self._masks[kind], blocks):
-                g_value.append(np.einsum("kmi,km->ki", J_1[ok_a], r[ok_a]).ravel())
+                if ok_a is None:
+                    g_value.append(np.einsum("kmi,km->ki", J_1, r).ravel())
+                else:
+                    g_value.append(np.einsum("kmi,km->ki", J_1[ok_a], r[ok_a]).ravel())
                 for ok, J_2 in zip(pair_masks, blocks):
-                    h_value.append(np.einsum("kmi,kmj->kij", J_1[ok], J_2[ok]).ravel())
+                    if ok is None:
+                        h_value.append(np.einsum("kmi,kmj->kij", J_1, J_2).ravel())
+                    else:
+                        h_value.append(np.einsum("kmi,kmj->kij", J_1[ok], J_2[ok]).ravel())
         H = np.bincount(self._h_index, np.concatenate(h_value), minlength=n * n).reshape(n, n)
         g = np.bincount(self._g_index, np.concatenate(g_value), minlength=n)
         return H, g, total

@@ -177,6 +177,7 @@ def solve(
     prior: QuadraticPrior | None = None,
     return_information: bool = False,
     dense: bool | None = None,
+    graph_layout: SparseLayout | None = None,
 ) -> SolveResult:
     """Minimise ``0.5 * |r(x)|^2`` (robust on observations) plus an optional quadratic prior.
 
@@ -190,6 +191,7 @@ def solve(
         return_information: Also return ``J^T J`` (+ prior) at the solution, for covariances.
         dense: Assemble and factor the normal equations densely; default: when a prior is given or the
             problem has at most ``DENSE_LIMIT`` free variables (a smoother's window), sparse otherwise.
+        graph_layout: ``layout(graph)`` when the caller has it already.
 
     Returns:
         The solution and convergence report.
@@ -197,7 +199,7 @@ def solve(
     cfg = config or SolverConfig()
     poses = np.array(poses, dtype=float).reshape(graph.n_poses, 3)
     landmarks = np.array(landmarks, dtype=float).reshape(graph.n_landmarks, 2)
-    sparse = layout(graph)
+    sparse = graph_layout if graph_layout is not None else layout(graph)
 
     use_dense = dense if dense is not None else (prior is not None or sparse.n_columns <= DENSE_LIMIT)
     assemble = DenseAssembler(graph, sparse) if use_dense else None
@@ -216,6 +218,10 @@ def solve(
             g[prior.columns] += prior.information @ prior.delta(x) + prior.gradient
             value += prior.cost(x)
         return H, g, value
+
+    def cost_only(p: Array, l: Array) -> float:
+        value = cost(graph, evaluate(graph, p, l), loss)
+        return value + prior.cost(flatten(sparse, p, l)) if prior is not None else value
 
     H, g, current = system(poses, landmarks)
     initial_cost = current
@@ -241,8 +247,13 @@ def solve(
             lam, nu = max(lam, 1e-9) * nu, 2 * nu
             continue
         predicted = -float(dx @ g) - 0.5 * float(dx @ (H @ dx))
-        if lam <= cfg.initial_lambda and 0.0 <= predicted <= 0.1 * cfg.relative_cost_tolerance * max(current, 1e-300):
-            # The (barely damped) quadratic model promises no meaningful decrease: the point is converged.
+        if lam <= cfg.initial_lambda and 0.0 <= predicted <= cfg.relative_cost_tolerance * max(current, 1e-300):
+            # The (barely damped) quadratic model promises no meaningful decrease: converged. Take this last,
+            # tiny Newton step when it does not raise the cost (it costs one residual evaluation, no assembly).
+            new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
+            new_cost = cost_only(new_poses, new_landmarks)
+            if new_cost <= current:
+                poses, landmarks, current = new_poses, new_landmarks, new_cost
             converged, message = True, "predicted decrease below tolerance"
             break
         new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
