@@ -124,3 +124,35 @@ def test_no_free_variables() -> None:
     graph = FactorGraph.build(1, 0, fixed_poses=[0])
     result = solve(graph, np.zeros((1, 3)), np.zeros((0, 2)))
     assert result.converged and result.iterations == 0
+
+
+@pytest.mark.parametrize("kind", ["huber", "cauchy"])
+def test_robust_loss_weight_is_the_derivative_of_rho(kind: str) -> None:
+    from online_slam.factors import RobustLoss
+
+    loss = RobustLoss(kind, 1.5)
+    s = np.linspace(0.01, 100.0, 500)
+    numeric = (loss.rho(s + 1e-6) - loss.rho(s - 1e-6)) / 2e-6
+    assert np.allclose(loss.weight(s), numeric, atol=1e-6)
+    assert np.allclose(loss.rho(s[:5] * 1e-4), s[:5] * 1e-4, rtol=1e-3)  # quadratic near zero
+    with pytest.raises(ValueError):
+        RobustLoss("tukey")
+
+
+def test_robust_gradient_matches_numerical_cost_gradient(rng: np.random.Generator) -> None:
+    """J^T r from the reweighted linearization is the gradient of the robust cost."""
+    from online_slam.factors import RobustLoss, cost
+
+    graph, poses, landmarks = small_graph(rng, prior=False)
+    loss = RobustLoss("cauchy", 1.0)
+    sparse = layout(graph)
+    r, J = linearize(graph, sparse, poses, landmarks, loss)
+    free = sparse.pose_column >= 0
+    x0 = np.r_[poses[free].ravel(), landmarks.ravel()]
+
+    def f(x: np.ndarray) -> np.ndarray:
+        p = poses.copy()
+        p[free] = x[: 3 * free.sum()].reshape(-1, 3)
+        return np.array([cost(graph, evaluate(graph, p, x[3 * free.sum() :].reshape(-1, 2)), loss)])
+
+    assert np.allclose(J.T @ r, numerical_jacobian(f, x0, eps=1e-7)[0], rtol=1e-5, atol=1e-5)
