@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +33,7 @@ from online_slam.evaluation.metrics import (
 )
 from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Results
 from online_slam.frontend.steps import FrontEnd, FrontEndConfig, GroundTruth
+from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event
 from online_slam.sources.resolve import open_source
 
@@ -40,9 +41,6 @@ Array = NDArray[np.float64]
 
 ESTIMATORS = ("ekf", "smoother", "batch")
 """Names of the estimators ``replay`` can run (all run by default)."""
-
-Sink = Callable[[Snapshot], None]
-"""A consumer of step snapshots (Rerun logger, live plot, ...)."""
 
 
 @dataclass(frozen=True)
@@ -156,7 +154,7 @@ def replay(
     config: ReplayConfig | None = None,
     *,
     name: str | None = None,
-    sinks: Sequence[Sink] = (),
+    sinks: Sequence[ReplaySink] = (),
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -164,7 +162,7 @@ def replay(
         source: A built-in world name, a stream path (``.gz`` allowed), ``-`` for stdin, or an iterable of events.
         config: What to run; defaults run dead reckoning, the EKF, the smoother and the batch solver.
         name: Source name for reports (defaults to the path or world name).
-        sinks: Callables given every snapshot of every estimator, in step order (with ``wall_s`` set).
+        sinks: Given every step with all estimators' snapshots (``wall_s`` set), then the results.
 
     Returns:
         The results. When the input turns bad part-way, the results cover every step before the bad line
@@ -189,18 +187,15 @@ def replay(
         for step in frontend.steps(events):
             steps += 1
             observations += len(step.landmarks)
-            snapshot = odometry.step(step)
-            for sink in sinks:
-                sink(snapshot)
+            snapshots = {"odometry": odometry.step(step)}
             for track in tracks:
                 started = time.perf_counter()
                 snapshot = track.estimator.step(step)
                 elapsed = time.perf_counter() - started
                 track.record(snapshot, elapsed)
-                if sinks:
-                    snapshot = dataclasses.replace(snapshot, wall_s=elapsed)
-                    for sink in sinks:
-                        sink(snapshot)
+                snapshots[track.estimator.name] = dataclasses.replace(snapshot, wall_s=elapsed) if sinks else snapshot
+            for sink in sinks:
+                sink.on_step(step, snapshots, frontend.truth)
     except InputError as exc:
         if steps == 0:
             raise
@@ -208,7 +203,7 @@ def replay(
     if steps == 0:
         raise InputError(label, 0, "", "the stream holds no pose")
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
-    results: dict[str, EstimatorResult] = {}
+    figures: dict[str, EstimatorResult] = {}
     for track in tracks:
         estimator = track.estimator
         started = time.perf_counter()
@@ -219,7 +214,7 @@ def replay(
         online_rmse = nees_mean = latency = None
         if getattr(estimator, "online", True):
             online_rmse, nees_mean, latency = _online_figures(track, estimate, frontend.truth, cfg.alignment)
-        results[estimator.name] = EstimatorResult(
+        figures[estimator.name] = EstimatorResult(
             final_rmse_m=errors.rmse_m,
             endpoint_gap_m=errors.endpoint_gap_m,
             landmark_rmse_m=errors.landmark_rmse_m,
@@ -230,14 +225,17 @@ def replay(
             details=dict(estimate.info),
         )
     odo = evaluate(estimates["odometry"], frontend.truth, cfg.alignment)
-    return Results(
+    results = Results(
         source=label,
         poses=steps,
         landmarks=len(estimates["odometry"].landmark_ids),
         observations=observations,
         odometry=OdometryResult(odo.rmse_m, odo.endpoint_gap_m, odo.landmark_rmse_m),
-        estimators=results,
+        estimators=figures,
         estimates=estimates,
         alignment=cfg.alignment,
         error=error,
     )
+    for sink in sinks:
+        sink.on_finish(results, frontend.truth)
+    return results

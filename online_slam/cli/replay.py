@@ -16,6 +16,7 @@ from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.pipeline import ESTIMATORS, ReplayConfig, replay
 from online_slam.reports.table import format_results
+from online_slam.sinks.live import Pacer, Progress
 from online_slam.solvers.least_squares import SolverConfig
 
 
@@ -73,7 +74,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=EkfConfig.update,
         help="EKF: one update per step with all observations (joint, default) or one per observation",
     )
-    p.add_argument("--quiet", action="store_true", help="print no table")
+    p.add_argument("--rrd", metavar="PATH", help="log every step to a Rerun recording (.rrd) for the Rerun viewer")
+    p.add_argument(
+        "--connect",
+        nargs="?",
+        const="default",
+        metavar="ADDR",
+        help="stream to a running Rerun viewer (default address, or a rerun+http:// URL)",
+    )
+    p.add_argument(
+        "--rate",
+        type=float,
+        metavar="R",
+        help="pace the replay at R times the stream's clock (default: as fast as possible)",
+    )
+    p.add_argument("--quiet", action="store_true", help="print no table and no progress")
 
 
 def config_from(args: argparse.Namespace) -> ReplayConfig:
@@ -103,9 +118,30 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
     )
 
 
+def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
+    """Progress bar, pacing and Rerun logging, as the options ask."""
+    sinks: list = []
+    if args.rate is not None:
+        try:
+            sinks.append(Pacer(args.rate))
+        except ValueError as exc:
+            raise OnlineSlamError(f"--rate: {exc}") from None
+    if args.rrd or args.connect:
+        from online_slam.sinks.rerun_recording import RerunConfig, RerunSink
+
+        name = "<stdin>" if args.source == "-" else str(args.source)
+        sinks.append(RerunSink(RerunConfig(path=args.rrd, connect=args.connect), name, config.estimators))
+    if not args.quiet:
+        sinks.append(Progress())
+    return sinks
+
+
 def run(args: argparse.Namespace) -> int:
     """Replay, print the table, write JSON; exit 2 if the input turned bad part-way."""
-    results = replay(args.source, config_from(args))
+    config = config_from(args)
+    if args.rrd and not str(args.rrd).endswith(".rrd"):
+        raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
+    results = replay(args.source, config, sinks=sinks_from(args, config))
     if not args.quiet:
         print(format_results(results))
     if args.json:

@@ -1,0 +1,74 @@
+"""``online-slam inspect PATH.rrd``: read a recording back through Rerun's query API and summarise it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from online_slam.errors import OnlineSlamError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command."""
+    p = sub.add_parser(
+        "inspect",
+        help="summarise a Rerun recording written by 'replay --rrd'",
+        description="Read a recording back (no re-running): source, steps, time span, estimators, errors, latency.",
+    )
+    p.add_argument("path", help="a .rrd file written by 'online-slam replay --rrd'")
+    p.add_argument("--step", type=int, metavar="N", help="also print the state at step N")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+
+
+def _fmt(value: object) -> str:
+    return "-" if value is None else f"{value:.4f}" if isinstance(value, float) else str(value)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the summary (and one step's state)."""
+    from online_slam.sinks.rerun_recording import Recording
+
+    with Recording(args.path) as recording:
+        summary = recording.summary()
+        state = None
+        if args.step is not None:
+            if not 0 <= args.step < summary.steps:
+                raise OnlineSlamError(f"--step: {args.step} is outside the recording's steps 0..{summary.steps - 1}")
+            state = recording.state_at(args.step)
+    if args.json:
+        out = {
+            "source": summary.source,
+            "steps": summary.steps,
+            "time_span_s": list(summary.time_span),
+            "estimators": list(summary.estimators),
+            "results": summary.results,
+            "latency_ms": summary.latency_ms,
+            "state": state,
+        }
+        print(json.dumps(out, indent=2))
+        return 0
+    t0, t1 = summary.time_span
+    print(f"recording: {args.path}")
+    print(f"source: {summary.source}")
+    print(f"steps: {summary.steps}   time span: {t0:.3f} .. {t1:.3f} s ({t1 - t0:.3f} s)")
+    print(f"estimators: {', '.join(summary.estimators)}")
+    if summary.results.get("error"):
+        print(f"input stopped early: {summary.results['error']}")
+    header = f"{'estimator':<10}{'final RMSE m':>14}{'online RMSE m':>15}{'landmark RMSE m':>17}"
+    print(header + f"{'step ms median/p95/max':>26}")
+    for name, figures in summary.results.get("estimators", {}).items():
+        lat = summary.latency_ms.get(name)
+        latency = f"{lat['median']:.2f} / {lat['p95']:.2f} / {lat['max']:.2f}" if lat else "-"
+        print(
+            f"{name:<10}{_fmt(figures.get('final_rmse_m')):>14}{_fmt(figures.get('online_rmse_m')):>15}"
+            f"{_fmt(figures.get('landmark_rmse_m')):>17}{latency:>26}"
+        )
+    if state is not None:
+        print(f"\nstep {state['step']}:")
+        for name, est in state["estimators"].items():
+            x, y, th = est["pose"]
+            print(f"  {name:<9} pose ({x:.3f}, {y:.3f}, {th:.3f})   landmarks {est['landmarks']}")
+        print(f"  gated observations: {len(state['gated'])}")
+        for event in state["events"]:
+            print(f"  event: {event}")
+    return 0

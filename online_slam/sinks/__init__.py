@@ -1,0 +1,6 @@
+"""Sinks: consumers of step snapshots and final results (Rerun recordings, progress, pacing)."""
+
+from online_slam.sinks.live import Pacer, Progress
+from online_slam.sinks.protocol import ReplaySink
+
+__all__ = ["Pacer", "Progress", "ReplaySink"]

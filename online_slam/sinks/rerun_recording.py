@@ -1,0 +1,437 @@
+"""Rerun: log every replay step to an ``.rrd`` file (or a live viewer), and read a recording back.
+
+This is the only module that imports rerun. Layout of a recording (timelines ``step`` and ``time``):
+
+- ``/world/truth/{pose,path,path_recent,landmarks}`` — truth, when the stream has it (landmarks static);
+- ``/world/<estimator>/{pose,pose_cov,path,path_recent,landmarks,landmark_cov}`` for ``odometry``, ``ekf``,
+  ``smoother``; ``/world/smoother/window``; ``/world/batch/{path,landmarks}`` at the last step;
+- ``/world/observations`` — rays from the current estimate to each observed landmark's measured position;
+- ``/metrics/<estimator>/{step_ms,position_error_m,nees}``, ``/metrics/ekf/nis``,
+  ``/metrics/smoother/{cost_before,cost_after,iterations}``;
+- ``/events`` — text log (landmark initialised, observation gated, relinearization, marginalization, input
+  error); ``/summary`` — the results as JSON (static).
+
+Size stays bounded: a path is re-sent whole only when its tail since the last send has grown by 5% (plus a
+short ``path_recent`` strip every step), landmark labels only when the set of ids changes, and landmark
+covariance ellipses every ``map_every`` steps.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import uuid
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+from numpy.typing import NDArray
+
+from online_slam.errors import OnlineSlamError
+from online_slam.estimators.protocol import Snapshot
+from online_slam.evaluation.results import Results
+from online_slam.frontend.steps import GroundTruth, Step
+from online_slam.geometry.angles import wrap
+from online_slam.models.range_bearing import landmark_from_observation
+
+Array = NDArray[np.float64]
+
+COLORS = {
+    "truth": (120, 120, 120),
+    "odometry": (230, 140, 20),
+    "ekf": (30, 110, 220),
+    "smoother": (20, 160, 80),
+    "batch": (150, 60, 190),
+    "observations": (200, 60, 60),
+}
+ONLINE = ("odometry", "ekf", "smoother")
+"""Estimators whose snapshots are real-time estimates (logged every step)."""
+EPOCH = 1e9
+"""Stream times at or above this many seconds are taken as Unix timestamps, below as durations."""
+
+
+def ellipses(means: Array, covariances: Array, sigmas: float = 2.0, points: int = 24) -> Array:
+    """Closed polylines of ``sigmas``-sigma ellipses.
+
+    Args:
+        means: Centres, shape (M, 2).
+        covariances: 2x2 position covariances, shape (M, 2, 2).
+        sigmas: Scale of the ellipse.
+        points: Vertices per ellipse (the first is repeated at the end).
+
+    Returns:
+        Shape (M, points + 1, 2).
+    """
+    values, vectors = np.linalg.eigh(0.5 * (covariances + np.swapaxes(covariances, 1, 2)))
+    radii = sigmas * np.sqrt(np.clip(values, 0.0, None))  # (M, 2)
+    angle = np.linspace(0.0, 2.0 * np.pi, points + 1)
+    unit = np.stack([np.cos(angle), np.sin(angle)], -1)  # (P, 2)
+    return means[:, None, :] + np.einsum("mij,mj,pj->mpi", vectors, radii, unit)
+
+
+def blueprint(estimators: tuple[str, ...]) -> rrb.Blueprint:
+    """The default layout: the map, the time series, the event log."""
+    series = [
+        rrb.TimeSeriesView(origin="/metrics", contents="$origin/*/position_error_m", name="position error (m)"),
+        rrb.TimeSeriesView(origin="/metrics", contents="$origin/*/step_ms", name="step time (ms)"),
+        rrb.TimeSeriesView(origin="/metrics", contents=["$origin/*/nees", "$origin/ekf/nis"], name="NEES / NIS"),
+    ]
+    if "smoother" in estimators:
+        series.append(
+            rrb.TimeSeriesView(origin="/metrics/smoother", contents="$origin/**", name="smoother cost, iterations")
+        )
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="/world", name="map"),
+            rrb.Vertical(rrb.Tabs(*series, name="time series"), rrb.TextLogView(origin="/events", name="events")),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+@dataclass
+class _Path:
+    """A trajectory sent whole only when its unsent tail has grown enough."""
+
+    points: list[Array] = field(default_factory=list)
+    sent: int = 0
+
+    def add(self, xy: Array) -> tuple[Array | None, Array]:
+        """Append a point; return (whole path if it is due, else None; the tail since the last whole send)."""
+        self.points.append(np.asarray(xy[:2], dtype=float))
+        n = len(self.points)
+        whole = None
+        if n - self.sent >= max(25, n // 20):
+            whole, self.sent = np.array(self.points), n
+        return whole, np.array(self.points[max(self.sent - 1, 0) :])
+
+
+@dataclass(frozen=True)
+class RerunConfig:
+    """Where and how a replay is logged to Rerun."""
+
+    path: str | None = None
+    """``.rrd`` file to write, or None."""
+    connect: str | None = None
+    """gRPC URL of a running viewer (e.g. ``rerun+http://127.0.0.1:9876/proxy``), or None."""
+    map_every: int = 25
+    """Landmark covariance ellipses are logged every this many steps (and at the end)."""
+
+
+class RerunSink:
+    """Logs each replay step to Rerun (a :class:`~online_slam.sinks.protocol.ReplaySink`).
+
+    Args:
+        config: File and/or live viewer, and logging cadence.
+        source: Name of the replayed source (stored as the recording name).
+        estimators: Names of the estimators that run, to lay out the blueprint.
+    """
+
+    def __init__(self, config: RerunConfig, source: str, estimators: tuple[str, ...]) -> None:
+        if config.path is None and config.connect is None:
+            raise ValueError("RerunSink needs a path or a viewer to connect to")
+        self.config = config
+        self.rec = rr.RecordingStream("online-slam", recording_id=str(uuid.uuid4()))
+        self.rec.set_log_tick_enabled(False)
+        self.rec.set_log_time_enabled(False)
+        sinks: list[Any] = []
+        if config.path is not None:
+            sinks.append(rr.FileSink(str(config.path)))
+        if config.connect is not None:
+            sinks.append(rr.GrpcSink(config.connect) if config.connect != "default" else rr.GrpcSink())
+        try:
+            self.rec.set_sinks(*sinks, default_blueprint=blueprint(estimators))
+        except Exception as exc:  # noqa: BLE001 - rerun raises several kinds; one message for the user
+            raise OnlineSlamError(f"rerun: cannot open the recording sink: {exc}") from None
+        self.rec.send_recording_name(source)
+        self.paths: dict[str, _Path] = {}
+        self.labels: dict[str, tuple[Any, ...]] = {}
+        self.truth_landmarks = 0
+
+    # -- per step ----------------------------------------------------------------------------------
+    def _time(self, step: Step) -> None:
+        self.rec.set_time("step", sequence=step.index)
+        if step.t >= EPOCH:
+            self.rec.set_time("time", timestamp=step.t)
+        else:
+            self.rec.set_time("time", duration=step.t)
+
+    def _pose(self, name: str, pose: Array) -> None:
+        color = COLORS.get(name, (0, 0, 0))
+        heading = 0.5 * np.array([math.cos(pose[2]), math.sin(pose[2])])
+        self.rec.log(f"world/{name}/pose", rr.Arrows2D(origins=[pose[:2]], vectors=[heading], colors=[color]))
+        whole, recent = self.paths.setdefault(name, _Path()).add(pose)
+        if whole is not None:
+            self.rec.log(f"world/{name}/path", rr.LineStrips2D([whole], colors=[color]))
+        self.rec.log(f"world/{name}/path_recent", rr.LineStrips2D([recent], colors=[color]))
+
+    def _landmarks(self, name: str, snapshot: Snapshot, step: Step, final: bool = False) -> None:
+        color = COLORS.get(name, (0, 0, 0))
+        if snapshot.landmark_ids != self.labels.get(name):
+            self.labels[name] = snapshot.landmark_ids
+            labels = [str(i) for i in snapshot.landmark_ids]
+            self.rec.log(
+                f"world/{name}/landmarks",
+                rr.Points2D(snapshot.landmarks, labels=labels, colors=[color], radii=[0.08], show_labels=False),
+            )
+        else:
+            self.rec.log(f"world/{name}/landmarks", rr.Points2D.from_fields(positions=snapshot.landmarks))
+        due = final or step.index % max(1, self.config.map_every) == 0
+        if due and snapshot.landmark_covs is not None and len(snapshot.landmarks):
+            strips = ellipses(snapshot.landmarks, snapshot.landmark_covs)
+            self.rec.log(f"world/{name}/landmark_cov", rr.LineStrips2D(strips, colors=[color], radii=[0.01]))
+
+    def on_step(self, step: Step, snapshots: Mapping[str, Snapshot], truth: GroundTruth) -> None:
+        """Log one step: poses, paths, maps, observation rays, scalars and events."""
+        rec = self.rec
+        self._time(step)
+        if len(truth.landmarks) != self.truth_landmarks:
+            self.truth_landmarks = len(truth.landmarks)
+            self._truth_landmarks(truth)
+        true_pose = truth.poses.get(step.index)
+        if true_pose is not None:
+            self._pose("truth", true_pose)
+        events: list[str] = []
+        for name in ONLINE:
+            snap = snapshots.get(name)
+            if snap is None:
+                continue
+            self._pose(name, snap.pose)
+            self._landmarks(name, snap, step)
+            if snap.pose_cov is not None and np.all(np.isfinite(snap.pose_cov)):
+                ring = ellipses(snap.pose[None, :2], snap.pose_cov[None, :2, :2])
+                rec.log(f"world/{name}/pose_cov", rr.LineStrips2D(ring, colors=[COLORS[name]], radii=[0.01]))
+            if snap.wall_s is not None:
+                rec.log(f"metrics/{name}/step_ms", rr.Scalars(1e3 * snap.wall_s))
+            if true_pose is not None:
+                rec.log(
+                    f"metrics/{name}/position_error_m", rr.Scalars(float(np.hypot(*(snap.pose[:2] - true_pose[:2]))))
+                )
+                if snap.pose_cov is not None:
+                    e = snap.pose - true_pose
+                    e[2] = wrap(e[2])
+                    try:
+                        nees = float(e @ np.linalg.solve(snap.pose_cov, e))
+                        rec.log(f"metrics/{name}/nees", rr.Scalars(nees))
+                    except np.linalg.LinAlgError:
+                        pass
+            events += self._events(name, snap)
+        current = next((snapshots[n] for n in ("smoother", "ekf", "odometry") if n in snapshots), None)
+        if current is not None and len(step.landmarks):
+            ends = landmark_from_observation(current.pose[None, :], step.z)
+            rays = np.stack([np.broadcast_to(current.pose[:2], ends.shape), ends], axis=1)
+            rec.log("world/observations", rr.LineStrips2D(rays, colors=[COLORS["observations"]], radii=[0.005]))
+        else:
+            rec.log("world/observations", rr.Clear(recursive=False))
+        for text in events:
+            rec.log("events", rr.TextLog(f"step {step.index}: {text}", level="INFO"))
+
+    def _events(self, name: str, snap: Snapshot) -> list[str]:
+        info, out = snap.info, []
+        if name == "ekf":
+            nis = np.asarray(info.get("nis", []), dtype=float)
+            if np.isfinite(nis).any():
+                self.rec.log("metrics/ekf/nis", rr.Scalars(float(np.nanmean(nis))))
+            if info.get("new_landmarks"):
+                out.append(f"ekf: landmarks initialised {', '.join(map(str, info['new_landmarks']))}")
+            if info.get("gated"):
+                out.append(f"ekf: observations gated (chi-square) of {', '.join(map(str, info['gated']))}")
+        if name == "smoother":
+            if self.config and info.get("window") is not None:
+                self.rec.log(
+                    "world/smoother/window",
+                    rr.Points2D(info["window_poses"][:, :2], colors=[COLORS[name]], radii=[0.05]),
+                )
+            if info.get("relinearized"):
+                self.rec.log("metrics/smoother/cost_before", rr.Scalars(float(info["cost_before"])))
+                self.rec.log("metrics/smoother/cost_after", rr.Scalars(float(info["cost_after"])))
+                self.rec.log("metrics/smoother/iterations", rr.Scalars(float(info["iterations"])))
+                out.append(f"smoother: relinearized, {info['iterations']} iterations")
+            if info.get("marginalized"):
+                out.append(f"smoother: marginalized poses {', '.join(map(str, info['marginalized']))}")
+        return out
+
+    def _truth_landmarks(self, truth: GroundTruth) -> None:
+        ids = list(truth.landmarks)
+        points = np.array([truth.landmarks[i] for i in ids])
+        self.rec.log(
+            "world/truth/landmarks",
+            rr.Points2D(points, labels=[str(i) for i in ids], colors=[COLORS["truth"]], radii=[0.1], show_labels=False),
+            static=True,
+        )
+
+    # -- end ---------------------------------------------------------------------------------------
+    def on_finish(self, results: Results, truth: GroundTruth) -> None:
+        """Log the batch solution and final maps at the last step, the summary, and close the file."""
+        rec = self.rec
+        if truth.landmarks:
+            self._truth_landmarks(truth)
+        batch = results.estimates.get("batch")
+        if batch is not None and len(batch.poses):
+            rec.log("world/batch/path", rr.LineStrips2D([batch.poses[:, :2]], colors=[COLORS["batch"]]))
+            rec.log(
+                "world/batch/landmarks",
+                rr.Points2D(
+                    batch.landmarks,
+                    labels=[str(i) for i in batch.landmark_ids],
+                    colors=[COLORS["batch"]],
+                    radii=[0.08],
+                    show_labels=False,
+                ),
+            )
+        if results.error:
+            rec.log("events", rr.TextLog(f"input stopped early: {results.error}", level="ERROR"))
+        rec.log(
+            "summary", rr.TextDocument(json.dumps(results.to_json(), indent=2), media_type="text/plain"), static=True
+        )
+        rec.flush()
+        rec.disconnect()
+
+
+# -- reading back -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RecordingSummary:
+    """What ``online-slam inspect`` reports about a recording."""
+
+    source: str
+    """Name of the replayed source."""
+    steps: int
+    """Number of steps logged."""
+    time_span: tuple[float, float]
+    """First and last stream time, seconds."""
+    estimators: tuple[str, ...]
+    """Estimators present in the recording."""
+    results: dict[str, Any]
+    """The results JSON stored in the recording."""
+    latency_ms: dict[str, dict[str, float]]
+    """Per online estimator: median / p95 / max step time computed from the logged ``step_ms`` series."""
+
+
+def check_rrd(path: str | Path) -> Path:
+    """Raise an :class:`OnlineSlamError` with one clear line unless path is a complete ``.rrd`` file."""
+    p = Path(path)
+    if not p.is_file():
+        raise OnlineSlamError(f"{p}: no such file")
+    data = p.read_bytes()
+    if not data.startswith(b"RRF2"):
+        raise OnlineSlamError(f"{p}: not a Rerun recording (no RRF2 header)")
+    if b"RRF2FOOT" not in data[-64:]:
+        raise OnlineSlamError(f"{p}: truncated Rerun recording (no footer; was the replay interrupted?)")
+    return p
+
+
+def _column(table: Any, suffix: str) -> list[Any]:
+    names = [n for n in table.column_names if n.endswith(suffix)]
+    return table.column(names[0]).to_pylist() if names else []
+
+
+def _seconds(value: Any) -> float:
+    if hasattr(value, "total_seconds"):
+        return float(value.total_seconds())
+    if hasattr(value, "timestamp"):
+        return float(value.timestamp())
+    return float(value) / 1e9
+
+
+class Recording:
+    """A recording opened for queries through Rerun's dataframe API (a local server on the loopback).
+
+    Use as a context manager: ``with Recording(path) as rec: rec.summary(); rec.state_at(10)``.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = check_rrd(path)
+        self._server: Any = None
+        self._dataset: Any = None
+
+    def __enter__(self) -> Recording:
+        try:
+            self._server = rr.server.Server(host="127.0.0.1", datasets={"run": [str(self.path)]})
+            self._dataset = self._server.client().get_dataset("run")
+        except Exception as exc:  # noqa: BLE001 - one line for the user whatever rerun raised
+            self.__exit__(None, None, None)
+            raise OnlineSlamError(f"{self.path}: cannot read the recording ({exc})") from None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._server is not None:
+            self._server.__exit__(None, None, None)
+            self._server = None
+
+    def _table(self, contents: list[str], index: str | None, **kwargs: Any) -> Any:
+        try:
+            return self._dataset.filter_contents(contents).reader(index=index, **kwargs).to_arrow_table()
+        except Exception as exc:  # noqa: BLE001
+            raise OnlineSlamError(f"{self.path}: not an online-slam recording ({exc})") from None
+
+    def summary(self) -> RecordingSummary:
+        """Source, steps, time span, estimators, stored results, and latency from the logged series."""
+        texts = _column(self._table(["/summary"], None), ":TextDocument:text")
+        if not texts:
+            raise OnlineSlamError(f"{self.path}: not an online-slam recording (no /summary)")
+        results = json.loads(texts[0] if isinstance(texts[0], str) else texts[0][0])
+        world = self._table(["/world/**"], "step")
+        steps = [v for v in world.column("step").to_pylist() if v is not None]
+        seconds = [_seconds(t) for t in world.column("time").to_pylist() if t is not None]
+        metrics = self._table(["/metrics/**"], "step")
+        latency = {}
+        for name in ONLINE:
+            values = [v[0] for v in _column(metrics, f"/metrics/{name}/step_ms:Scalars:scalars") if v]
+            if values:
+                ms = np.array(values, dtype=float)
+                latency[name] = {
+                    "median": float(np.median(ms)),
+                    "p95": float(np.percentile(ms, 95)),
+                    "max": float(ms.max()),
+                }
+        return RecordingSummary(
+            source=results.get("source", "?"),
+            steps=(max(steps) + 1) if steps else 0,
+            time_span=(min(seconds), max(seconds)) if seconds else (math.nan, math.nan),
+            estimators=tuple(results.get("estimators", {})),
+            results=results,
+            latency_ms=latency,
+        )
+
+    def entity_paths(self) -> list[str]:
+        """Entity paths that hold data on the ``step`` timeline."""
+        names = self._table(["/**"], "step").column_names
+        return sorted({n.split(":")[0] for n in names if n.startswith("/")})
+
+    def state_at(self, step: int) -> dict[str, Any]:
+        """Per estimator: pose and landmark count at a step (latest values), and that step's events."""
+        table = self._table(["/world/**"], "step", fill_latest_at=True, using_index_values=[step])
+        state: dict[str, Any] = {"step": step, "estimators": {}}
+        for name in (*ONLINE, "truth"):
+            origins = _column(table, f"/world/{name}/pose:Arrows2D:origins")
+            vectors = _column(table, f"/world/{name}/pose:Arrows2D:vectors")
+            if origins and origins[0]:
+                (x, y), (vx, vy) = origins[0][0], vectors[0][0]
+                landmarks = _column(table, f"/world/{name}/landmarks:Points2D:positions")
+                state["estimators"][name] = {
+                    "pose": [x, y, math.atan2(vy, vx)],
+                    "landmarks": len(landmarks[0]) if landmarks and landmarks[0] else 0,
+                }
+        events = self._table(["/events"], "step")
+        texts = _column(events, ":TextLog:text")
+        steps = events.column("step").to_pylist() if "step" in events.column_names else []
+        state["events"] = [t[0] if isinstance(t, list) else t for s, t in zip(steps, texts) if s == step and t]
+        state["gated"] = [e for e in state["events"] if "gated" in e]
+        return state
+
+
+def blueprint_views(path: str | Path) -> list[tuple[str, str, str]]:
+    """The (view class, name, origin) of each view in the recording's blueprint, read back by ``rerun rrd print``."""
+    p = check_rrd(path)
+    done = subprocess.run(["rerun", "rrd", "print", "-vvv", str(p)], capture_output=True, text=True, timeout=120)
+    if done.returncode != 0:
+        raise OnlineSlamError(f"{p}: rerun rrd print failed")
+    pattern = re.compile(r"┆ \[(\w+)\]\s*┆ \[([^\]]*)\]\s*┆ \[(/[^\]]*)\]")
+    return sorted(set(pattern.findall(done.stdout)))

@@ -1,0 +1,93 @@
+"""Rerun recordings: replay writes one, Rerun's own API reads it back; inspect; the blueprint."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("rerun", reason="rerun-sdk is not installed")
+pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
+
+from online_slam.sinks.rerun_recording import Recording, blueprint_views  # noqa: E402
+
+EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def square_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    folder = tmp_path_factory.mktemp("rrd")
+    rrd, out = folder / "square.rrd", folder / "square.json"
+    done = cli("replay", "square", "--rrd", str(rrd), "--json", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    return rrd, json.loads(out.read_text())
+
+
+def test_recording_reads_back_with_the_json_figures(square_recording: tuple[Path, dict]) -> None:
+    rrd, results = square_recording
+    with Recording(rrd) as recording:
+        summary = recording.summary()
+        paths = recording.entity_paths()
+        last = recording.state_at(24)
+    assert summary.source == "square" and summary.steps == results["poses"] == 25
+    assert summary.time_span == (0.0, 24.0)
+    assert summary.estimators == ("ekf", "smoother", "batch")
+    for name in ("ekf", "smoother", "batch"):
+        for key in ("final_rmse_m", "landmark_rmse_m", "endpoint_gap_m"):
+            assert summary.results["estimators"][name][key] == results["estimators"][name][key]
+    for name in ("ekf", "smoother"):
+        assert summary.latency_ms[name]["median"] == pytest.approx(results["estimators"][name]["step_ms"]["median"])
+        assert summary.latency_ms[name]["max"] == pytest.approx(results["estimators"][name]["step_ms"]["max"])
+    expected = {
+        "/world/truth/path", "/world/truth/landmarks", "/world/odometry/path", "/world/observations",
+        "/world/ekf/pose", "/world/ekf/pose_cov", "/world/ekf/landmarks", "/world/ekf/landmark_cov",
+        "/world/smoother/pose", "/world/smoother/window", "/world/batch/path", "/world/batch/landmarks",
+        "/metrics/ekf/step_ms", "/metrics/ekf/position_error_m", "/metrics/ekf/nees", "/metrics/ekf/nis",
+        "/metrics/smoother/cost_after", "/metrics/smoother/iterations", "/events",
+    }  # fmt: skip
+    assert expected <= set(paths)
+    ekf = last["estimators"]["ekf"]
+    assert ekf["landmarks"] == 12 and abs(ekf["pose"][0]) < 0.2 and abs(ekf["pose"][1]) < 0.2
+
+
+def test_default_blueprint_is_in_the_recording(square_recording: tuple[Path, dict]) -> None:
+    views = blueprint_views(square_recording[0])
+    kinds = {(kind, origin) for kind, _, origin in views}
+    assert ("2D", "/world") in kinds and ("TextLog", "/events") in kinds
+    assert {name for kind, name, _ in views if kind == "TimeSeries"} >= {"position error (m)", "step time (ms)"}
+
+
+def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) -> None:
+    rrd, results = square_recording
+    done = cli("inspect", str(rrd))
+    assert done.returncode == 0, done.stderr
+    assert "source: square" in done.stdout and "steps: 25" in done.stdout
+    assert f"{results['estimators']['batch']['final_rmse_m']:.4f}" in done.stdout
+    done = cli("inspect", str(rrd), "--step", "12", "--json")
+    state = json.loads(done.stdout)["state"]
+    assert state["step"] == 12 and set(state["estimators"]) >= {"odometry", "ekf", "smoother", "truth"}
+    assert any("relinearized" in e for e in state["events"])
+
+
+@pytest.mark.parametrize("case", ["truncated", "text", "missing", "step"])
+def test_inspect_bad_files_give_one_line_and_exit_2(square_recording: tuple[Path, dict], tmp_path: Path, case: str) -> None:
+    rrd = square_recording[0]
+    target, extra = tmp_path / f"{case}.rrd", []
+    if case == "truncated":
+        target.write_bytes(rrd.read_bytes()[: rrd.stat().st_size // 2])
+    elif case == "text":
+        target.write_text("not a recording\n")
+    elif case == "step":
+        target, extra = rrd, ["--step", "99"]
+    done = cli("inspect", str(target), *extra)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("online-slam: error:")
