@@ -78,7 +78,9 @@ def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) ->
 
 
 @pytest.mark.parametrize("case", ["truncated", "text", "missing", "step"])
-def test_inspect_bad_files_give_one_line_and_exit_2(square_recording: tuple[Path, dict], tmp_path: Path, case: str) -> None:
+def test_inspect_bad_files_give_one_line_and_exit_2(
+    square_recording: tuple[Path, dict], tmp_path: Path, case: str
+) -> None:
     rrd = square_recording[0]
     target, extra = tmp_path / f"{case}.rrd", []
     if case == "truncated":

@@ -18,10 +18,12 @@ covariance ellipses every ``map_every`` steps.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import re
 import subprocess
+import time
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -29,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 from numpy.typing import NDArray
@@ -120,13 +123,70 @@ class RerunConfig:
     path: str | None = None
     """``.rrd`` file to write, or None."""
     connect: str | None = None
-    """gRPC URL of a running viewer (e.g. ``rerun+http://127.0.0.1:9876/proxy``), or None."""
+    """gRPC URL of a running viewer (``default`` for the default address), or None."""
     map_every: int = 25
     """Landmark covariance ellipses are logged every this many steps (and at the end)."""
+    flush_every: int = 256
+    """Per-step data is buffered and sent as columns every this many steps (and at least every 0.25 s when
+    streaming to a viewer)."""
+
+
+def _strips_array(strips: list[Array]) -> pa.Array:
+    """Polylines as one Arrow ``LineStrip2D`` array, built in one go (rerun converts a list strip by strip)."""
+    sizes = np.fromiter((len(strip) for strip in strips), dtype=np.int32, count=len(strips))
+    offsets = np.zeros(len(strips) + 1, dtype=np.int32)
+    np.cumsum(sizes, out=offsets[1:])
+    flat = np.concatenate(strips).astype(np.float32).reshape(-1) if strips else np.zeros(0, dtype=np.float32)
+    datatype = rr.components.LineStrip2DBatch._ARROW_DATATYPE
+    points = pa.FixedSizeListArray.from_arrays(pa.array(flat, type=pa.float32()), type=datatype.value_type)
+    return pa.ListArray.from_arrays(pa.array(offsets), points, type=datatype)
+
+
+class _Columns:
+    """Per-step values buffered by entity and sent as Rerun columns, one chunk per entity per flush."""
+
+    def __init__(self, rec: rr.RecordingStream) -> None:
+        self.rec = rec
+        self.rows: dict[tuple[str, str], list[tuple[int, float, Any]]] = {}
+
+    def add(self, entity: str, kind: str, step: Step, value: Any) -> None:
+        self.rows.setdefault((entity, kind), []).append((step.index, step.t, value))
+
+    def flush(self) -> None:
+        for (entity, kind), rows in self.rows.items():
+            steps = np.array([r[0] for r in rows])
+            times = np.array([r[1] for r in rows], dtype=float)
+            time_column = (
+                rr.TimeColumn("time", timestamp=times) if times[0] >= EPOCH else rr.TimeColumn("time", duration=times)
+            )
+            indexes = [rr.TimeColumn("step", sequence=steps), time_column]
+            values = [r[2] for r in rows]
+            if kind == "scalar":
+                columns = rr.Scalars.columns(scalars=np.array(values, dtype=float))
+            elif kind == "arrow":
+                pairs = np.array(values, dtype=float)  # (n, 2, 2): origin, vector
+                columns = rr.Arrows2D.columns(origins=pairs[:, 0], vectors=pairs[:, 1])
+            elif kind == "ellipse":  # one (mean, 2x2 covariance) per row, drawn here for all rows at once
+                rings = ellipses(np.array([v[0] for v in values]), np.array([v[1] for v in values]))
+                columns = rr.LineStrips2D.columns(strips=_strips_array(list(rings)))
+            elif kind == "points":
+                lengths = [len(v) for v in values]
+                flat = np.concatenate([np.asarray(v, dtype=float).reshape(-1, 2) for v in values])
+                columns = rr.Points2D.columns(positions=flat).partition(lengths)
+            else:  # strips: each row holds a list of (P, 2) polylines
+                lengths = [len(v) for v in values]
+                columns = rr.LineStrips2D.columns(strips=_strips_array([s for v in values for s in v])).partition(
+                    lengths
+                )
+            self.rec.send_columns(entity, indexes=indexes, columns=columns)
+        self.rows.clear()
 
 
 class RerunSink:
     """Logs each replay step to Rerun (a :class:`~online_slam.sinks.protocol.ReplaySink`).
+
+    Per-step data is buffered and sent as columns (one chunk per entity every ``flush_every`` steps), which
+    costs far less than one log call per value; appearance (colours, radii) is logged once, statically.
 
     Args:
         config: File and/or live viewer, and logging cadence.
@@ -151,9 +211,32 @@ class RerunSink:
         except Exception as exc:  # noqa: BLE001 - rerun raises several kinds; one message for the user
             raise OnlineSlamError(f"rerun: cannot open the recording sink: {exc}") from None
         self.rec.send_recording_name(source)
+        self.columns = _Columns(self.rec)
         self.paths: dict[str, _Path] = {}
         self.labels: dict[str, tuple[Any, ...]] = {}
         self.truth_landmarks = 0
+        self._last_flush = time.perf_counter()
+        self._buffered = 0
+        self._last_step: Step | None = None
+        self._appearance()
+
+    def _appearance(self) -> None:
+        """Colours and sizes, once and for all time."""
+        log = self.rec.log
+        for name in (*ONLINE, "truth"):
+            color = [COLORS[name]]
+            log(f"world/{name}/pose", rr.Arrows2D.from_fields(colors=color, radii=[0.02]), static=True)
+            for part in ("path", "path_recent"):
+                log(f"world/{name}/{part}", rr.LineStrips2D.from_fields(colors=color, radii=[0.015]), static=True)
+            for part in ("pose_cov", "landmark_cov"):
+                log(f"world/{name}/{part}", rr.LineStrips2D.from_fields(colors=color, radii=[0.008]), static=True)
+            log(f"world/{name}/landmarks", rr.Points2D.from_fields(colors=color, radii=[0.08]), static=True)
+        log("world/smoother/window", rr.Points2D.from_fields(colors=[COLORS["smoother"]], radii=[0.05]), static=True)
+        log(
+            "world/observations",
+            rr.LineStrips2D.from_fields(colors=[COLORS["observations"]], radii=[0.005]),
+            static=True,
+        )
 
     # -- per step ----------------------------------------------------------------------------------
     def _time(self, step: Step) -> None:
@@ -163,96 +246,99 @@ class RerunSink:
         else:
             self.rec.set_time("time", duration=step.t)
 
-    def _pose(self, name: str, pose: Array) -> None:
-        color = COLORS.get(name, (0, 0, 0))
+    def _pose(self, name: str, pose: Array, step: Step) -> None:
         heading = 0.5 * np.array([math.cos(pose[2]), math.sin(pose[2])])
-        self.rec.log(f"world/{name}/pose", rr.Arrows2D(origins=[pose[:2]], vectors=[heading], colors=[color]))
+        self.columns.add(f"world/{name}/pose", "arrow", step, (pose[:2], heading))
         whole, recent = self.paths.setdefault(name, _Path()).add(pose)
         if whole is not None:
-            self.rec.log(f"world/{name}/path", rr.LineStrips2D([whole], colors=[color]))
-        self.rec.log(f"world/{name}/path_recent", rr.LineStrips2D([recent], colors=[color]))
+            self.columns.add(f"world/{name}/path", "strips", step, [whole])
+        self.columns.add(f"world/{name}/path_recent", "strips", step, [recent])
 
     def _landmarks(self, name: str, snapshot: Snapshot, step: Step, final: bool = False) -> None:
-        color = COLORS.get(name, (0, 0, 0))
         if snapshot.landmark_ids != self.labels.get(name):
             self.labels[name] = snapshot.landmark_ids
+            self._time(step)
             labels = [str(i) for i in snapshot.landmark_ids]
-            self.rec.log(
-                f"world/{name}/landmarks",
-                rr.Points2D(snapshot.landmarks, labels=labels, colors=[color], radii=[0.08], show_labels=False),
-            )
-        else:
-            self.rec.log(f"world/{name}/landmarks", rr.Points2D.from_fields(positions=snapshot.landmarks))
+            self.rec.log(f"world/{name}/landmarks", rr.Points2D.from_fields(labels=labels, show_labels=False))
+        self.columns.add(f"world/{name}/landmarks", "points", step, snapshot.landmarks)
         due = final or step.index % max(1, self.config.map_every) == 0
         if due and snapshot.landmark_covs is not None and len(snapshot.landmarks):
-            strips = ellipses(snapshot.landmarks, snapshot.landmark_covs)
-            self.rec.log(f"world/{name}/landmark_cov", rr.LineStrips2D(strips, colors=[color], radii=[0.01]))
+            self.columns.add(
+                f"world/{name}/landmark_cov", "strips", step, list(ellipses(snapshot.landmarks, snapshot.landmark_covs))
+            )
 
     def on_step(self, step: Step, snapshots: Mapping[str, Snapshot], truth: GroundTruth) -> None:
-        """Log one step: poses, paths, maps, observation rays, scalars and events."""
-        rec = self.rec
-        self._time(step)
+        """Buffer one step: poses, paths, maps, observation rays, scalars; log its events."""
+        add = self.columns.add
         if len(truth.landmarks) != self.truth_landmarks:
             self.truth_landmarks = len(truth.landmarks)
             self._truth_landmarks(truth)
         true_pose = truth.poses.get(step.index)
         if true_pose is not None:
-            self._pose("truth", true_pose)
+            self._pose("truth", true_pose, step)
         events: list[str] = []
         for name in ONLINE:
             snap = snapshots.get(name)
             if snap is None:
                 continue
-            self._pose(name, snap.pose)
+            self._pose(name, snap.pose, step)
             self._landmarks(name, snap, step)
             if snap.pose_cov is not None and np.all(np.isfinite(snap.pose_cov)):
-                ring = ellipses(snap.pose[None, :2], snap.pose_cov[None, :2, :2])
-                rec.log(f"world/{name}/pose_cov", rr.LineStrips2D(ring, colors=[COLORS[name]], radii=[0.01]))
+                add(
+                    f"world/{name}/pose_cov",
+                    "strips",
+                    step,
+                    list(ellipses(snap.pose[None, :2], snap.pose_cov[None, :2, :2])),
+                )
             if snap.wall_s is not None:
-                rec.log(f"metrics/{name}/step_ms", rr.Scalars(1e3 * snap.wall_s))
+                add(f"metrics/{name}/step_ms", "scalar", step, 1e3 * snap.wall_s)
             if true_pose is not None:
-                rec.log(
-                    f"metrics/{name}/position_error_m", rr.Scalars(float(np.hypot(*(snap.pose[:2] - true_pose[:2]))))
+                add(
+                    f"metrics/{name}/position_error_m",
+                    "scalar",
+                    step,
+                    float(np.hypot(*(snap.pose[:2] - true_pose[:2]))),
                 )
                 if snap.pose_cov is not None:
                     e = snap.pose - true_pose
                     e[2] = wrap(e[2])
-                    try:
-                        nees = float(e @ np.linalg.solve(snap.pose_cov, e))
-                        rec.log(f"metrics/{name}/nees", rr.Scalars(nees))
-                    except np.linalg.LinAlgError:
-                        pass
-            events += self._events(name, snap)
+                    with contextlib.suppress(np.linalg.LinAlgError):
+                        add(f"metrics/{name}/nees", "scalar", step, float(e @ np.linalg.solve(snap.pose_cov, e)))
+            events += self._events(name, snap, step)
         current = next((snapshots[n] for n in ("smoother", "ekf", "odometry") if n in snapshots), None)
+        rays: list[Array] = []
         if current is not None and len(step.landmarks):
             ends = landmark_from_observation(current.pose[None, :], step.z)
-            rays = np.stack([np.broadcast_to(current.pose[:2], ends.shape), ends], axis=1)
-            rec.log("world/observations", rr.LineStrips2D(rays, colors=[COLORS["observations"]], radii=[0.005]))
-        else:
-            rec.log("world/observations", rr.Clear(recursive=False))
-        for text in events:
-            rec.log("events", rr.TextLog(f"step {step.index}: {text}", level="INFO"))
+            rays = list(np.stack([np.broadcast_to(current.pose[:2], ends.shape), ends], axis=1))
+        add("world/observations", "strips", step, rays)
+        if events:
+            self._time(step)
+            for text in events:
+                self.rec.log("events", rr.TextLog(f"step {step.index}: {text}", level="INFO"))
+        self._last_step = step
+        self._buffered += 1
+        now = time.perf_counter()
+        live = self.config.connect is not None and now - self._last_flush > 0.25
+        if live or self._buffered >= self.config.flush_every:
+            self.columns.flush()
+            self._last_flush, self._buffered = now, 0
 
-    def _events(self, name: str, snap: Snapshot) -> list[str]:
+    def _events(self, name: str, snap: Snapshot, step: Step) -> list[str]:
         info, out = snap.info, []
         if name == "ekf":
             nis = np.asarray(info.get("nis", []), dtype=float)
             if np.isfinite(nis).any():
-                self.rec.log("metrics/ekf/nis", rr.Scalars(float(np.nanmean(nis))))
+                self.columns.add("metrics/ekf/nis", "scalar", step, float(np.nanmean(nis)))
             if info.get("new_landmarks"):
                 out.append(f"ekf: landmarks initialised {', '.join(map(str, info['new_landmarks']))}")
             if info.get("gated"):
                 out.append(f"ekf: observations gated (chi-square) of {', '.join(map(str, info['gated']))}")
         if name == "smoother":
-            if self.config and info.get("window") is not None:
-                self.rec.log(
-                    "world/smoother/window",
-                    rr.Points2D(info["window_poses"][:, :2], colors=[COLORS[name]], radii=[0.05]),
-                )
+            if info.get("window") is not None:
+                self.columns.add("world/smoother/window", "points", step, info["window_poses"][:, :2])
             if info.get("relinearized"):
-                self.rec.log("metrics/smoother/cost_before", rr.Scalars(float(info["cost_before"])))
-                self.rec.log("metrics/smoother/cost_after", rr.Scalars(float(info["cost_after"])))
-                self.rec.log("metrics/smoother/iterations", rr.Scalars(float(info["iterations"])))
+                for key in ("cost_before", "cost_after", "iterations"):
+                    self.columns.add(f"metrics/smoother/{key}", "scalar", step, float(info[key]))
                 out.append(f"smoother: relinearized, {info['iterations']} iterations")
             if info.get("marginalized"):
                 out.append(f"smoother: marginalized poses {', '.join(map(str, info['marginalized']))}")
@@ -269,8 +355,11 @@ class RerunSink:
 
     # -- end ---------------------------------------------------------------------------------------
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
-        """Log the batch solution and final maps at the last step, the summary, and close the file."""
+        """Send what is buffered, the batch solution at the last step, the summary; close the file."""
         rec = self.rec
+        self.columns.flush()
+        if self._last_step is not None:
+            self._time(self._last_step)
         if truth.landmarks:
             self._truth_landmarks(truth)
         batch = results.estimates.get("batch")
