@@ -93,3 +93,42 @@ def test_inspect_bad_files_give_one_line_and_exit_2(
     assert done.returncode == 2 and "Traceback" not in done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("online-slam: error:")
+
+
+def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path) -> None:
+    rerun_cli = shutil.which("rerun")
+    if rerun_cli is None:
+        pytest.skip("the rerun command is not installed")
+    import socket
+    import time
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    saved = tmp_path / "live.rrd"
+    server = subprocess.Popen(
+        [rerun_cli, "--port", str(port), "--save", str(saved)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        time.sleep(2.0)
+        started = time.perf_counter()
+        done = cli("replay", "square", "--connect", f"rerun+http://127.0.0.1:{port}/proxy", "--rate", "50", "--quiet")
+        elapsed = time.perf_counter() - started
+        assert done.returncode == 0, done.stderr
+        assert elapsed >= 24 / 50  # 24 s of stream at 50x
+        time.sleep(1.0)
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+    with Recording(saved, complete=False) as recording:  # a stream saved by the viewer has no footer
+        summary = recording.summary()
+    assert summary.steps == 25 and summary.source == "square"
+
+
+def test_unreachable_viewer_is_one_line_and_results_survive(tmp_path: Path) -> None:
+    out = tmp_path / "r.json"
+    done = cli("replay", "square", "--connect", "rerun+http://127.0.0.1:9/proxy", "--json", str(out))
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    ours = [line for line in done.stderr.splitlines() if line.startswith("online-slam:")]
+    assert len(ours) == 1 and "could not deliver" in ours[0]
+    assert "Position RMSE" in done.stdout and json.loads(out.read_text())["poses"] == 25

@@ -141,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
     config = config_from(args)
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
-    results = replay(args.source, config, sinks=sinks_from(args, config))
+    sinks = sinks_from(args, config)
+    results = replay(args.source, config, sinks=sinks)
     if not args.quiet:
         print(format_results(results))
     if args.json:
@@ -150,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
             print(text)
         else:
             Path(args.json).write_text(text + "\n", encoding="utf-8")
-    if results.error:
-        print(f"online-slam: error: {results.error}", file=sys.stderr)
-        return 2
-    return 0
+    failures = [results.error] + [getattr(sink, "error", None) for sink in sinks]
+    for failure in filter(None, failures):
+        print(f"online-slam: error: {failure}", file=sys.stderr)
+    return 2 if any(failures) else 0

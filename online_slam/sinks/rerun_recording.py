@@ -214,10 +214,13 @@ class RerunSink:
         self.columns = _Columns(self.rec)
         self.paths: dict[str, _Path] = {}
         self.labels: dict[str, tuple[Any, ...]] = {}
+        self._landmark_values: dict[str, Array] = {}
         self.truth_landmarks = 0
         self._last_flush = time.perf_counter()
         self._buffered = 0
         self._last_step: Step | None = None
+        self.error: str | None = None
+        """Set when the recording could not be delivered (the replay itself is not affected)."""
         self._appearance()
 
     def _appearance(self) -> None:
@@ -260,7 +263,10 @@ class RerunSink:
             self._time(step)
             labels = [str(i) for i in snapshot.landmark_ids]
             self.rec.log(f"world/{name}/landmarks", rr.Points2D.from_fields(labels=labels, show_labels=False))
-        self.columns.add(f"world/{name}/landmarks", "points", step, snapshot.landmarks)
+        previous = self._landmark_values.get(name)
+        if previous is None or not np.array_equal(previous, snapshot.landmarks):  # unchanged maps are not re-sent
+            self._landmark_values[name] = snapshot.landmarks
+            self.columns.add(f"world/{name}/landmarks", "points", step, snapshot.landmarks)
         due = final or step.index % max(1, self.config.map_every) == 0
         if due and snapshot.landmark_covs is not None and len(snapshot.landmarks):
             self.columns.add(
@@ -380,7 +386,11 @@ class RerunSink:
         rec.log(
             "summary", rr.TextDocument(json.dumps(results.to_json(), indent=2), media_type="text/plain"), static=True
         )
-        rec.flush()
+        try:
+            rec.flush()
+        except RuntimeError as exc:  # e.g. no viewer at the address: the results must not be lost over it
+            where = self.config.connect if self.config.connect != "default" else "the default address"
+            self.error = f"rerun: could not deliver the recording to the viewer at {where} ({exc})"
         rec.disconnect()
 
 
@@ -403,16 +413,22 @@ class RecordingSummary:
     """Per online estimator: median / p95 / max step time computed from the logged ``step_ms`` series."""
 
 
-def check_rrd(path: str | Path) -> Path:
-    """Raise an :class:`OnlineSlamError` with one clear line unless path is a complete ``.rrd`` file."""
+def check_rrd(path: str | Path, complete: bool = True) -> Path:
+    """Raise an :class:`OnlineSlamError` with one clear line unless path is a complete ``.rrd`` file.
+
+    Args:
+        path: The file.
+        complete: Require the footer a finished recording ends with (``rerun rrd verify`` requires it too);
+            False accepts a stream saved by a viewer, which has none.
+    """
     p = Path(path)
     if not p.is_file():
         raise OnlineSlamError(f"{p}: no such file")
     data = p.read_bytes()
     if not data.startswith(b"RRF2"):
         raise OnlineSlamError(f"{p}: not a Rerun recording (no RRF2 header)")
-    if b"RRF2FOOT" not in data[-64:]:
-        raise OnlineSlamError(f"{p}: truncated Rerun recording (no footer; was the replay interrupted?)")
+    if complete and b"RRF2FOOT" not in data[-64:]:
+        raise OnlineSlamError(f"{p}: incomplete Rerun recording: no footer (truncated, or the replay was cut off)")
     return p
 
 
@@ -435,8 +451,8 @@ class Recording:
     Use as a context manager: ``with Recording(path) as rec: rec.summary(); rec.state_at(10)``.
     """
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = check_rrd(path)
+    def __init__(self, path: str | Path, complete: bool = True) -> None:
+        self.path = check_rrd(path, complete)
         self._server: Any = None
         self._dataset: Any = None
 
