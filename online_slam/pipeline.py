@@ -31,7 +31,7 @@ from online_slam.evaluation.metrics import (
     position_rmse,
     transform_pose_covariance,
 )
-from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Results
+from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Results, Series
 from online_slam.frontend.steps import FrontEnd, FrontEndConfig, GroundTruth
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event
@@ -55,6 +55,8 @@ class ReplayConfig:
     """Settings of the EKF."""
     smoother: SmootherConfig = field(default_factory=SmootherConfig)
     """Settings of the sliding-window smoother."""
+    extra_smoothers: tuple[SmootherConfig, ...] = ()
+    """Further smoother configurations run side by side, named ``smoother W=<window> K=<relinearize_every>``."""
     batch: BatchConfig = field(default_factory=BatchConfig)
     """Settings of the batch solver."""
     alignment: str = "anchor"
@@ -127,26 +129,49 @@ class _Track:
     poses: list[Array] = field(default_factory=list)
     covariances: list[Array | None] = field(default_factory=list)
     seconds: list[float] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+    nis: list[float] = field(default_factory=list)
 
     def record(self, snapshot: Snapshot, seconds: float) -> None:
         self.poses.append(snapshot.pose)
         self.covariances.append(snapshot.pose_cov)
         self.seconds.append(seconds)
+        self.times.append(snapshot.t)
+        nis = np.asarray(snapshot.info.get("nis", ()), dtype=float)
+        self.nis.append(float(np.nanmean(nis)) if np.isfinite(nis).any() else np.nan)
 
 
 def _online_figures(track: _Track, final: Estimate, truth: GroundTruth, alignment: str) -> tuple:
-    """Online RMSE, mean NEES and latency of an estimator whose snapshots are real-time estimates."""
+    """Online RMSE, mean NEES, latency and the per-step series of an estimator with real-time snapshots."""
     online = Estimate(final.estimator, np.array(track.poses), final.landmark_ids, final.landmarks)
     errors = evaluate(online, truth, alignment)
+    n = len(track.poses)
+    error_m, nees = np.full(n, np.nan), np.full(n, np.nan)
+    sigma = np.array([np.sqrt(np.trace(c[:2, :2])) if c is not None else np.nan for c in track.covariances])
     nees_mean = None
-    if errors.indices is not None and all(track.covariances[i] is not None for i in errors.indices):
-        covs = transform_pose_covariance(errors.transform, np.array([track.covariances[i] for i in errors.indices]))
-        moved = apply_transform(errors.transform, online.poses[errors.indices])
-        nees = pose_nees(moved, covs, np.array([truth.poses[i] for i in errors.indices]))
-        nees_mean = float(np.nanmean(nees)) if np.isfinite(nees).any() else None
+    if errors.indices is not None:
+        idx = errors.indices
+        true_poses = np.array([truth.poses[i] for i in idx])
+        moved = apply_transform(errors.transform, online.poses[idx])
+        error_m[idx] = np.hypot(*(moved[:, :2] - true_poses[:, :2]).T)
+        if all(track.covariances[i] is not None for i in idx):
+            covs = transform_pose_covariance(errors.transform, np.array([track.covariances[i] for i in idx]))
+            nees[idx] = pose_nees(moved, covs, true_poses)
+            nees_mean = float(np.nanmean(nees)) if np.isfinite(nees).any() else None
     ms = np.array(track.seconds) * 1e3
     latency = Latency(float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max()))
-    return errors.rmse_m, nees_mean, latency
+    series = Series(np.array(track.times), online.poses, error_m, sigma, nees, np.array(track.nis), ms)
+    return errors.rmse_m, nees_mean, latency, series
+
+
+def _truth_array(truth: GroundTruth, steps: int) -> Array | None:
+    if not truth.poses:
+        return None
+    out = np.full((steps, 3), np.nan)
+    for i, pose in truth.poses.items():
+        if i < steps:
+            out[i] = pose
+    return out
 
 
 def replay(
@@ -173,6 +198,11 @@ def replay(
     """
     cfg = config or ReplayConfig()
     estimators = [make_estimator(n, cfg) for n in cfg.estimators]
+    for extra in cfg.extra_smoothers:
+        estimators.append(SlidingWindowSmoother(extra, name=f"smoother W={extra.window} K={extra.relinearize_every}"))
+    names = [e.name for e in estimators]
+    if len(set(names)) != len(names):
+        raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")
     if isinstance(source, (str, Path)):
         label, events = open_source(source)
     else:
@@ -204,6 +234,7 @@ def replay(
         raise InputError(label, 0, "", "the stream holds no pose")
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
     figures: dict[str, EstimatorResult] = {}
+    series: dict[str, Series] = {}
     for track in tracks:
         estimator = track.estimator
         started = time.perf_counter()
@@ -213,7 +244,9 @@ def replay(
         errors = evaluate(estimate, frontend.truth, cfg.alignment)
         online_rmse = nees_mean = latency = None
         if getattr(estimator, "online", True):
-            online_rmse, nees_mean, latency = _online_figures(track, estimate, frontend.truth, cfg.alignment)
+            online_rmse, nees_mean, latency, series[estimator.name] = _online_figures(
+                track, estimate, frontend.truth, cfg.alignment
+            )
         figures[estimator.name] = EstimatorResult(
             final_rmse_m=errors.rmse_m,
             endpoint_gap_m=errors.endpoint_gap_m,
@@ -234,6 +267,9 @@ def replay(
         estimators=figures,
         estimates=estimates,
         alignment=cfg.alignment,
+        series=series,
+        truth_poses=_truth_array(frontend.truth, steps),
+        truth_landmarks=dict(frontend.truth.landmarks),
         error=error,
     )
     for sink in sinks:

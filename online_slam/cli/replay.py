@@ -27,6 +27,33 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="replay a stream (file, '-' or built-in world) through the estimators",
         description="Replay a stream step by step through the estimators and compare them with the truth.",
     )
+    add_options(p)
+    p.add_argument("--window", type=int, default=SmootherConfig.window, help="smoother: poses kept in the window (W)")
+    p.add_argument(
+        "--relinearize-every",
+        type=int,
+        default=SmootherConfig.relinearize_every,
+        metavar="K",
+        help="smoother: relinearize and solve every K steps (default 1)",
+    )
+    p.add_argument("--rrd", metavar="PATH", help="log every step to a Rerun recording (.rrd) for the Rerun viewer")
+    p.add_argument(
+        "--connect",
+        nargs="?",
+        const="default",
+        metavar="ADDR",
+        help="stream to a running Rerun viewer (default address, or a rerun+http:// URL)",
+    )
+    p.add_argument(
+        "--rate",
+        type=float,
+        metavar="R",
+        help="pace the replay at R times the stream's clock (default: as fast as possible)",
+    )
+
+
+def add_options(p: argparse.ArgumentParser) -> None:
+    """The options shared by replay and compare: source, output, front-end and estimator settings."""
     p.add_argument("source", nargs="?", default="square", help="stream file (.jsonl/.gz), '-', or world (square, grid)")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON ('-' for stdout)")
     p.add_argument(
@@ -51,14 +78,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="P",
         help=f"EKF chi-square gate on each observation's NIS, 2 dof (default {EkfConfig.gate_probability}; 1 = off)",
     )
-    p.add_argument("--window", type=int, default=SmootherConfig.window, help="smoother: poses kept in the window (W)")
-    p.add_argument(
-        "--relinearize-every",
-        type=int,
-        default=SmootherConfig.relinearize_every,
-        metavar="K",
-        help="smoother: relinearize and solve every K steps (default 1)",
-    )
     p.add_argument(
         "--robust",
         choices=("none", "huber", "cauchy"),
@@ -73,20 +92,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         choices=("joint", "sequential"),
         default=EkfConfig.update,
         help="EKF: one update per step with all observations (joint, default) or one per observation",
-    )
-    p.add_argument("--rrd", metavar="PATH", help="log every step to a Rerun recording (.rrd) for the Rerun viewer")
-    p.add_argument(
-        "--connect",
-        nargs="?",
-        const="default",
-        metavar="ADDR",
-        help="stream to a running Rerun viewer (default address, or a rerun+http:// URL)",
-    )
-    p.add_argument(
-        "--rate",
-        type=float,
-        metavar="R",
-        help="pace the replay at R times the stream's clock (default: as fast as possible)",
     )
     p.add_argument("--quiet", action="store_true", help="print no table and no progress")
 
@@ -105,7 +110,9 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
     try:
         ekf = EkfConfig(gate_probability=args.gate_probability, update=args.ekf_update)
         loss = None if args.robust == "none" else RobustLoss(args.robust, args.robust_scale)
-        smoother = SmootherConfig(window=args.window, relinearize_every=args.relinearize_every, loss=loss)
+        window = args.window if isinstance(args.window, int) else SmootherConfig.window
+        every = args.relinearize_every if isinstance(args.relinearize_every, int) else SmootherConfig.relinearize_every
+        smoother = SmootherConfig(window=window, relinearize_every=every, loss=loss)
     except ValueError as exc:
         raise OnlineSlamError(f"replay: {exc}") from None
     return ReplayConfig(

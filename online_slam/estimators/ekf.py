@@ -293,4 +293,5 @@ class EkfSlam(ExtendedKalmanFilter):
             tuple(self.landmark_ids),
             self.x[3:, 0].reshape(-1, 2).copy(),
             {"gated_observations": self.gated_total, "state_size": self.dim_x},
+            landmark_covs=self.landmark_marginals(),
         )

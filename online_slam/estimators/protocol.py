@@ -55,6 +55,8 @@ class Estimate:
     """Final landmark estimates, shape (M, 2)."""
     info: Mapping[str, Any] = field(default_factory=dict)
     """Solver report (iterations, convergence, costs...)."""
+    landmark_covs: Array | None = None
+    """Final 2x2 landmark marginal covariances, shape (M, 2, 2), where the estimator has them."""
 
 
 @runtime_checkable

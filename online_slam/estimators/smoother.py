@@ -130,8 +130,9 @@ class SlidingWindowSmoother:
     name = "smoother"
     online = True
 
-    def __init__(self, config: SmootherConfig | None = None) -> None:
+    def __init__(self, config: SmootherConfig | None = None, name: str = "smoother") -> None:
         self.config = config or SmootherConfig()
+        self.name = name
         self.window: list[int] = []
         self.poses: dict[int, Array] = {}
         self.final_poses: list[Array] = []

@@ -5,7 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from online_slam.estimators.protocol import Estimate
+
+Array = NDArray[np.float64]
 
 
 def _finite_or_none(value: float | None) -> float | None:
@@ -81,6 +86,26 @@ class EstimatorResult:
 
 
 @dataclass(frozen=True)
+class Series:
+    """Per-step record of an online estimator over a replay (N steps); NaN where a value does not exist."""
+
+    t: Array
+    """Step times, seconds, shape (N,)."""
+    poses: Array
+    """Each pose as estimated when it was the newest, in the estimator's frame, shape (N, 3)."""
+    position_error_m: Array
+    """Distance to the true position after the replay's alignment, shape (N,)."""
+    position_sigma_m: Array
+    """Square root of the trace of the 2x2 position covariance (the RMS of the radial error), shape (N,)."""
+    nees: Array
+    """Pose NEES, 3 dof, shape (N,)."""
+    nis: Array
+    """Mean NIS of the step's observations, 2 dof, shape (N,)."""
+    step_ms: Array
+    """Wall time of the step, milliseconds, shape (N,)."""
+
+
+@dataclass(frozen=True)
 class Results:
     """Everything a replay produced."""
 
@@ -100,6 +125,12 @@ class Results:
     """Final estimates per estimator (``odometry`` included), for plots and further analysis."""
     alignment: str = "anchor"
     """How estimates were put in the truth's frame: ``anchor`` (first pose) or ``se2`` (least squares)."""
+    series: dict[str, Series] = field(default_factory=dict, repr=False)
+    """Per-step records of the online estimators, for plots and consistency tests."""
+    truth_poses: Array | None = field(default=None, repr=False)
+    """True poses by step (NaN rows where the stream had none), shape (N, 3), or None without truth."""
+    truth_landmarks: dict[Any, Array] = field(default_factory=dict, repr=False)
+    """True landmark positions by id."""
     error: str | None = None
     """The input error that ended the stream early, or None; the figures cover what came before it."""
 

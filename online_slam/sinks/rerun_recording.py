@@ -42,40 +42,15 @@ from online_slam.evaluation.results import Results
 from online_slam.frontend.steps import GroundTruth, Step
 from online_slam.geometry.angles import wrap
 from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.reports.palette import COLORS
+from online_slam.sinks.geometry import ellipses
 
 Array = NDArray[np.float64]
 
-COLORS = {
-    "truth": (120, 120, 120),
-    "odometry": (230, 140, 20),
-    "ekf": (30, 110, 220),
-    "smoother": (20, 160, 80),
-    "batch": (150, 60, 190),
-    "observations": (200, 60, 60),
-}
 ONLINE = ("odometry", "ekf", "smoother")
 """Estimators whose snapshots are real-time estimates (logged every step)."""
 EPOCH = 1e9
 """Stream times at or above this many seconds are taken as Unix timestamps, below as durations."""
-
-
-def ellipses(means: Array, covariances: Array, sigmas: float = 2.0, points: int = 24) -> Array:
-    """Closed polylines of ``sigmas``-sigma ellipses.
-
-    Args:
-        means: Centres, shape (M, 2).
-        covariances: 2x2 position covariances, shape (M, 2, 2).
-        sigmas: Scale of the ellipse.
-        points: Vertices per ellipse (the first is repeated at the end).
-
-    Returns:
-        Shape (M, points + 1, 2).
-    """
-    values, vectors = np.linalg.eigh(0.5 * (covariances + np.swapaxes(covariances, 1, 2)))
-    radii = sigmas * np.sqrt(np.clip(values, 0.0, None))  # (M, 2)
-    angle = np.linspace(0.0, 2.0 * np.pi, points + 1)
-    unit = np.stack([np.cos(angle), np.sin(angle)], -1)  # (P, 2)
-    return means[:, None, :] + np.einsum("mij,mj,pj->mpi", vectors, radii, unit)
 
 
 def blueprint(estimators: tuple[str, ...]) -> rrb.Blueprint:

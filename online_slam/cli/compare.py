@@ -1,0 +1,80 @@
+"""``online-slam compare SOURCE``: filter versus smoother(s) versus batch, one table, figures, Monte Carlo."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from online_slam.cli.replay import config_from
+from online_slam.compare import CompareConfig, compare
+from online_slam.errors import OnlineSlamError
+from online_slam.reports.compare_table import format_comparison
+
+
+def _ints(text: str, option: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise OnlineSlamError(f"{option}: expected comma-separated integers, got {text!r}") from None
+    if not values:
+        raise OnlineSlamError(f"{option}: expected at least one value")
+    return values
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the command (it shares replay's estimator options)."""
+    from online_slam.cli import replay as replay_cli
+
+    p = sub.add_parser(
+        "compare",
+        help="compare EKF, smoother configurations and batch on one stream: table, figures, Monte Carlo",
+        description="Run the EKF, every smoother (W, K) and the batch solver on the same stream; print one table.",
+    )
+    replay_cli.add_options(p)
+    p.set_defaults(estimators="ekf,smoother,batch")
+    p.add_argument("--window", default="20", metavar="W[,W...]", help="smoother window sizes (default 20)")
+    p.add_argument(
+        "--relinearize-every", default="1", metavar="K[,K...]", help="smoother relinearization periods (default 1)"
+    )
+    p.add_argument("--plot", metavar="PATH", help="write the figures (map, error, NEES, latency) to this PNG")
+    p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs over noise seeds (simulated worlds only)")
+    p.add_argument("--workers", type=int, help="processes for Monte Carlo runs (default: all cores)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Compare, print the table, write JSON and figures."""
+    base = config_from(args)
+    windows = _ints(args.window, "--window")
+    ks = _ints(args.relinearize_every, "--relinearize-every")
+    names = tuple(n for n in base.estimators if n != "smoother")
+    if len(names) == len(base.estimators):  # no smoother asked for
+        windows, ks = (), ()
+    config = CompareConfig(
+        windows=windows,
+        relinearize_every=ks,
+        replay=replace(base, estimators=names),
+        runs=args.runs,
+        workers=args.workers,
+    )
+    comparison = compare(args.source, config)
+    if not args.quiet:
+        print(format_comparison(comparison))
+    if args.json:
+        text = json.dumps(comparison.to_json(), indent=2)
+        if args.json == "-":
+            print(text)
+        else:
+            Path(args.json).write_text(text + "\n", encoding="utf-8")
+    if args.plot:
+        from online_slam.reports.plots import plot_comparison
+
+        if not str(args.plot).endswith(".png"):
+            raise OnlineSlamError(f"--plot: expected a path ending in .png, got {args.plot!r}")
+        plot_comparison(comparison, args.plot)
+    if comparison.results.error:
+        print(f"online-slam: error: {comparison.results.error}", file=sys.stderr)
+        return 2
+    return 0

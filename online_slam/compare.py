@@ -1,0 +1,260 @@
+"""Filter versus smoother: one library call that runs the EKF, smoother configurations and the batch solver
+on the same stream and gathers what the table, the plots and the JSON all read.
+
+Monte Carlo (simulated worlds only) repeats the comparison over noise seeds on all cores and tests the
+average NEES across runs against its chi-square bounds.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from online_slam.errors import OnlineSlamError
+from online_slam.evaluation.results import Results
+from online_slam.pipeline import ReplayConfig, replay
+from online_slam.sources.worlds import GridConfig, grid_world, square_world
+
+Array = NDArray[np.float64]
+NEES_DOF = 3
+"""Pose NEES has 3 degrees of freedom."""
+
+
+@dataclass(frozen=True)
+class CompareConfig:
+    """What ``online-slam compare`` runs."""
+
+    windows: tuple[int, ...] = (20,)
+    """Smoother window sizes W; every (W, K) pair is run."""
+    relinearize_every: tuple[int, ...] = (1,)
+    """Smoother relinearization periods K."""
+    replay: ReplayConfig = field(default_factory=lambda: ReplayConfig(estimators=("ekf", "batch")))
+    """Everything else (EKF and batch settings, front-end, alignment); its smoother settings seed each (W, K)."""
+    runs: int = 1
+    """Monte Carlo runs over noise seeds (simulated worlds only); 1 = just the given stream."""
+    workers: int | None = None
+    """Processes for Monte Carlo runs (default: all cores)."""
+
+
+@dataclass(frozen=True)
+class Row:
+    """One estimator's line of the comparison table."""
+
+    online_rmse_m: float | None
+    """RMSE of each pose as estimated when newest (None for batch)."""
+    final_rmse_m: float | None
+    """RMSE of the final estimate."""
+    landmark_rmse_m: float | None
+    """Landmark RMSE."""
+    endpoint_gap_m: float
+    """Last-to-first distance of the final estimate."""
+    nees_mean: float | None
+    """Mean pose NEES over steps with truth (3 = consistent)."""
+    nees_in_bounds: float | None
+    """Fraction of steps whose NEES lies inside the two-sided 95% chi-square interval (3 dof)."""
+    nis_mean: float | None
+    """Mean NIS of the observations (2 = consistent), where the estimator computes one."""
+    step_ms: dict[str, float] | None
+    """Step latency median / p95 / max, ms."""
+    total_s: float
+    """Total wall time of the estimator."""
+
+
+@dataclass(frozen=True)
+class MonteCarlo:
+    """Figures over noise seeds: mean and standard deviation per estimator, and the average-NEES test."""
+
+    runs: int
+    """Number of runs."""
+    seeds: tuple[int, ...]
+    """Seeds used."""
+    mean: dict[str, dict[str, float | None]]
+    """Per estimator, the mean of each figure over runs."""
+    std: dict[str, dict[str, float | None]]
+    """Per estimator, the standard deviation of each figure over runs."""
+    anees: dict[str, float]
+    """Per online estimator: NEES averaged over runs and steps."""
+    anees_bounds: tuple[float, float]
+    """Two-sided 95% bounds for a per-step NEES averaged over ``runs`` runs (3 dof)."""
+    anees_in_bounds: dict[str, float]
+    """Per online estimator: fraction of steps whose run-averaged NEES lies inside those bounds."""
+    anees_per_step: dict[str, list[float]]
+    """Per online estimator: the run-averaged NEES of every step."""
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Everything ``compare`` produced; table, plots and JSON read only this."""
+
+    results: Results
+    """The replay results of the (first) run, with per-step series and final estimates."""
+    rows: dict[str, Row]
+    """Table lines by estimator name (``odometry`` first)."""
+    monte_carlo: MonteCarlo | None = None
+    """Monte Carlo figures when ``runs > 1``."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The documented JSON of ``compare --json``."""
+        out: dict[str, Any] = {
+            "source": self.results.source,
+            "poses": self.results.poses,
+            "landmarks": self.results.landmarks,
+            "observations": self.results.observations,
+            "alignment": self.results.alignment,
+            "estimators": {name: row.__dict__ for name, row in self.rows.items()},
+        }
+        if self.monte_carlo is not None:
+            out["monte_carlo"] = dict(self.monte_carlo.__dict__, seeds=list(self.monte_carlo.seeds))
+        return _json_safe(out)
+
+
+def _json_safe(value: Any) -> Any:
+    """NaN and infinities become null; tuples become lists."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def nees_bounds(runs: int, probability: float = 0.95) -> tuple[float, float]:
+    """Two-sided bounds on a 3-dof NEES averaged over ``runs`` independent runs."""
+    tail = (1.0 - probability) / 2.0
+    low, high = chi2.ppf([tail, 1.0 - tail], NEES_DOF * runs) / runs
+    return float(low), float(high)
+
+
+def _finite_mean(values: Array) -> float | None:
+    return float(np.nanmean(values)) if np.isfinite(values).any() else None
+
+
+def rows_of(results: Results) -> dict[str, Row]:
+    """The table lines of a replay's results."""
+    low, high = nees_bounds(1)
+    rows = {
+        "odometry": Row(
+            results.odometry.rmse_m,
+            results.odometry.rmse_m,
+            results.odometry.landmark_rmse_m,
+            results.odometry.endpoint_gap_m,
+            None,
+            None,
+            None,
+            None,
+            0.0,
+        )  # fmt: skip
+    }
+    for name, r in results.estimators.items():
+        s = results.series.get(name)
+        in_bounds = None
+        if s is not None and np.isfinite(s.nees).any():
+            finite = s.nees[np.isfinite(s.nees)]
+            in_bounds = float(np.mean((finite >= low) & (finite <= high)))
+        rows[name] = Row(
+            online_rmse_m=r.online_rmse_m,
+            final_rmse_m=r.final_rmse_m,
+            landmark_rmse_m=r.landmark_rmse_m,
+            endpoint_gap_m=r.endpoint_gap_m,
+            nees_mean=r.nees_mean,
+            nees_in_bounds=in_bounds,
+            nis_mean=_finite_mean(s.nis) if s is not None else None,
+            step_ms=r.step_ms.to_json() if r.step_ms is not None else None,
+            total_s=r.total_s,
+        )
+    return rows
+
+
+def _replay_config(config: CompareConfig) -> ReplayConfig:
+    base = config.replay
+    smoothers = tuple(
+        replace(base.smoother, window=w, relinearize_every=k) for w in config.windows for k in config.relinearize_every
+    )
+    estimators = tuple(n for n in base.estimators if n != "smoother")
+    return replace(base, estimators=estimators, extra_smoothers=smoothers)
+
+
+def _world(source: str, seed: int) -> Any:
+    if source == "square":
+        return square_world(seed)
+    if source == "grid":
+        return grid_world(GridConfig(seed=seed))
+    raise OnlineSlamError(f"Monte Carlo runs need a simulated world (square, grid), not {source!r}")
+
+
+def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict[str, Array]]:
+    source, seed, config = args
+    results = replay(_world(source, seed), config, name=source)
+    return rows_of(results), {name: s.nees for name, s in results.series.items()}
+
+
+def compare(source: str | Path, config: CompareConfig | None = None) -> Comparison:
+    """Run EKF, smoother configurations and batch on the same stream; optionally Monte Carlo over seeds.
+
+    Args:
+        source: A stream path, ``-``, or a built-in world (``square``, ``grid``).
+        config: Smoother grid, replay settings, Monte Carlo runs.
+
+    Returns:
+        The comparison (table rows, per-step series through ``results``, Monte Carlo figures).
+    """
+    cfg = config or CompareConfig()
+    if cfg.runs < 1:
+        raise OnlineSlamError("--runs must be >= 1")
+    if any(w < 1 for w in cfg.windows) or any(k < 1 for k in cfg.relinearize_every):
+        raise OnlineSlamError("smoother windows and relinearization periods must be >= 1")
+    replay_config = _replay_config(cfg)
+    results = replay(source, replay_config)
+    rows = rows_of(results)
+    monte_carlo = None
+    if cfg.runs > 1:
+        name = str(source)
+        base_seed = 1616 if name == "square" else GridConfig.seed
+        seeds = tuple(base_seed + k for k in range(cfg.runs))
+        _world(name, seeds[0])  # fail early on a non-simulated source
+        jobs = [(name, seed, replay_config) for seed in seeds]
+        workers = cfg.workers or os.cpu_count() or 1
+        if workers > 1:
+            with ProcessPoolExecutor(max_workers=workers) as pool:
+                outcomes = list(pool.map(_run_seed, jobs))
+        else:
+            outcomes = [_run_seed(job) for job in jobs]
+        monte_carlo = _summarise(outcomes, seeds)
+    return Comparison(results, rows, monte_carlo)
+
+
+def _summarise(outcomes: list[tuple[dict[str, Row], dict[str, Array]]], seeds: tuple[int, ...]) -> MonteCarlo:
+    runs = len(outcomes)
+    names = list(outcomes[0][0])
+    keys = ("online_rmse_m", "final_rmse_m", "landmark_rmse_m", "endpoint_gap_m", "nees_mean", "nis_mean", "total_s")
+    mean: dict[str, dict[str, float | None]] = {}
+    std: dict[str, dict[str, float | None]] = {}
+    for name in names:
+        mean[name], std[name] = {}, {}
+        for key in keys:
+            values = np.array([getattr(o[0][name], key) for o in outcomes], dtype=float)
+            ok = np.isfinite(values)
+            mean[name][key] = float(values[ok].mean()) if ok.any() else None
+            std[name][key] = float(values[ok].std(ddof=1)) if ok.sum() > 1 else None
+    low, high = nees_bounds(runs)
+    anees, in_bounds, per_step = {}, {}, {}
+    for name in outcomes[0][1]:
+        stack = np.array([o[1][name] for o in outcomes])  # (runs, N)
+        usable = np.isfinite(stack).all(axis=0)
+        if not usable.any():
+            continue
+        average = stack[:, usable].mean(axis=0)
+        anees[name] = float(average.mean())
+        in_bounds[name] = float(np.mean((average >= low) & (average <= high)))
+        per_step[name] = [
+            float(v) if ok else float("nan") for v, ok in zip(np.where(usable, stack.mean(axis=0), np.nan), usable)
+        ]
+    return MonteCarlo(runs, seeds, mean, std, anees, (low, high), in_bounds, per_step)

@@ -1,0 +1,85 @@
+"""compare: one table for filter, smoothers and batch; the same numbers as replay; figures; Monte Carlo."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import online_slam
+from online_slam.compare import CompareConfig, compare, nees_bounds
+from online_slam.estimators import SmootherConfig
+from online_slam.pipeline import ReplayConfig
+
+EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=600)
+
+
+def test_square_table_has_the_article_figures_beside_ekf_and_smoothers() -> None:
+    done = cli("compare", "square", "--window", "10,20", "--relinearize-every", "1,5")
+    assert done.returncode == 0, done.stderr
+    rows = {
+        re.split(r"\s{2,}", line.strip())[0]: re.split(r"\s{2,}", line.strip())[1:]
+        for line in done.stdout.splitlines()[4:]
+        if line.strip()
+    }
+    assert rows["odometry"][0] == "1.338" and rows["batch"][1] == "0.082"
+    assert set(rows) >= {"ekf", "smoother W=10 K=1", "smoother W=10 K=5", "smoother W=20 K=1", "smoother W=20 K=5"}
+
+
+def test_compare_equals_replay_for_the_same_configuration() -> None:
+    config = ReplayConfig(smoother=SmootherConfig(window=20))
+    replayed = online_slam.replay("grid", config)
+    compared = compare("grid", CompareConfig(windows=(20,), relinearize_every=(1,), replay=config))
+    row, ref = compared.rows["smoother W=20 K=1"], replayed.estimators["smoother"]
+    assert compared.results.poses == 2000
+    for key in ("online_rmse_m", "final_rmse_m", "landmark_rmse_m", "endpoint_gap_m", "nees_mean"):
+        assert getattr(row, key) == getattr(ref, key)
+    for name in ("ekf", "batch"):
+        assert compared.rows[name].final_rmse_m == replayed.estimators[name].final_rmse_m
+    assert compared.rows["odometry"].final_rmse_m == replayed.odometry.rmse_m
+
+
+def test_figures_are_written_and_every_panel_has_content(tmp_path: Path) -> None:
+    from PIL import Image
+
+    png = tmp_path / "compare.png"
+    done = cli("compare", "square", "--window", "5,20", "--plot", str(png), "--quiet")
+    assert done.returncode == 0, done.stderr
+    rgb = np.asarray(Image.open(png).convert("RGB"), dtype=float)
+    height, width, _ = rgb.shape
+    assert width >= 1000 and height >= 800
+    colored = rgb.max(axis=2) - rgb.min(axis=2) > 60  # estimator curves are coloured; frames and text are grey
+    for quadrant in (colored[: height // 2, : width // 2], colored[: height // 2, width // 2 :],
+                     colored[height // 2 :, : width // 2], colored[height // 2 :, width // 2 :]):  # fmt: skip
+        assert quadrant.mean() > 0.005  # curves drawn in every panel
+
+
+def test_monte_carlo_50_runs_reports_average_nees_with_bounds(tmp_path: Path) -> None:
+    out = tmp_path / "mc.json"
+    done = cli("compare", "square", "--runs", "50", "--json", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    mc = json.loads(out.read_text())["monte_carlo"]
+    assert mc["runs"] == 50 and len(mc["seeds"]) == 50
+    low, high = nees_bounds(50)
+    assert mc["anees_bounds"] == pytest.approx([low, high])
+    assert low <= mc["anees"]["ekf"] <= high
+    assert mc["mean"]["batch"]["final_rmse_m"] < mc["mean"]["odometry"]["final_rmse_m"]
+    assert mc["std"]["ekf"]["online_rmse_m"] > 0
+
+
+def test_monte_carlo_needs_a_simulated_world(tmp_path: Path) -> None:
+    stream = tmp_path / "s.jsonl"
+    assert cli("simulate", "square", "-o", str(stream)).returncode == 0
+    done = cli("compare", str(stream), "--runs", "3")
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "simulated world" in done.stderr.strip().splitlines()[-1]
