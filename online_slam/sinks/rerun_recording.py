@@ -11,9 +11,9 @@ This is the only module that imports rerun. Layout of a recording (timelines ``s
 - ``/events`` — text log (landmark initialised, observation gated, relinearization, marginalization, input
   error); ``/summary`` — the results as JSON (static).
 
-Size stays bounded: a path is re-sent whole only when its tail since the last send has grown by 5% (plus a
-short ``path_recent`` strip every step), landmark labels only when the set of ids changes, and landmark
-covariance ellipses every ``map_every`` steps.
+Size stays bounded: a path is re-sent whole only when its tail since the last send has reached max(50, sqrt(n))
+points (plus that short ``path_recent`` tail every step), landmark labels only when the set of ids changes,
+unchanged maps not at all, and landmark covariance ellipses every ``map_every`` steps.
 """
 
 from __future__ import annotations
@@ -76,7 +76,11 @@ def blueprint(estimators: tuple[str, ...]) -> rrb.Blueprint:
 
 @dataclass
 class _Path:
-    """A trajectory sent whole only when its unsent tail has grown enough."""
+    """A trajectory sent whole only when its unsent tail has grown to T = max(50, sqrt(n)) points.
+
+    Every step sends the short tail since the last whole send (``path_recent``), so the full path is always
+    visible while the data sent grows as n^1.5 instead of n^2.
+    """
 
     points: list[Array] = field(default_factory=list)
     sent: int = 0
@@ -86,7 +90,7 @@ class _Path:
         self.points.append(np.asarray(xy[:2], dtype=float))
         n = len(self.points)
         whole = None
-        if n - self.sent >= max(25, n // 20):
+        if n - self.sent >= max(50, int(math.sqrt(n))):  # whole resends ~n^2/2T points, tails ~nT/2: T ~ sqrt(n)
             whole, self.sent = np.array(self.points), n
         return whole, np.array(self.points[max(self.sent - 1, 0) :])
 
@@ -99,7 +103,7 @@ class RerunConfig:
     """``.rrd`` file to write, or None."""
     connect: str | None = None
     """gRPC URL of a running viewer (``default`` for the default address), or None."""
-    map_every: int = 25
+    map_every: int = 50
     """Landmark covariance ellipses are logged every this many steps (and at the end)."""
     flush_every: int = 256
     """Per-step data is buffered and sent as columns every this many steps (and at least every 0.25 s when
