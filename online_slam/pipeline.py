@@ -61,6 +61,8 @@ class ReplayConfig:
     """Settings of the batch solver."""
     alignment: str = "anchor"
     """Frame for errors: ``anchor`` (first pose with truth) or ``se2`` (least-squares rigid alignment)."""
+    dataset: dict = field(default_factory=dict)
+    """Options for dataset sources: ``format``, ``robot`` (MRCLAM), ``truth``, ``dt``, ``convention``."""
 
 
 def make_estimator(name: str, config: ReplayConfig) -> Estimator:
@@ -204,7 +206,7 @@ def replay(
     if len(set(names)) != len(names):
         raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")
     if isinstance(source, (str, Path)):
-        label, events = open_source(source)
+        label, events = open_source(source, **dict(cfg.dataset))
     else:
         label, events = "<events>", iter(source)
     label = name or label
@@ -233,12 +235,16 @@ def replay(
     if steps == 0:
         raise InputError(label, 0, "", "the stream holds no pose")
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
+    tracks.sort(key=lambda tr: isinstance(tr.estimator, BatchEstimator))  # batch last: it may start from another
     figures: dict[str, EstimatorResult] = {}
     series: dict[str, Series] = {}
     for track in tracks:
         estimator = track.estimator
         started = time.perf_counter()
-        estimate = estimator.finish()
+        initial = estimates.get(cfg.batch.initial) if isinstance(estimator, BatchEstimator) else None
+        if isinstance(estimator, BatchEstimator) and cfg.batch.initial != "odometry" and initial is None:
+            raise OnlineSlamError(f"batch initial values from {cfg.batch.initial!r}, which did not run")
+        estimate = estimator.finish(initial) if initial is not None else estimator.finish()
         final_s = time.perf_counter() - started
         estimates[estimator.name] = estimate
         errors = evaluate(estimate, frontend.truth, cfg.alignment)

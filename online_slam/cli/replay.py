@@ -93,6 +93,19 @@ def add_options(p: argparse.ArgumentParser) -> None:
         default=EkfConfig.update,
         help="EKF: one update per step with all observations (joint, default) or one per observation",
     )
+    p.add_argument(
+        "--batch-init",
+        choices=("odometry", "ekf", "smoother"),
+        default="odometry",
+        help="start the batch solver from composed odometry (default) or from an online estimator's final estimate",
+    )
+    p.add_argument("--format", choices=("mrclam", "gtsam", "g2o"), help="dataset format (default: detected)")
+    p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
+    p.add_argument("--truth", metavar="PATH", help="GTSAM/iSAM text: the noise-free twin file (truth)")
+    p.add_argument("--dt", type=float, help="synthetic seconds per pose for files without timestamps (default 1)")
+    p.add_argument(
+        "--convention", choices=("gtsam", "isam"), help="GTSAM/iSAM text noise convention (default: detected)"
+    )
     p.add_argument("--quiet", action="store_true", help="print no table and no progress")
 
 
@@ -120,7 +133,14 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         frontend=FrontEndConfig(keyframing=keyframing, first_observation_only=args.first_observation_only),
         ekf=ekf,
         smoother=smoother,
-        batch=BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), loss=loss),
+        batch=BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), loss=loss, initial=args.batch_init),
+        dataset={
+            "format": args.format,
+            "robot": args.robot,
+            "truth": args.truth,
+            "dt": args.dt,
+            "convention": args.convention,
+        },
         alignment=args.align,
     )
 

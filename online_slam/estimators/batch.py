@@ -22,6 +22,10 @@ class BatchConfig:
     """Settings of the sparse Levenberg-Marquardt solver."""
     loss: RobustLoss | None = None
     """Robust loss on observations (Huber or Cauchy), or None for plain least squares."""
+    initial: str = "odometry"
+    """Initial values: ``odometry`` (composed odometry, landmarks from first sight) or the final estimate of
+    another estimator of the same replay (``ekf``, ``smoother``); from composed odometry LM can end in a poor
+    local minimum on long real runs."""
 
 
 class BatchEstimator:
@@ -43,17 +47,20 @@ class BatchEstimator:
         pose = self.log.add(step)
         return Snapshot(self.name, step.index, step.t, pose, None, self.log.landmark_ids, self.log.landmarks)
 
-    def finish(self) -> Estimate:
-        """Solve the full problem from the composed-odometry initial values."""
+    def finish(self, initial: Estimate | None = None) -> Estimate:
+        """Solve the full problem, from composed odometry or from another estimate (same poses, same ids)."""
         started = time.perf_counter()
         graph = self.log.graph()
-        result = solve(
-            graph,
-            np.array(self.log.poses).reshape(-1, 3),
-            self.log.landmarks,
-            self.config.solver,
-            loss=self.config.loss,
-        )
+        poses, landmarks = np.array(self.log.poses).reshape(-1, 3), self.log.landmarks
+        if initial is not None:
+            if len(initial.poses) != len(poses):
+                raise ValueError("initial estimate has a different number of poses")
+            poses = initial.poses.copy()
+            where = {lid: k for k, lid in enumerate(initial.landmark_ids)}
+            for k, lid in enumerate(self.log.landmark_ids):
+                if lid in where:
+                    landmarks[k] = initial.landmarks[where[lid]]
+        result = solve(graph, poses, landmarks, self.config.solver, loss=self.config.loss)
         info = {
             "iterations": result.iterations,
             "converged": result.converged,
@@ -61,5 +68,6 @@ class BatchEstimator:
             "final_cost": result.final_cost,
             "message": result.message,
             "solve_s": time.perf_counter() - started,
+            "initial": "odometry" if initial is None else initial.estimator,
         }
         return Estimate(self.name, result.poses, self.log.landmark_ids, result.landmarks, info)

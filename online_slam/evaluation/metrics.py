@@ -117,9 +117,11 @@ def pose_nees(estimate: ArrayLike, covariances: ArrayLike, truth: ArrayLike) -> 
     out = np.full(len(e), np.nan)
     if len(e) == 0:
         return out
-    # A covariance is usable when its smallest eigenvalue is a meaningful fraction of its largest.
-    eig = np.linalg.eigvalsh(C)
-    usable = eig[:, 0] > 1e-12 * np.maximum(eig[:, -1], 1e-300)
+    # A covariance is usable when it is finite and its smallest eigenvalue is a meaningful fraction of its largest.
+    usable = np.all(np.isfinite(C), axis=(1, 2))
+    eig = np.zeros((len(C), 3))
+    eig[usable] = np.linalg.eigvalsh(C[usable])
+    usable &= eig[:, 0] > 1e-12 * np.maximum(eig[:, -1], 1e-300)
     if usable.any():
         out[usable] = np.einsum("ni,ni->n", e[usable], np.linalg.solve(C[usable], e[usable][..., None])[..., 0])
     return out

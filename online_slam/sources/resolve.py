@@ -11,12 +11,14 @@ from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
 
 
-def open_source(spec: str | Path) -> tuple[str, Iterator[Event]]:
+def open_source(spec: str | Path, **dataset_options: object) -> tuple[str, Iterator[Event]]:
     """Open a source lazily.
 
     Args:
         spec: A built-in world name (``square``, ``grid``) unless a file of that name exists; a path to a
-            stream-v1 file (``.gz`` allowed); or ``-`` for standard input.
+            stream-v1 file (``.gz`` allowed); ``-`` for standard input; or a dataset (an MRCLAM folder, a
+            GTSAM/iSAM text file, a ``.g2o`` file), converted on the fly.
+        dataset_options: Passed to the dataset importer (``robot``, ``truth``, ``dt``, ``convention``, ``format``).
 
     Returns:
         (name for messages and reports, event iterator).
@@ -27,6 +29,12 @@ def open_source(spec: str | Path) -> tuple[str, Iterator[Event]]:
     text = str(spec)
     if text in WORLDS and not Path(text).exists():
         return text, WORLDS[text]()
+    from online_slam.importers.detect import detect_format, open_dataset
+
+    kind = dataset_options.pop("format", None) or (detect_format(text) if text != "-" else None)
+    if kind is not None:
+        options = {k: v for k, v in dataset_options.items() if v is not None}
+        return text, open_dataset(text, kind, **options)
     if text != "-" and not Path(text).is_file():
         worlds = ", ".join(sorted(WORLDS))
         raise InputError(text, 0, "", f"no such file (and not a built-in world: {worlds})")

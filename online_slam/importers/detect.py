@@ -1,0 +1,54 @@
+"""Recognise a dataset path and open it as events."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from online_slam.errors import InputError
+from online_slam.sources.events import Event
+
+DATASET_FORMATS = ("mrclam", "gtsam", "g2o")
+"""Formats ``convert`` reads (besides stream v1)."""
+
+
+def detect_format(path: str | Path) -> str | None:
+    """``mrclam`` for a folder with Barcodes.dat, ``g2o`` for .g2o, ``gtsam`` for a text file of ODOMETRY/EDGE2
+    lines; None for anything else (a stream-v1 file)."""
+    p = Path(path)
+    if p.is_dir() and (p / "Barcodes.dat").is_file():
+        return "mrclam"
+    if p.suffix == ".g2o":
+        return "g2o"
+    if p.is_file() and p.suffix in (".txt", ".dat"):
+        with p.open("r", encoding="utf-8", errors="replace") as handle:
+            head = handle.readline().split()
+        if head and head[0] in ("ODOMETRY", "EDGE2", "LANDMARK", "BR"):
+            return "gtsam"
+    return None
+
+
+def open_dataset(path: str | Path, format: str | None = None, **options: Any) -> Iterator[Event]:
+    """Events of a dataset, by format (detected when None).
+
+    Options: ``robot`` (MRCLAM), ``truth``, ``dt``, ``convention`` (GTSAM text).
+    """
+    kind = format or detect_format(path)
+    if kind == "mrclam":
+        from online_slam.importers.mrclam import read_mrclam
+
+        if options.get("robot") is None:
+            raise InputError(str(path), 0, "robot", "an MRCLAM folder needs --robot N (1..5)")
+        return read_mrclam(path, int(options["robot"]))
+    if kind == "gtsam":
+        from online_slam.importers.gtsam_text import read_gtsam_text
+
+        return read_gtsam_text(
+            path, truth=options.get("truth"), dt=options.get("dt") or 1.0, convention=options.get("convention")
+        )
+    if kind == "g2o":
+        from online_slam.importers.g2o import read_g2o
+
+        return read_g2o(path, dt=options.get("dt") or 1.0)
+    raise InputError(str(path), 0, "", f"unknown dataset format {kind!r}; expected one of {', '.join(DATASET_FORMATS)}")

@@ -1,0 +1,134 @@
+"""g2o 2D files (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY) <-> stream v1.
+
+Reading: EDGE_SE2 edges must form one chain (i -> i+1 in vertex order; pose-pose loop closures are not part of
+stream v1); EDGE_SE2_XY gives the landmark's (x, y) in the pose frame with a 2x2 information matrix, carried to
+range and bearing to first order. Information matrices are g2o's (upper triangle, row by row). Vertices only
+seed estimates in g2o; here they are read for ids and ignored. Synthetic timestamps: ``t = step * dt``.
+
+Writing: odometry as EDGE_SE2 with information = covariance^-1; observations as EDGE_SE2_XY (the measured point
+in the pose frame) with the first-order information; vertices from composed odometry and first sightings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from online_slam.errors import InputError
+from online_slam.geometry.se2 import compose
+from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers.gtsam_text import cartesian_to_range_bearing
+from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.sources.events import Event, Header, Observation, Odometry, Start
+
+EDGE_SE2 = ("i", "j", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33")
+EDGE_SE2_XY = ("i", "l", "x", "y", "I11", "I12", "I22")
+
+
+def _symmetric(upper: list[float], n: int) -> np.ndarray:
+    m = np.zeros((n, n))
+    m[np.triu_indices(n)] = upper
+    return np.triu(m) + np.triu(m, 1).T
+
+
+def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
+    """Stream a 2D g2o landmark file as events (see the module docstring)."""
+    p = Path(path)
+    name = str(p)
+    yield Header(name=p.stem, meta={"converted_from": p.name, "timestamps": f"synthetic: {dt} s per pose"})
+    yield Start(t=0.0, pose=(0.0, 0.0, 0.0))
+    steps: dict[int, int] = {}
+    current: int | None = None
+    for number, fields in numbered_lines(p):
+        tag, rest = fields[0], fields[1:]
+        if tag in ("VERTEX_SE2", "VERTEX_XY"):
+            numbers(name, number, rest, ("id", "x", "y", "theta") if tag == "VERTEX_SE2" else ("id", "x", "y"))
+        elif tag == "EDGE_SE2":
+            v = numbers(name, number, rest, EDGE_SE2)
+            i, j = int(v[0]), int(v[1])
+            if current is None:
+                current, steps[i] = i, 0
+            if i != current or j in steps:
+                raise InputError(
+                    name, number, "j", f"edge {i}->{j} is not the next link of the pose chain (at {current})"
+                )
+            steps[j], current = len(steps), j
+            info = _symmetric(v[5:], 3)
+            try:
+                cov = np.linalg.inv(info)
+                np.linalg.cholesky(cov)
+            except np.linalg.LinAlgError:
+                raise InputError(name, number, "I11", "information matrix is not positive definite") from None
+            yield Odometry(t=steps[j] * dt, delta=(v[2], v[3], v[4]), cov=tuple(map(tuple, 0.5 * (cov + cov.T))))
+        elif tag == "EDGE_SE2_XY":
+            v = numbers(name, number, rest, EDGE_SE2_XY)
+            i = int(v[0])
+            if current is None:
+                current, steps[i] = i, 0
+            if i != current:
+                raise InputError(name, number, "i", f"sighting from pose {i}, but the newest pose is {current}")
+            try:
+                cov_xy = np.linalg.inv(_symmetric(v[4:], 2))
+                np.linalg.cholesky(cov_xy)
+            except np.linalg.LinAlgError:
+                raise InputError(name, number, "I11", "information matrix is not positive definite") from None
+            if v[2] == 0.0 and v[3] == 0.0:
+                raise InputError(name, number, "x", "a landmark at the sensor has no bearing")
+            r, b, cov = cartesian_to_range_bearing(v[2], v[3], cov_xy)
+            yield Observation(t=steps[i] * dt, landmark=int(v[1]), range=r, bearing=b, cov=tuple(map(tuple, cov)))
+        else:
+            raise InputError(name, number, "tag", f"unknown g2o tag {tag!r} (2D landmark files only)")
+
+
+def _upper(m: np.ndarray) -> str:
+    return " ".join(repr(float(x)) for x in m[np.triu_indices(len(m))])
+
+
+def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int:
+    """Write events as a 2D g2o file: pose ids 0..N-1, landmark ids N.. in order of first sighting.
+
+    Returns:
+        Number of lines written.
+    """
+    poses: list[np.ndarray] = []
+    edges: list[str] = []
+    landmark_ids: dict[object, int] = {}
+    landmark_xy: list[np.ndarray] = []
+    sightings: list[tuple[int, object, np.ndarray, np.ndarray]] = []
+    for event in events:
+        if isinstance(event, Start):
+            poses = poses if poses else [np.array(event.pose)]
+        elif isinstance(event, Odometry):
+            if not poses:
+                poses = [np.zeros(3)]
+            info = np.linalg.inv(event.covariance)
+            edges.append(f"EDGE_SE2 {len(poses) - 1} {len(poses)} {' '.join(map(repr, event.delta))} {_upper(info)}")
+            poses.append(compose(poses[-1], event.delta))
+        elif isinstance(event, Observation):
+            if not poses:
+                poses = [np.zeros(3)]
+            r, b = event.range, event.bearing
+            point = np.array([r * np.cos(b), r * np.sin(b)])
+            J = np.array([[np.cos(b), -r * np.sin(b)], [np.sin(b), r * np.cos(b)]])  # d(x, y)/d(range, bearing)
+            info = np.linalg.inv(J @ event.covariance @ J.T)
+            if event.landmark not in landmark_ids:
+                landmark_ids[event.landmark] = len(landmark_ids)
+                landmark_xy.append(landmark_from_observation(poses[-1], (r, b)))
+            sightings.append((len(poses) - 1, event.landmark, point, info))
+    n = len(poses)
+    lines = [f"VERTEX_SE2 {i} {' '.join(map(repr, map(float, pose)))}" for i, pose in enumerate(poses)]
+    lines += [f"VERTEX_XY {n + k} {' '.join(map(repr, map(float, xy)))}" for k, xy in enumerate(landmark_xy)]
+    lines += edges
+    lines += [
+        f"EDGE_SE2_XY {i} {n + landmark_ids[lid]} {point[0]!r} {point[1]!r} {_upper(info)}"
+        for i, lid, point, info in sightings
+    ]
+    text = "\n".join(lines) + "\n"
+    if hasattr(destination, "write"):
+        destination.write(text)  # type: ignore[union-attr]
+    else:
+        Path(destination).write_text(text, encoding="utf-8")
+    return len(lines)

@@ -1,0 +1,188 @@
+"""UTIAS MRCLAM (multi-robot cooperative localization and mapping) -> stream v1, one robot at a time.
+
+- Poses at the robot's landmark-measurement times; rows sharing a timestamp (one camera image) share a pose.
+- Odometry between poses is integrated exactly from the piecewise-constant (v, w) commands (each command holds
+  from its own timestamp to the next; arcs for w != 0), so long stretches without observations become one
+  increment (no high-rate steps to merge).
+- Barcodes are mapped through ``Barcodes.dat``; sightings of other robots and unknown barcodes are dropped and
+  counted in the header. Nothing is cleaned with ground truth.
+- Start pose: Vicon ground truth interpolated at the first pose time, with a small prior. Truth interpolated at
+  pose times where Vicon covers them; landmark truth from ``Landmark_Groundtruth.dat``.
+
+Noise model (``MrclamNoise``): per-increment diagonal variances ``var = a * dt + b * s^2 + floor`` with dt the
+elapsed time, s the commanded path length (x, y) or turned angle (theta); range and bearing sigmas. The default
+coefficients are maximum-likelihood fits against Vicon over Dataset 6 (see ../shared/ANCHORS.md, where the same
+conversion is described); the floor keeps 1-ms-apart poses well conditioned.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from online_slam.errors import InputError
+from online_slam.geometry.angles import wrap
+from online_slam.geometry.se2 import between
+from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
+
+
+@dataclass(frozen=True)
+class MrclamNoise:
+    """Noise model of the MRCLAM conversion."""
+
+    x_per_s: float = 2.9e-5
+    """Forward variance per second elapsed, m^2/s."""
+    x_per_m2: float = 0.019
+    """Forward variance per squared metre of commanded path."""
+    y_per_s: float = 4.7e-7
+    """Lateral variance per second, m^2/s."""
+    y_per_m2: float = 0.0011
+    """Lateral variance per squared metre of commanded path."""
+    theta_per_s: float = 3.5e-4
+    """Heading variance per second, rad^2/s."""
+    theta_per_rad2: float = 0.47
+    """Heading variance per squared radian of commanded turn."""
+    floor: float = 1e-6
+    """Added to every variance."""
+    range_sigma: float = 0.178
+    """Range standard deviation, m."""
+    bearing_sigma: float = 0.0125
+    """Bearing standard deviation, rad."""
+    start_sigma: float = 0.01
+    """Standard deviation of the start prior (x, y in m, theta in rad)."""
+
+
+def _table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
+    rows = [numbers(str(path), number, fields, columns) for number, fields in numbered_lines(path)]
+    if not rows:
+        raise InputError(str(path), 0, "", "no data rows")
+    return np.array(rows)
+
+
+def _dead_reckoning(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact unicycle integration of piecewise-constant commands, sampled at (sorted) times.
+
+    Args:
+        commands: (t, v, w) rows sorted by t, shape (C, 3).
+        times: Sample times, shape (N,).
+
+    Returns:
+        (poses relative to the state at times[0], shape (N, 3); commanded path length and |turn| accumulated
+        since times[0], each shape (N,)).
+    """
+    t_cmd, v, w = commands[:, 0], commands[:, 1], commands[:, 2]
+    # Breakpoints: every command time and every sample time, from times[0] on.
+    grid = np.unique(np.concatenate([t_cmd[(t_cmd > times[0]) & (t_cmd < times[-1])], times]))
+    k = np.searchsorted(t_cmd, grid[:-1], side="right") - 1  # command in force on [grid[i], grid[i+1])
+    vi = np.where(k >= 0, v[np.maximum(k, 0)], 0.0)
+    wi = np.where(k >= 0, w[np.maximum(k, 0)], 0.0)
+    dt = np.diff(grid)
+    dth = wi * dt
+    heading = np.concatenate([[0.0], np.cumsum(dth)])
+    h0 = heading[:-1]
+    small = np.abs(wi) < 1e-9
+    safe_w = np.where(small, 1.0, wi)
+    # Displacement over each piece in the world frame of times[0]: exact arc.
+    dx = np.where(small, vi * dt * np.cos(h0), (vi / safe_w) * (np.sin(h0 + dth) - np.sin(h0)))
+    dy = np.where(small, vi * dt * np.sin(h0), (vi / safe_w) * (np.cos(h0) - np.cos(h0 + dth)))
+    x = np.concatenate([[0.0], np.cumsum(dx)])
+    y = np.concatenate([[0.0], np.cumsum(dy)])
+    path = np.concatenate([[0.0], np.cumsum(np.abs(vi) * dt)])
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(dth))])
+    at = np.searchsorted(grid, times)
+    return np.stack([x[at], y[at], heading[at]], -1), path[at], turn[at]
+
+
+def _interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vicon poses linearly interpolated at times (heading unwrapped first); mask of covered times."""
+    inside = (times >= gt[0, 0]) & (times <= gt[-1, 0])
+    theta = np.unwrap(gt[:, 3])
+    poses = np.stack(
+        [
+            np.interp(times, gt[:, 0], gt[:, 1]),
+            np.interp(times, gt[:, 0], gt[:, 2]),
+            wrap(np.interp(times, gt[:, 0], theta)),
+        ],
+        -1,
+    )
+    return poses, inside
+
+
+def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None) -> Iterator[Event]:
+    """Stream one MRCLAM robot as events.
+
+    Args:
+        folder: The dataset folder (``Barcodes.dat``, ``RobotN_*.dat``, ``Landmark_Groundtruth.dat``).
+        robot: Robot number, 1..5.
+        noise: Noise model (defaults: fitted on Dataset 6).
+
+    Yields:
+        Stream-v1 events.
+    """
+    root = Path(folder)
+    cfg = noise or MrclamNoise()
+    if not 1 <= robot <= 5:
+        raise InputError(str(root), 0, "robot", f"expected a robot number 1..5, got {robot}")
+    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
+    subject_of = {int(b): int(s) for s, b in barcodes}
+    odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
+    measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
+    truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
+    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    odometry = odometry[np.argsort(odometry[:, 0], kind="stable")]
+    subjects = np.array([subject_of.get(int(b), -1) for b in measurements[:, 1]])
+    is_landmark = subjects >= 6
+    dropped_robots = int(np.sum((subjects >= 1) & (subjects <= 5)))
+    dropped_unknown = int(np.sum(subjects < 0))
+    kept = measurements[is_landmark]
+    kept_subjects = subjects[is_landmark]
+    order = np.argsort(kept[:, 0], kind="stable")
+    kept, kept_subjects = kept[order], kept_subjects[order]
+    times = np.unique(kept[:, 0])
+    poses, path, turn = _dead_reckoning(odometry, times)
+    increments = between(poses[:-1], poses[1:])
+    dt, ds, da = np.diff(times), np.diff(path), np.diff(turn)
+    variances = np.stack(
+        [
+            cfg.x_per_s * dt + cfg.x_per_m2 * ds**2 + cfg.floor,
+            cfg.y_per_s * dt + cfg.y_per_m2 * ds**2 + cfg.floor,
+            cfg.theta_per_s * dt + cfg.theta_per_rad2 * da**2 + cfg.floor,
+        ],
+        -1,
+    )
+    true_poses, covered = _interpolate_truth(truth, times)
+    yield Header(
+        name=f"MRCLAM Dataset6 robot {robot}",
+        meta={
+            "converted_from": str(root.name),
+            "robot": robot,
+            "poses": int(len(times)),
+            "landmark_observations": int(len(kept)),
+            "dropped_robot_observations": dropped_robots,
+            "dropped_unknown_barcodes": dropped_unknown,
+            "noise": cfg.__dict__,
+        },
+    )
+    start = true_poses[0]
+    yield Start(t=float(times[0]), pose=tuple(map(float, start)), sigma=(cfg.start_sigma,) * 3)
+    for subject, x, y, _, _ in landmarks:
+        yield LandmarkTruth(int(subject), (float(x), float(y)))
+    bounds = np.searchsorted(kept[:, 0], np.r_[times, np.inf])
+    sigma = (cfg.range_sigma, cfg.bearing_sigma)
+    for k, t in enumerate(times):
+        if k > 0:
+            yield Odometry(
+                t=float(t),
+                delta=tuple(map(float, increments[k - 1])),
+                sigma=tuple(map(float, np.sqrt(variances[k - 1]))),
+            )
+        if covered[k]:
+            yield Truth(t=float(t), pose=tuple(map(float, true_poses[k])))
+        for row, subject in zip(kept[bounds[k] : bounds[k + 1]], kept_subjects[bounds[k] : bounds[k + 1]]):
+            yield Observation(
+                t=float(t), landmark=int(subject), range=float(row[2]), bearing=float(row[3]), sigma=sigma
+            )
