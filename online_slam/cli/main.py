@@ -7,10 +7,17 @@ import sys
 from collections.abc import Sequence
 
 from online_slam import __version__
-from online_slam.cli import bench, compare, inspect, replay, simulate
+from online_slam.cli import bench, compare, convert, inspect, replay, simulate
 from online_slam.errors import OnlineSlamError
 
-COMMANDS = {"replay": replay, "compare": compare, "simulate": simulate, "inspect": inspect, "bench": bench}
+COMMANDS = {
+    "replay": replay,
+    "compare": compare,
+    "simulate": simulate,
+    "convert": convert,
+    "inspect": inspect,
+    "bench": bench,
+}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -35,13 +35,17 @@ def _symmetric(upper: list[float], n: int) -> np.ndarray:
 
 
 def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
-    """Stream a 2D g2o landmark file as events (see the module docstring)."""
+    """Stream a 2D g2o landmark file as events (see the module docstring).
+
+    Edges may come in any order in the file: the pose chain is rebuilt from the EDGE_SE2 lines, and each pose's
+    sightings follow the odometry that creates it.
+    """
     p = Path(path)
     name = str(p)
-    yield Header(name=p.stem, meta={"converted_from": p.name, "timestamps": f"synthetic: {dt} s per pose"})
-    yield Start(t=0.0, pose=(0.0, 0.0, 0.0))
-    steps: dict[int, int] = {}
-    current: int | None = None
+    chain: dict[int, tuple[int, list[float], int]] = {}  # from pose -> (to pose, values, line)
+    sightings: dict[int, list[tuple[list[float], int]]] = {}
+    targets: set[int] = set()
+    first_line: dict[int, int] = {}
     for number, fields in numbered_lines(p):
         tag, rest = fields[0], fields[1:]
         if tag in ("VERTEX_SE2", "VERTEX_XY"):
@@ -49,27 +53,29 @@ def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
         elif tag == "EDGE_SE2":
             v = numbers(name, number, rest, EDGE_SE2)
             i, j = int(v[0]), int(v[1])
-            if current is None:
-                current, steps[i] = i, 0
-            if i != current or j in steps:
+            if i in chain or j in targets:
                 raise InputError(
-                    name, number, "j", f"edge {i}->{j} is not the next link of the pose chain (at {current})"
+                    name,
+                    number,
+                    "j",
+                    f"edge {i}->{j} makes the poses more than one chain (loop closures are not supported)",
                 )
-            steps[j], current = len(steps), j
-            info = _symmetric(v[5:], 3)
-            try:
-                cov = np.linalg.inv(info)
-                np.linalg.cholesky(cov)
-            except np.linalg.LinAlgError:
-                raise InputError(name, number, "I11", "information matrix is not positive definite") from None
-            yield Odometry(t=steps[j] * dt, delta=(v[2], v[3], v[4]), cov=tuple(map(tuple, 0.5 * (cov + cov.T))))
+            chain[i] = (j, v, number)
+            targets.add(j)
         elif tag == "EDGE_SE2_XY":
             v = numbers(name, number, rest, EDGE_SE2_XY)
-            i = int(v[0])
-            if current is None:
-                current, steps[i] = i, 0
-            if i != current:
-                raise InputError(name, number, "i", f"sighting from pose {i}, but the newest pose is {current}")
+            sightings.setdefault(int(v[0]), []).append((v, number))
+            first_line.setdefault(int(v[0]), number)
+        else:
+            raise InputError(name, number, "tag", f"unknown g2o tag {tag!r} (2D landmark files only)")
+    roots = [i for i in chain if i not in targets] or sorted(sightings)[:1]
+    if len(roots) != 1:
+        raise InputError(name, 0, "", f"the EDGE_SE2 lines form {len(roots)} chains; expected one")
+    yield Header(name=p.stem, meta={"converted_from": p.name, "timestamps": f"synthetic: {dt} s per pose"})
+    yield Start(t=0.0, pose=(0.0, 0.0, 0.0))
+    pose, step = roots[0], 0
+    while True:
+        for v, number in sightings.pop(pose, []):
             try:
                 cov_xy = np.linalg.inv(_symmetric(v[4:], 2))
                 np.linalg.cholesky(cov_xy)
@@ -78,9 +84,21 @@ def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
             if v[2] == 0.0 and v[3] == 0.0:
                 raise InputError(name, number, "x", "a landmark at the sensor has no bearing")
             r, b, cov = cartesian_to_range_bearing(v[2], v[3], cov_xy)
-            yield Observation(t=steps[i] * dt, landmark=int(v[1]), range=r, bearing=b, cov=tuple(map(tuple, cov)))
-        else:
-            raise InputError(name, number, "tag", f"unknown g2o tag {tag!r} (2D landmark files only)")
+            yield Observation(t=step * dt, landmark=int(v[1]), range=r, bearing=b, cov=tuple(map(tuple, cov)))
+        if pose not in chain:
+            break
+        nxt, v, number = chain[pose]
+        try:
+            cov = np.linalg.inv(_symmetric(v[5:], 3))
+            np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:
+            raise InputError(name, number, "I11", "information matrix is not positive definite") from None
+        step += 1
+        yield Odometry(t=step * dt, delta=(v[2], v[3], v[4]), cov=tuple(map(tuple, 0.5 * (cov + cov.T))))
+        pose = nxt
+    if sightings:
+        orphan = min(sightings)
+        raise InputError(name, first_line[orphan], "i", f"sighting from pose {orphan}, which is not on the pose chain")
 
 
 def _upper(m: np.ndarray) -> str:
@@ -121,11 +139,15 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
     n = len(poses)
     lines = [f"VERTEX_SE2 {i} {' '.join(map(repr, map(float, pose)))}" for i, pose in enumerate(poses)]
     lines += [f"VERTEX_XY {n + k} {' '.join(map(repr, map(float, xy)))}" for k, xy in enumerate(landmark_xy)]
-    lines += edges
-    lines += [
-        f"EDGE_SE2_XY {i} {n + landmark_ids[lid]} {point[0]!r} {point[1]!r} {_upper(info)}"
-        for i, lid, point, info in sightings
-    ]
+    by_pose: dict[int, list[str]] = {}
+    for i, lid, point, info in sightings:
+        by_pose.setdefault(i, []).append(
+            f"EDGE_SE2_XY {i} {n + landmark_ids[lid]} {float(point[0])!r} {float(point[1])!r} {_upper(info)}"
+        )
+    lines += by_pose.get(0, [])
+    for k, edge in enumerate(edges, 1):  # each pose's sightings right after the edge that creates it
+        lines.append(edge)
+        lines += by_pose.get(k, [])
     text = "\n".join(lines) + "\n"
     if hasattr(destination, "write"):
         destination.write(text)  # type: ignore[union-attr]

@@ -1,0 +1,169 @@
+"""Dataset importers: GTSAM/iSAM text, g2o (both ways), MRCLAM; malformed files; the real datasets when present."""
+
+from __future__ import annotations
+
+import io
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import SHARED_DATA
+
+from online_slam.errors import InputError
+from online_slam.importers import open_dataset
+from online_slam.importers.g2o import read_g2o, write_g2o
+from online_slam.importers.mrclam import _dead_reckoning
+from online_slam.sources import LandmarkTruth, Observation, Odometry, Truth, read_stream, square_world, write_stream
+
+EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
+MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
+CITY = SHARED_DATA / "isam_citytrees10000_synthetic"
+VICTORIA = SHARED_DATA / "gtsam_victoria_park" / "victoria_park.txt"
+
+
+def events_of(kind: type, events: list) -> list:
+    return [e for e in events if isinstance(e, kind)]
+
+
+def test_gtsam_convention_victoria_style(tmp_path: Path) -> None:
+    path = tmp_path / "vp.txt"
+    path.write_text(
+        "ODOMETRY 0 1 1.0 0.0 0.1 0.0001 0 0 4e-06 0 4e-06\n"
+        "LANDMARK 1 2 3.0 4.0 0.4 0 0.4\n"
+        "ODOMETRY 1 3 0.5 0.01 -0.02 0.0001 0 0 4e-06 0 4e-06\n"  # id 2 went to the landmark
+        "LANDMARK 3 2 2.0 -1.0 0.4 0 0.4\n"
+    )
+    events = list(open_dataset(path))
+    odo, obs = events_of(Odometry, events), events_of(Observation, events)
+    assert [o.t for o in odo] == [1.0, 2.0]
+    assert np.allclose(odo[0].covariance, np.diag([1e-4, 4e-6, 4e-6]))
+    assert obs[0].range == pytest.approx(5.0) and obs[0].bearing == pytest.approx(np.arctan2(4, 3))
+    assert np.allclose(obs[0].covariance, np.diag([0.4, 0.04]))  # range sigma sqrt(0.4), bearing sqrt(0.4/10)
+    assert obs[1].t == 2.0 and obs[1].landmark == 2
+
+
+def test_isam_convention_with_truth(tmp_path: Path) -> None:
+    noisy, truth = tmp_path / "c.txt", tmp_path / "c_gt.txt"
+    noisy.write_text("EDGE2 0 1 1.1 0 0 50 0 0 50 0 100\nLANDMARK 1 0 3.0 0.0 10 0 10\n")
+    truth.write_text("EDGE2 0 1 1.0 0 0 50 0 0 50 0 100\nLANDMARK 1 0 3.0 0.0 10 0 10\n")
+    events = list(open_dataset(noisy, truth=truth))
+    odo, obs = events_of(Odometry, events)[0], events_of(Observation, events)[0]
+    assert np.allclose(odo.covariance, np.diag([1 / 2500, 1 / 2500, 1 / 10000]))
+    assert np.allclose(obs.covariance, np.diag([0.01, 0.01 / 9]))  # sigma 0.1 m carried to range and bearing at 3 m
+    assert events_of(Truth, events)[-1].pose == (1.0, 0.0, 0.0)
+    assert events_of(LandmarkTruth, events)[0].position == pytest.approx((4.0, 0.0))
+
+
+@pytest.mark.parametrize(
+    ("content", "where"),
+    [
+        ("ODOMETRY 0 1 1.0 0.0\n", ":1: expected 11 columns"),
+        ("EDGE2 0 1 1 0 0 50 0 0 50 0 100\nFOO 1 2\n", ":2: tag: unknown line type"),
+        ("EDGE2 0 1 1 0 zero 50 0 0 50 0 100\n", ":1: dtheta: expected a number"),
+        ("EDGE2 0 1 1 0 0 50 0 0 50 0 100\nLANDMARK 0 1 2 2 10 0 10\n", ":2: i: sighting from pose 0"),
+    ],
+)
+def test_malformed_dataset_lines_are_one_line_errors(tmp_path: Path, content: str, where: str) -> None:
+    path = tmp_path / "bad.txt"
+    path.write_text(content)
+    with pytest.raises(InputError) as info:
+        list(open_dataset(path))
+    assert f"{path}{where}" in str(info.value)
+    done = subprocess.run(
+        [*EXE, "convert", "gtsam", str(path), "-o", str(tmp_path / "o.jsonl")], capture_output=True, text=True
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1 and where in done.stderr
+
+
+def test_g2o_round_trip_of_the_square_world(tmp_path: Path) -> None:
+    stream = list(square_world())
+    g2o = tmp_path / "square.g2o"
+    write_g2o(g2o, stream)
+    back = list(read_g2o(g2o))
+    a, b = events_of(Odometry, stream), events_of(Odometry, back)
+    assert len(a) == len(b) == 24
+    assert all(
+        np.allclose(x.delta, y.delta, atol=1e-12) and np.allclose(x.covariance, y.covariance, rtol=1e-9)
+        for x, y in zip(a, b)
+    )
+    a, b = events_of(Observation, stream), events_of(Observation, back)
+    assert len(a) == len(b) == 95
+    for x, y in zip(a, b):
+        assert abs(x.range - y.range) < 1e-12 and abs(np.angle(np.exp(1j * (x.bearing - y.bearing)))) < 1e-12
+        assert np.allclose(x.covariance, y.covariance, rtol=1e-9, atol=1e-15) and x.t == y.t
+    buffer = io.StringIO()
+    write_stream(buffer, back)  # what g2o gives back is a valid stream
+
+
+def test_g2o_rejects_loop_closures(tmp_path: Path) -> None:
+    path = tmp_path / "loop.g2o"
+    path.write_text("EDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\nEDGE_SE2 1 2 1 0 0 1 0 0 1 0 1\nEDGE_SE2 0 2 2 0 0 1 0 0 1 0 1\n")
+    with pytest.raises(InputError, match=r"loop.g2o:3: j: .*loop closures"):
+        list(read_g2o(path))
+
+
+def test_exact_integration_of_piecewise_constant_commands() -> None:
+    commands = np.array([[0.0, 1.0, 0.5], [2.0, 0.5, 0.0], [3.0, 0.0, -1.0]])
+    poses, path, turn = _dead_reckoning(commands, np.array([0.0, 1.0, 2.5, 4.0]))
+    # first second: arc of radius 2 through 0.5 rad
+    assert np.allclose(poses[1], [2 * np.sin(0.5), 2 * (1 - np.cos(0.5)), 0.5])
+    end_of_arc = np.array([2 * np.sin(1.0), 2 * (1 - np.cos(1.0)), 1.0])
+    straight = end_of_arc + [0.25 * np.cos(1.0), 0.25 * np.sin(1.0), 0.0]  # 0.5 s at 0.5 m/s
+    assert np.allclose(poses[2], straight)
+    assert np.allclose(path, [0, 1.0, 2.25, 2.5]) and np.allclose(turn, [0, 0.5, 1.0, 2.0])
+
+
+needs_mrclam = pytest.mark.skipif(not MRCLAM.is_dir(), reason="../shared/data/MRCLAM_Dataset6 is not present")
+
+
+@needs_mrclam
+def test_mrclam_robot_counts_match_the_provenance() -> None:
+    events = list(open_dataset(MRCLAM, robot=1))
+    header = events[0]
+    assert header.meta["poses"] == 1012 and header.meta["landmark_observations"] == 1534
+    assert header.meta["dropped_robot_observations"] == 407 and header.meta["dropped_unknown_barcodes"] == 1
+    assert len(events_of(LandmarkTruth, events)) == 15 and len(events_of(Observation, events)) == 1534
+
+
+@needs_mrclam
+def test_mrclam_batch_equals_gtsam_from_the_same_initial_values() -> None:
+    pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
+    from online_slam.bench import gtsam_peer
+    from online_slam.estimators import BatchEstimator, EkfSlam
+    from online_slam.frontend import FrontEnd
+
+    fe, batch, ekf = FrontEnd(), BatchEstimator(), EkfSlam()
+    for step in fe.steps(open_dataset(MRCLAM, robot=4)):
+        batch.step(step)
+        ekf.step(step)
+    start = ekf.finish()
+    ours = batch.finish(start)
+    graph = batch.log.graph()
+    order = [start.landmark_ids.index(lid) for lid in batch.log.landmark_ids]
+    peer = gtsam_peer.levenberg_marquardt(graph, start.poses, start.landmarks[order], exact=True, tight=True)
+    assert ours.info["converged"]
+    assert np.max(np.linalg.norm(ours.poses[:, :2] - peer.poses[:, :2], axis=1)) <= 1e-4
+
+
+@pytest.mark.skipif(not CITY.is_dir(), reason="../shared/data/isam_citytrees10000_synthetic is not present")
+def test_citytrees_truth_is_the_noise_free_twin() -> None:
+    events = list(open_dataset(CITY / "cityTrees10000.txt", truth=CITY / "cityTrees10000_groundtruth.txt"))
+    assert len(events_of(Truth, events)) == 10_000 and len(events_of(LandmarkTruth, events)) == 100
+    assert len(events_of(Observation, events)) == 4443
+
+
+@pytest.mark.skipif(not VICTORIA.is_file(), reason="../shared/data/gtsam_victoria_park is not present")
+def test_victoria_park_shape() -> None:
+    events = list(open_dataset(VICTORIA))
+    assert len(events_of(Odometry, events)) == 6968 and len(events_of(Observation, events)) == 3640
+    assert len({e.landmark for e in events_of(Observation, events)}) == 151
+
+
+def test_shipped_streams_read(tmp_path: Path) -> None:
+    folder = Path(__file__).resolve().parents[1] / "replay"
+    for path in folder.glob("*.jsonl*"):
+        assert sum(1 for _ in read_stream(path)) > 10
