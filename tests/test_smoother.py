@@ -46,8 +46,8 @@ def test_window_20_on_the_2000_pose_grid() -> None:
     smoother, batch, ekf = (results.estimators[k] for k in ("smoother", "batch", "ekf"))
     assert results.poses == 2000 and smoother.details["marginalized_poses"] == 1980
     # Poses keep the estimate they had when they left the window, so later loop closures cannot reach them:
-    # measured 1.057x batch here (GTSAM's fixed-lag smoother keeping all landmarks: 1.054x).
-    assert smoother.final_rmse_m <= 1.10 * batch.final_rmse_m
+    # measured 1.031x batch here (GTSAM's fixed-lag smoother keeping all landmarks: 1.054x).
+    assert smoother.final_rmse_m <= 1.05 * batch.final_rmse_m
     assert smoother.online_rmse_m <= 1.15 * ekf.online_rmse_m
     aligned = online_slam.replay("grid", ReplayConfig(estimators=("ekf", "smoother"), alignment="se2"))
     assert aligned.estimators["smoother"].online_rmse_m <= aligned.estimators["ekf"].online_rmse_m
