@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import replace
-from pathlib import Path
 
-from online_slam.cli.replay import config_from
+from online_slam.cli.replay import config_from, write_json
 from online_slam.compare import CompareConfig, compare
 from online_slam.errors import OnlineSlamError
 from online_slam.reports.compare_table import format_comparison
@@ -63,11 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(format_comparison(comparison))
     if args.json:
-        text = json.dumps(comparison.to_json(), indent=2)
-        if args.json == "-":
-            print(text)
-        else:
-            Path(args.json).write_text(text + "\n", encoding="utf-8")
+        write_json(args.json, comparison.to_json())
     if args.plot:
         from online_slam.reports.plots import plot_comparison
 

@@ -109,6 +109,18 @@ def add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="print no table and no progress")
 
 
+def write_json(destination: str, document: dict) -> None:
+    """Write a JSON document to a path, or to stdout for ``-``."""
+    text = json.dumps(document, indent=2)
+    if destination == "-":
+        print(text)
+        return
+    try:
+        Path(destination).write_text(text + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise OnlineSlamError(f"{destination}: cannot write ({exc.strerror or exc})") from None
+
+
 def config_from(args: argparse.Namespace) -> ReplayConfig:
     """The replay configuration that the parsed options ask for."""
     keyframing = None
@@ -173,11 +185,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(format_results(results))
     if args.json:
-        text = json.dumps(results.to_json(), indent=2)
-        if args.json == "-":
-            print(text)
-        else:
-            Path(args.json).write_text(text + "\n", encoding="utf-8")
+        write_json(args.json, results.to_json())
     failures = [results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):
         print(f"online-slam: error: {failure}", file=sys.stderr)

@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
+from online_slam.models.range_bearing import range_bearing_with_jacobians
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -187,6 +187,24 @@ def _whiten(W: Array, e: Array) -> Array:
     return np.einsum("kij,kj->ki", W, e)
 
 
+def _errors(
+    graph: FactorGraph, poses: Array, landmarks: Array
+) -> tuple[Array, Array, Array, Array, Array, Array, Array]:
+    """Unwhitened errors of every factor (angles wrapped) and the Jacobians of odometry and observations.
+
+    Returns:
+        (e_prior (P, 3), e_odo (K, 3), d e_odo/da and /db (K, 3, 3), e_obs (L, 2), d e_obs/dpose (L, 2, 3),
+        d e_obs/dlandmark (L, 2, 2)).
+    """
+    e_prior = poses[graph.prior_pose] - graph.prior_mean
+    e_prior[:, 2] = wrap(e_prior[:, 2])
+    e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
+    z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
+    e_obs = z - graph.obs_z
+    e_obs[:, 1] = wrap(e_obs[:, 1])
+    return e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
+
+
 def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     """Whitened residuals.
 
@@ -198,11 +216,7 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     Returns:
         Residual vector, shape (n_residuals,), ordered priors, odometry, observations.
     """
-    e_prior = poses[graph.prior_pose] - graph.prior_mean
-    e_prior[:, 2] = wrap(e_prior[:, 2])
-    e_odo, _, _ = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
-    e_obs = range_bearing(poses[graph.obs_pose], landmarks[graph.obs_landmark]) - graph.obs_z
-    e_obs[:, 1] = wrap(e_obs[:, 1])
+    e_prior, e_odo, _, _, e_obs, _, _ = _errors(graph, poses, landmarks)
     return np.concatenate(
         [
             _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
@@ -242,12 +256,7 @@ def linearize(
     Returns:
         (r, J): residuals, shape (n_residuals,), and the Jacobian, sparse (n_residuals, n_columns).
     """
-    e_prior = poses[graph.prior_pose] - graph.prior_mean
-    e_prior[:, 2] = wrap(e_prior[:, 2])
-    e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
-    z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
-    e_obs = z - graph.obs_z
-    e_obs[:, 1] = wrap(e_obs[:, 1])
+    e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks)
     W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
     if loss is not None and len(e_obs):
         s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
@@ -319,12 +328,7 @@ class DenseAssembler:
             loss: Robust loss on observations (IRLS weights), or None.
         """
         graph, n = self.graph, self.n
-        e_prior = poses[graph.prior_pose] - graph.prior_mean
-        e_prior[:, 2] = wrap(e_prior[:, 2])
-        e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
-        z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
-        e_obs = z - graph.obs_z
-        e_obs[:, 1] = wrap(e_obs[:, 1])
+        e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks)
         W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
         r_prior, r_odo, r_obs = _whiten(graph.prior_sqrt_info, e_prior), _whiten(W_odo, e_odo), _whiten(W_obs, e_obs)
         total = 0.5 * float(np.sum(r_prior**2) + np.sum(r_odo**2))
