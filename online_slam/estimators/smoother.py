@@ -241,7 +241,7 @@ class SlidingWindowSmoother:
         observed = [self._observations[i][0] for i in self.window if i in self._observations]
         active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
         graph, local = self._graph(active)
-        sparse = layout(graph)
+        sparse = layout(graph, entries=False)
         quadratic, recover = None, None
         if self.prior is not None:
             quadratic, recover = self._reduced_prior(

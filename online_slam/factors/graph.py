@@ -145,20 +145,26 @@ def _block_indices(first_row: Index, m: int, first_col: Index, c: int) -> tuple[
     return rows.reshape(-1), np.where(np.repeat(first_col, m * c) < 0, -1, cols.reshape(-1))
 
 
-def layout(graph: FactorGraph) -> SparseLayout:
+def layout(graph: FactorGraph, entries: bool = True) -> SparseLayout:
     """Compute the sparse layout of a graph's Jacobian.
 
     Args:
         graph: The factor graph.
+        entries: Also work out the (row, column) of every Jacobian entry (the sparse path needs them; the
+            dense assembler only needs the columns).
 
     Returns:
-        The layout: columns of every variable and the (row, column) of every Jacobian entry.
+        The layout: columns of every variable and, with ``entries``, where each Jacobian entry goes.
     """
     free = np.ones(graph.n_poses, dtype=bool)
     free[graph.fixed_poses] = False
     pose_column = np.where(free, 3 * (np.cumsum(free) - 1), -1).astype(np.int64)
     n_pose_cols = 3 * int(free.sum())
     landmark_column = n_pose_cols + 2 * np.arange(graph.n_landmarks, dtype=np.int64)
+    n_columns = n_pose_cols + 2 * graph.n_landmarks
+    if not entries:
+        none = np.zeros(0, dtype=np.int64)
+        return SparseLayout(pose_column, landmark_column, n_columns, none, none, np.zeros(0, dtype=bool))
     P, K, L = len(graph.prior_pose), len(graph.odo_from), len(graph.obs_pose)
     prior_rows = 3 * np.arange(P, dtype=np.int64)
     odo_rows = 3 * P + 3 * np.arange(K, dtype=np.int64)
@@ -176,7 +182,7 @@ def layout(graph: FactorGraph) -> SparseLayout:
     return SparseLayout(
         pose_column=pose_column,
         landmark_column=landmark_column,
-        n_columns=n_pose_cols + 2 * graph.n_landmarks,
+        n_columns=n_columns,
         rows=rows[keep],
         cols=cols[keep],
         keep=keep,

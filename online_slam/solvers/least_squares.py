@@ -199,9 +199,10 @@ def solve(
     cfg = config or SolverConfig()
     poses = np.array(poses, dtype=float).reshape(graph.n_poses, 3)
     landmarks = np.array(landmarks, dtype=float).reshape(graph.n_landmarks, 2)
-    sparse = graph_layout if graph_layout is not None else layout(graph)
-
+    sparse = graph_layout if graph_layout is not None else layout(graph, entries=False)
     use_dense = dense if dense is not None else (prior is not None or sparse.n_columns <= DENSE_LIMIT)
+    if not use_dense and len(sparse.keep) == 0 and graph.n_residuals:
+        sparse = layout(graph)  # the sparse path needs every Jacobian entry's place
     assemble = DenseAssembler(graph, sparse) if use_dense else None
 
     def system(p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array, float]:
