@@ -33,9 +33,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     replay_cli.add_options(p)
     p.set_defaults(estimators="ekf,smoother,batch")
-    p.add_argument("--window", default="20", metavar="W[,W...]", help="smoother window sizes (default 20)")
     p.add_argument(
-        "--relinearize-every", default="1", metavar="K[,K...]", help="smoother relinearization periods (default 1)"
+        "--window", dest="windows", default="20", metavar="W[,W...]", help="smoother window sizes (default 20)"
+    )
+    p.add_argument(
+        "--relinearize-every",
+        dest="relinearize_periods",
+        default="1",
+        metavar="K[,K...]",
+        help="smoother relinearization periods (default 1)",
     )
     p.add_argument("--plot", metavar="PATH", help="write the figures (map, error, NEES, latency) to this PNG")
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs over noise seeds (simulated worlds only)")
@@ -45,8 +51,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Compare, print the table, write JSON and figures."""
     base = config_from(args)
-    windows = _ints(args.window, "--window")
-    ks = _ints(args.relinearize_every, "--relinearize-every")
+    windows = _ints(args.windows, "--window")
+    ks = _ints(args.relinearize_periods, "--relinearize-every")
     names = tuple(n for n in base.estimators if n != "smoother")
     if len(names) == len(base.estimators):  # no smoother asked for
         windows, ks = (), ()

@@ -135,8 +135,8 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
     try:
         ekf = EkfConfig(gate_probability=args.gate_probability, update=args.ekf_update)
         loss = None if args.robust == "none" else RobustLoss(args.robust, args.robust_scale)
-        window = args.window if isinstance(args.window, int) else SmootherConfig.window
-        every = args.relinearize_every if isinstance(args.relinearize_every, int) else SmootherConfig.relinearize_every
+        window = getattr(args, "window", SmootherConfig.window)  # compare sets W and K lists of its own
+        every = getattr(args, "relinearize_every", SmootherConfig.relinearize_every)
         smoother = SmootherConfig(window=window, relinearize_every=every, loss=loss)
     except ValueError as exc:
         raise OnlineSlamError(f"replay: {exc}") from None

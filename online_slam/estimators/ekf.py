@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 from threadpoolctl import ThreadpoolController
 
+from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
@@ -166,15 +167,11 @@ class EkfSlam(ExtendedKalmanFilter):
     # -- update ----------------------------------------------------------------------------------
     def _innovation(self, indices: NDArray[np.int64], z: Array) -> tuple[Array, Array, NDArray[np.int64]]:
         """Innovations y (k, 2), compact Jacobian H_s (2k, 3 + 2k) and its state columns (3 + 2k,)."""
-        k = len(indices)
         landmarks = self.x[3:, 0].reshape(-1, 2)[indices]
         z_hat, J_p, J_l = range_bearing_with_jacobians(self.x[:3, 0], landmarks)
         y = z - z_hat
         y[:, 1] = wrap(y[:, 1])
-        H_s = np.zeros((2 * k, 3 + 2 * k))
-        H_s[:, :3] = J_p.reshape(2 * k, 3)
-        rows = np.arange(2 * k)
-        H_s[rows[:, None], 3 + 2 * (rows[:, None] // 2) + np.arange(2)] = J_l.reshape(2 * k, 2)
+        H_s = stacked_jacobian(J_p, J_l)
         columns = np.r_[np.arange(3), _landmark_columns(indices)]
         return y, H_s, columns
 
@@ -202,16 +199,14 @@ class EkfSlam(ExtendedKalmanFilter):
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
         if len(y):
-            self._apply(PHt, S, y.reshape(-1), H_s[np.repeat(accepted, 2)] if not accepted.all() else H_s)
+            self._apply(PHt, S, y.reshape(-1))
         return nis, accepted
 
-    def _apply(self, PHt: Array, S: Array, y: Array, H_s: Array) -> None:
+    def _apply(self, PHt: Array, S: Array, y: Array) -> None:
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
-        L_inv = np.linalg.inv(np.linalg.cholesky(S))  # S^-1 = L^-T L^-1; S is small (2k x 2k)
-        W = PHt @ L_inv.T  # P H^T L^-T, (n, m)
-        self.x[:, 0] += W @ (L_inv @ y)
+        dx, W, L_inv = apply_update(self.P, PHt, S, y)
+        self.x[:, 0] += dx
         self.x[2, 0] = wrap(self.x[2, 0])
-        self.P -= W @ W.T  # numpy computes W W^T with syrk: exactly symmetric, so P stays symmetric bit for bit
         # filterpy's view of the last update
         self.S, self.y = S, y.reshape(-1, 1)
         self.K = W @ L_inv

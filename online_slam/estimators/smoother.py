@@ -36,6 +36,7 @@ import scipy.linalg as la
 from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
+from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.factors.graph import FactorGraph, layout, sqrt_information
 from online_slam.factors.robust import RobustLoss
@@ -379,17 +380,12 @@ class SlidingWindowSmoother:
                     (2 * np.array([slot[int(indices[k])] for k in update])[:, None] + np.arange(2)).reshape(-1),
                     np.arange(n - 3, n),
                 ]
-                m = 2 * len(update)
-                J_s = np.zeros((m, len(cols)))
-                J_s[:, -3:] = Jp[update].reshape(-1, 3)
-                rows = np.arange(m)
-                J_s[rows[:, None], 2 * (rows[:, None] // 2) + np.arange(2)] = Jl[update].reshape(-1, 2)
+                J_s = stacked_jacobian(Jp[update], Jl[update], pose_first=False)
                 PHt = Sigma[:, cols] @ J_s.T
-                S = J_s @ PHt[cols] + np.eye(m)
-                L_inv = np.linalg.inv(np.linalg.cholesky(S))
-                G = PHt @ L_inv.T
-                mu = mu + G @ (L_inv @ -(r0[update].reshape(-1) + J_s @ mu[cols]))
-                Sigma -= G @ G.T  # in place: the prior owns its buffer
+                S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
+                # in place: the prior owns its buffer
+                dmu, _, _ = apply_update(Sigma, PHt, S, -(r0[update].reshape(-1) + J_s @ mu[cols]))
+                mu = mu + dmu
             appended += [(r0[k], Jp[k], Jl[k], lin_l[k]) for k in np.flatnonzero(first)]
         delta, _, W = self._odometry[n1]
         e, J_a, J_b = odometry_residual_with_jacobians(lin_o, self.poses[n1], delta)

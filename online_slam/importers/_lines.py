@@ -6,6 +6,8 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
+
 from online_slam.errors import InputError
 
 
@@ -40,3 +42,17 @@ def numbers(source: str, line: int, fields: list[str], names: tuple[str, ...]) -
             raise InputError(source, line, name, f"expected a finite number, got {text!r}")
         out.append(value)
     return out
+
+
+def covariance_from(
+    source: str, line: int, field: str, matrix: np.ndarray, information: bool = False
+) -> tuple[tuple[float, ...], ...]:
+    """A covariance (inverted when ``information``) as stream-v1 tuples, or a one-line error if not PD."""
+    try:
+        cov = np.linalg.inv(matrix) if information else np.asarray(matrix, dtype=float)
+        cov = 0.5 * (cov + cov.T)
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        what = "information matrix" if information else "noise"
+        raise InputError(source, line, field, f"{what} is not positive definite") from None
+    return tuple(map(tuple, cov))

@@ -19,7 +19,7 @@ import numpy as np
 
 from online_slam.errors import InputError
 from online_slam.geometry.se2 import compose
-from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers._lines import covariance_from, numbered_lines, numbers
 from online_slam.importers.gtsam_text import cartesian_to_range_bearing
 from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.sources.events import Event, Header, Observation, Odometry, Start
@@ -76,11 +76,7 @@ def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
     pose, step = roots[0], 0
     while True:
         for v, number in sightings.pop(pose, []):
-            try:
-                cov_xy = np.linalg.inv(_symmetric(v[4:], 2))
-                np.linalg.cholesky(cov_xy)
-            except np.linalg.LinAlgError:
-                raise InputError(name, number, "I11", "information matrix is not positive definite") from None
+            cov_xy = np.array(covariance_from(name, number, "I11", _symmetric(v[4:], 2), information=True))
             if v[2] == 0.0 and v[3] == 0.0:
                 raise InputError(name, number, "x", "a landmark at the sensor has no bearing")
             r, b, cov = cartesian_to_range_bearing(v[2], v[3], cov_xy)
@@ -88,13 +84,9 @@ def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
         if pose not in chain:
             break
         nxt, v, number = chain[pose]
-        try:
-            cov = np.linalg.inv(_symmetric(v[5:], 3))
-            np.linalg.cholesky(cov)
-        except np.linalg.LinAlgError:
-            raise InputError(name, number, "I11", "information matrix is not positive definite") from None
+        cov = covariance_from(name, number, "I11", _symmetric(v[5:], 3), information=True)
         step += 1
-        yield Odometry(t=step * dt, delta=(v[2], v[3], v[4]), cov=tuple(map(tuple, 0.5 * (cov + cov.T))))
+        yield Odometry(t=step * dt, delta=(v[2], v[3], v[4]), cov=cov)
         pose = nxt
     if sightings:
         orphan = min(sightings)

@@ -25,7 +25,7 @@ import numpy as np
 
 from online_slam.errors import InputError
 from online_slam.geometry.se2 import compose
-from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers._lines import covariance_from, numbered_lines, numbers
 from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
@@ -128,13 +128,9 @@ def read_gtsam_text(
                 raise InputError(name, number, "j", f"pose {j} already exists (loop-closure edges are not supported)")
             steps[j] = len(steps)
             current = j
-            cov = odometry_covariance(v[5:], conv)
-            try:
-                np.linalg.cholesky(cov)
-            except np.linalg.LinAlgError:
-                raise InputError(name, number, "n11", "noise is not positive definite") from None
+            cov = covariance_from(name, number, "n11", odometry_covariance(v[5:], conv))
             t = steps[j] * dt
-            yield Odometry(t=t, delta=(v[2], v[3], v[4]), cov=tuple(map(tuple, cov)))
+            yield Odometry(t=t, delta=(v[2], v[3], v[4]), cov=cov)
             if twin is not None:
                 tv = numbers(str(truth), twin[0], twin[1][1:], EDGE)
                 true_pose = compose(true_pose, tv[2:5])

@@ -236,7 +236,7 @@ class RerunSink:
             self.columns.add(f"world/{name}/path", "strips", step, [whole])
         self.columns.add(f"world/{name}/path_recent", "strips", step, [recent])
 
-    def _landmarks(self, name: str, snapshot: Snapshot, step: Step, final: bool = False) -> None:
+    def _landmarks(self, name: str, snapshot: Snapshot, step: Step) -> None:
         if snapshot.landmark_ids != self.labels.get(name):
             self.labels[name] = snapshot.landmark_ids
             self._time(step)
@@ -246,7 +246,7 @@ class RerunSink:
         if previous is None or not np.array_equal(previous, snapshot.landmarks):  # unchanged maps are not re-sent
             self._landmark_values[name] = snapshot.landmarks
             self.columns.add(f"world/{name}/landmarks", "points", step, snapshot.landmarks)
-        due = final or step.index % max(1, self.config.map_every) == 0
+        due = step.index % max(1, self.config.map_every) == 0
         if due and snapshot.landmark_covs is not None and len(snapshot.landmarks):
             self.columns.add(
                 f"world/{name}/landmark_cov", "strips", step, list(ellipses(snapshot.landmarks, snapshot.landmark_covs))
