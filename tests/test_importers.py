@@ -15,7 +15,8 @@ from conftest import SHARED_DATA
 from online_slam.errors import InputError
 from online_slam.importers import open_dataset
 from online_slam.importers.g2o import read_g2o, write_g2o
-from online_slam.importers.mrclam import _dead_reckoning
+from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning
+from online_slam.importers.mrclam_noise import fit_mrclam_noise, fit_variance
 from online_slam.sources import LandmarkTruth, Observation, Odometry, Truth, read_stream, square_world, write_stream
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -167,3 +168,26 @@ def test_shipped_streams_read(tmp_path: Path) -> None:
     folder = Path(__file__).resolve().parents[1] / "replay"
     for path in folder.glob("*.jsonl*"):
         assert sum(1 for _ in read_stream(path)) > 10
+
+
+def test_variance_fit_recovers_the_coefficients_of_simulated_increments() -> None:
+    rng = np.random.default_rng(3)
+    dt = rng.uniform(0.01, 5.0, 20_000)
+    size = rng.uniform(0.0, 1.0, 20_000)
+    errors = rng.normal(0.0, np.sqrt(3e-4 * dt + 0.05 * size**2 + 1e-6))
+    a, b = fit_variance(errors, dt, size, 1e-6)
+    assert a == pytest.approx(3e-4, rel=0.06) and b == pytest.approx(0.05, rel=0.06)
+
+
+@needs_mrclam
+def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients() -> None:
+    fit = fit_mrclam_noise(MRCLAM)
+    builtin = MrclamNoise()
+    assert fit.increments > 8000 and fit.measurements > 15000
+    for name in ("x_per_s", "x_per_m2", "theta_per_s", "theta_per_rad2"):
+        assert getattr(fit.noise, name) == pytest.approx(getattr(builtin, name), rel=0.1), name
+    # robust (median-based) sigmas: the core of the residuals, below the built-in Gaussian fits
+    assert 0.05 < fit.noise.range_sigma < builtin.range_sigma
+    assert 0.002 < fit.noise.bearing_sigma < builtin.bearing_sigma
+    header = next(iter(open_dataset(MRCLAM, robot=2, noise="fit")))
+    assert header.meta["noise"]["range_sigma"] == fit.noise.range_sigma

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from online_slam.errors import OnlineSlamError
-from online_slam.importers.detect import DATASET_FORMATS, open_dataset
+from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP, open_dataset
 from online_slam.sources.stream import write_stream
 
 
@@ -22,6 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("input", help="dataset file or folder (MRCLAM), or a stream for FORMAT stream")
     p.add_argument("-o", "--output", default="-", help="output stream (.jsonl, .gz) or .g2o; '-' for stdout")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
+    p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
     p.add_argument("--truth", metavar="PATH", help="GTSAM/iSAM text: the noise-free twin file")
     p.add_argument("--dt", type=float, help="synthetic seconds per pose for files without timestamps (default 1)")
     p.add_argument("--convention", choices=("gtsam", "isam"), help="GTSAM/iSAM text noise convention")
@@ -52,7 +53,13 @@ def run(args: argparse.Namespace) -> int:
             raise OnlineSlamError("convert stream: the output must be a .g2o file")
         lines = write_g2o(args.output, _first_poses(read_stream(args.input), args.poses))
     else:
-        options = {"robot": args.robot, "truth": args.truth, "dt": args.dt, "convention": args.convention}
+        options = {
+            "robot": args.robot,
+            "noise": args.noise,
+            "truth": args.truth,
+            "dt": args.dt,
+            "convention": args.convention,
+        }
         events = open_dataset(args.input, args.format, **{k: v for k, v in options.items() if v is not None})
         try:
             lines = write_stream(args.output, _first_poses(events, args.poses))

@@ -14,6 +14,7 @@ from online_slam.estimators.ekf import EkfConfig
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
+from online_slam.importers.detect import NOISE_HELP
 from online_slam.pipeline import ESTIMATORS, ReplayConfig, replay
 from online_slam.reports.table import format_results
 from online_slam.sinks.live import Pacer, Progress
@@ -101,6 +102,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--format", choices=("mrclam", "gtsam", "g2o"), help="dataset format (default: detected)")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
+    p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
     p.add_argument("--truth", metavar="PATH", help="GTSAM/iSAM text: the noise-free twin file (truth)")
     p.add_argument("--dt", type=float, help="synthetic seconds per pose for files without timestamps (default 1)")
     p.add_argument(
@@ -149,6 +151,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         dataset={
             "format": args.format,
             "robot": args.robot,
+            "noise": args.noise,
             "truth": args.truth,
             "dt": args.dt,
             "convention": args.convention,

@@ -13,6 +13,13 @@ DATASET_FORMATS = ("mrclam", "gtsam", "g2o")
 """Formats ``convert`` reads (besides stream v1)."""
 
 
+NOISE_HELP = (
+    "MRCLAM noise model: the built-in coefficients (default) or 'fit' them by maximum likelihood against the "
+    "folder's Vicon ground truth (all five robots)"
+)
+"""Help text of the ``--noise`` option of ``replay``, ``compare`` and ``convert``."""
+
+
 def detect_format(path: str | Path) -> str | None:
     """``mrclam`` for a folder with Barcodes.dat, ``g2o`` for .g2o, ``gtsam`` for a text file of ODOMETRY/EDGE2
     lines; None for anything else (a stream-v1 file)."""
@@ -32,7 +39,9 @@ def detect_format(path: str | Path) -> str | None:
 def open_dataset(path: str | Path, format: str | None = None, **options: Any) -> Iterator[Event]:
     """Events of a dataset, by format (detected when None).
 
-    Options: ``robot`` (MRCLAM), ``truth``, ``dt``, ``convention`` (GTSAM text).
+    Options: ``robot`` and ``noise`` (MRCLAM: ``None`` or ``"builtin"`` for the built-in coefficients, ``"fit"``
+    to fit them against the folder's Vicon data, or a ``MrclamNoise``), ``truth``, ``dt``, ``convention`` (GTSAM
+    text).
     """
     kind = format or detect_format(path)
     if kind == "mrclam":
@@ -40,7 +49,14 @@ def open_dataset(path: str | Path, format: str | None = None, **options: Any) ->
 
         if options.get("robot") is None:
             raise InputError(str(path), 0, "robot", "an MRCLAM folder needs --robot N (1..5)")
-        return read_mrclam(path, int(options["robot"]))
+        noise = options.get("noise")
+        if noise == "fit":
+            from online_slam.importers.mrclam_noise import fit_mrclam_noise
+
+            noise = fit_mrclam_noise(path).noise
+        elif noise == "builtin":
+            noise = None
+        return read_mrclam(path, int(options["robot"]), noise)
     if kind == "gtsam":
         from online_slam.importers.gtsam_text import read_gtsam_text
 

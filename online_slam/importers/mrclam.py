@@ -12,7 +12,10 @@
 Noise model (``MrclamNoise``): per-increment diagonal variances ``var = a * dt + b * s^2 + floor`` with dt the
 elapsed time, s the commanded path length (x, y) or turned angle (theta); range and bearing sigmas. The default
 coefficients are maximum-likelihood fits against Vicon over Dataset 6 (see ../shared/ANCHORS.md, where the same
-conversion is described); the floor keeps 1-ms-apart poses well conditioned.
+conversion is described); the floor keeps 1-ms-apart poses well conditioned. :mod:`online_slam.importers.mrclam_noise`
+repeats the fit on a folder (``--noise fit``): it reproduces the x and heading coefficients within 5%; its lateral
+term is pure path-squared, and its range/bearing sigmas are median-based (0.131 m, 0.0083 rad: the core of the
+residuals, with the misread rows left out) where the built-in ones are plain Gaussian fits (0.178 m, 0.0125 rad).
 """
 
 from __future__ import annotations

@@ -1,0 +1,147 @@
+"""Choosing the MRCLAM noise model from data: a maximum-likelihood fit against the Vicon ground truth.
+
+The conversion (:mod:`online_slam.importers.mrclam`) models each odometry increment's error as independent
+Gaussians per axis with variance ``a * dt + b * s^2 + floor`` (dt elapsed seconds, s the commanded path length
+or turned angle). This module measures, for every robot of a dataset folder, the error of each commanded
+increment against the increment between the interpolated Vicon poses at the same two times, and fits ``a`` and
+``b`` per axis by maximum likelihood (``scipy.optimize.minimize`` over the logarithms, so both stay positive).
+Range and bearing sigmas are the robust standard deviations (1.4826 x median absolute deviation) of the
+measurement residuals against the Vicon pose and the surveyed landmark positions: robust, because a few rows
+carry another landmark's barcode and would dominate a plain standard deviation.
+
+Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize
+
+from online_slam.geometry.angles import wrap
+from online_slam.geometry.se2 import between
+from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning, _interpolate_truth, _table
+
+Array = NDArray[np.float64]
+
+MAD_TO_SIGMA = 1.4826
+"""Ratio of a Gaussian's standard deviation to its median absolute deviation."""
+
+
+@dataclass(frozen=True)
+class NoiseFit:
+    """A fitted MRCLAM noise model and the evidence behind it."""
+
+    noise: MrclamNoise
+    """The fitted coefficients (floor and start sigma kept from the defaults)."""
+    increments: int
+    """Odometry increments used (both ends covered by Vicon)."""
+    measurements: int
+    """Landmark measurements used (Vicon covers the time, the landmark is surveyed)."""
+    range_bias_m: float
+    """Median range residual (measured - true), metres."""
+    bearing_bias_rad: float
+    """Median bearing residual (measured - true), radians."""
+
+
+def fit_variance(errors: Array, dt: Array, size: Array, floor: float) -> tuple[float, float]:
+    """Maximum-likelihood ``(a, b)`` of ``errors ~ N(0, a * dt + b * size^2 + floor)``.
+
+    Args:
+        errors: Increment errors of one axis, shape (N,).
+        dt: Elapsed seconds per increment, shape (N,).
+        size: Commanded path length (m) or turned angle (rad) per increment, shape (N,).
+        floor: Variance added to every increment.
+
+    Returns:
+        The coefficients (a per second, b per squared unit of size).
+    """
+    e2, s2 = errors**2, size**2
+
+    def negative_log_likelihood(log_ab: Array) -> tuple[float, Array]:
+        a, b = np.exp(log_ab)
+        var = a * dt + b * s2 + floor
+        value = 0.5 * float(np.sum(np.log(var) + e2 / var))
+        d_var = 0.5 * (1.0 / var - e2 / var**2)
+        return value, np.array([a * float(d_var @ dt), b * float(d_var @ s2)])
+
+    mean_e2 = float(np.mean(e2))
+    start = np.log([max(mean_e2 / max(float(np.mean(dt)), 1e-9), 1e-12), max(mean_e2, 1e-12)])
+    result = minimize(negative_log_likelihood, start, jac=True, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 2)
+    a, b = np.exp(result.x)
+    return float(a), float(b)
+
+
+def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array], subject_of: dict[int, int]):
+    """Odometry increment errors (with dt, path, turn) and measurement residuals of one robot."""
+    odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
+    measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
+    truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
+    odometry = odometry[np.argsort(odometry[:, 0], kind="stable")]
+    subjects = np.array([subject_of.get(int(b), -1) for b in measurements[:, 1]])
+    kept = measurements[subjects >= 6]
+    kept_subjects = subjects[subjects >= 6]
+    times = np.unique(kept[:, 0])
+    poses, path, turn = _dead_reckoning(odometry, times)
+    commanded = between(poses[:-1], poses[1:])
+    true_poses, covered = _interpolate_truth(truth, times)
+    actual = between(true_poses[:-1], true_poses[1:])
+    both = covered[:-1] & covered[1:]
+    errors = actual - commanded
+    errors[:, 2] = wrap(errors[:, 2])
+    odo = (errors[both], np.diff(times)[both], np.diff(path)[both], np.diff(turn)[both])
+    # measurement residuals at covered times, surveyed landmarks only
+    at, inside = _interpolate_truth(truth, kept[:, 0])
+    known = np.array([int(s) in landmark_xy for s in kept_subjects], dtype=bool)
+    use = inside & known
+    pose = at[use]
+    xy = np.array([landmark_xy[int(s)] for s in kept_subjects[use]]).reshape(-1, 2)
+    d = xy - pose[:, :2]
+    true_range = np.hypot(d[:, 0], d[:, 1])
+    true_bearing = np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]
+    rows = kept[use]
+    return odo, rows[:, 2] - true_range, wrap(rows[:, 3] - true_bearing)
+
+
+def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> NoiseFit:
+    """Fit the MRCLAM noise model against Vicon over the given robots of a dataset folder.
+
+    Args:
+        folder: The dataset folder (as for :func:`online_slam.importers.mrclam.read_mrclam`).
+        robots: Robots whose data enter the fit.
+
+    Returns:
+        The fitted model with the number of increments and measurements used.
+    """
+    root = Path(folder)
+    defaults = MrclamNoise()
+    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
+    subject_of = {int(b): int(s) for s, b in barcodes}
+    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    landmark_xy = {int(row[0]): row[1:3] for row in landmarks}
+    parts = [_robot_residuals(root, r, landmark_xy, subject_of) for r in robots]
+    errors = np.concatenate([p[0][0] for p in parts])
+    dt, path, turn = (np.concatenate([p[0][k] for p in parts]) for k in (1, 2, 3))
+    range_residuals = np.concatenate([p[1] for p in parts])
+    bearing_residuals = np.concatenate([p[2] for p in parts])
+    floor = defaults.floor
+    x_a, x_b = fit_variance(errors[:, 0], dt, path, floor)
+    y_a, y_b = fit_variance(errors[:, 1], dt, path, floor)
+    t_a, t_b = fit_variance(errors[:, 2], dt, turn, floor)
+    range_bias, bearing_bias = float(np.median(range_residuals)), float(np.median(bearing_residuals))
+    noise = MrclamNoise(
+        x_per_s=x_a,
+        x_per_m2=x_b,
+        y_per_s=y_a,
+        y_per_m2=y_b,
+        theta_per_s=t_a,
+        theta_per_rad2=t_b,
+        floor=floor,
+        range_sigma=MAD_TO_SIGMA * float(np.median(np.abs(range_residuals - range_bias))),
+        bearing_sigma=MAD_TO_SIGMA * float(np.median(np.abs(bearing_residuals - bearing_bias))),
+        start_sigma=defaults.start_sigma,
+    )
+    return NoiseFit(noise, len(errors), len(range_residuals), range_bias, bearing_bias)
