@@ -61,7 +61,9 @@ class SmootherConfig:
     relinearize_every: int = 1
     """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
     solver: SolverConfig = field(
-        default_factory=lambda: SolverConfig(max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5)
+        default_factory=lambda: SolverConfig(
+            max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5, model_tolerance=1e-5
+        )
     )
     """Levenberg-Marquardt settings of each window solve during the stream (max iterations, tolerances)."""
     final_solver: SolverConfig = field(default_factory=SolverConfig)
@@ -303,13 +305,13 @@ class SlidingWindowSmoother:
         quadratic = QuadraticPrior(columns, p.x_lin[order], angle, A, -A @ mu_a)
         if len(passive) == 0:
             return quadratic, None
-        gain = p.Sigma[np.ix_(passive, order)] @ A  # conditional mean of the passive given the active
         passive_ids = p.landmarks[~is_active]
 
         def recover(oldest_pose: Array, active_landmarks: Array) -> None:
+            """Passive landmarks at their conditional mean given the solved active part (matrix-vector only)."""
             d_a = np.r_[active_landmarks[local].reshape(-1), oldest_pose] - p.x_lin[order]
             d_a[-1] = wrap(d_a[-1])
-            d_p = p.mu[passive] + gain @ (d_a - mu_a)
+            d_p = p.mu[passive] + p.Sigma[np.ix_(passive, order)] @ (A @ (d_a - mu_a))
             self._landmarks[passive_ids] = (p.x_lin[passive] + d_p).reshape(-1, 2)
 
         return quadratic, recover

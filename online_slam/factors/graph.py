@@ -302,28 +302,31 @@ class DenseAssembler:
     def __init__(self, graph: FactorGraph, sparse: SparseLayout) -> None:
         self.graph, self.n = graph, sparse.n_columns
         n = self.n
-        self._blocks = {
-            "prior": [(sparse.pose_column[graph.prior_pose], 3)],
-            "odometry": [(sparse.pose_column[graph.odo_from], 3), (sparse.pose_column[graph.odo_to], 3)],
-            "observation": [(sparse.pose_column[graph.obs_pose], 3), (sparse.landmark_column[graph.obs_landmark], 2)],
+
+        def columns(*blocks: tuple[Index, int]) -> Index:
+            """Each factor's columns, its blocks side by side, shape (K, sum of widths); -1 where fixed."""
+            parts = [np.where(first[:, None] >= 0, first[:, None] + np.arange(width), -1) for first, width in blocks]
+            return np.concatenate(parts, axis=1)
+
+        self._columns = {
+            "prior": columns((sparse.pose_column[graph.prior_pose], 3)),
+            "odometry": columns((sparse.pose_column[graph.odo_from], 3), (sparse.pose_column[graph.odo_to], 3)),
+            "observation": columns(
+                (sparse.pose_column[graph.obs_pose], 3), (sparse.landmark_column[graph.obs_landmark], 2)
+            ),
         }
         h_index, g_index = [], []
-        # Which factors of each block take part (None: all of them, the common case).
-        self._masks: dict[str, list[tuple[NDArray[np.bool_] | None, list[NDArray[np.bool_] | None]]]] = {}
-        for kind, blocks in self._blocks.items():
-            self._masks[kind] = []
-            for first_a, c_a in blocks:
-                ok_a = first_a >= 0
-                g_index.append((first_a[ok_a, None] + np.arange(c_a)).ravel())
-                pair_masks = []
-                for first_b, c_b in blocks:
-                    ok = ok_a & (first_b >= 0)
-                    rows = first_a[ok, None, None] + np.arange(c_a)[:, None]
-                    h_index.append((rows * n + first_b[ok, None, None] + np.arange(c_b)).ravel())
-                    pair_masks.append(None if ok.all() else ok)
-                self._masks[kind].append((None if ok_a.all() else ok_a, pair_masks))
-        self._h_index = np.concatenate(h_index) if h_index else np.zeros(0, dtype=np.int64)
-        self._g_index = np.concatenate(g_index) if g_index else np.zeros(0, dtype=np.int64)
+        # Which entries of each kind's (K, c, c) block products and (K, c) gradients land (None: all of them).
+        self._keep: dict[str, tuple[NDArray[np.bool_] | None, NDArray[np.bool_] | None]] = {}
+        for kind, cols in self._columns.items():
+            ok = cols >= 0
+            ok_h = (ok[:, :, None] & ok[:, None, :]).ravel()
+            ok_g = ok.ravel()
+            h_index.append((cols[:, :, None] * n + cols[:, None, :]).ravel()[ok_h])
+            g_index.append(cols.ravel()[ok_g])
+            self._keep[kind] = (None if ok_h.all() else ok_h, None if ok_g.all() else ok_g)
+        self._h_index = np.concatenate(h_index)
+        self._g_index = np.concatenate(g_index)
 
     def __call__(self, poses: Array, landmarks: Array, loss: RobustLoss | None = None) -> tuple[Array, Array, float]:
         """(H (n, n), g (n,), cost) at the given values; cost as :func:`cost`.
@@ -345,23 +348,18 @@ class DenseAssembler:
             W_obs, r_obs = W_obs * sqrt_w[:, None, None], r_obs * sqrt_w[:, None]
         else:
             total += 0.5 * float(np.sum(r_obs**2))
-        jacobians = {
-            "prior": (r_prior, [graph.prior_sqrt_info]),
-            "odometry": (r_odo, [W_odo @ J_a, W_odo @ J_b]),
-            "observation": (r_obs, [W_obs @ J_p, W_obs @ J_l]),
+        factors = {
+            "prior": (r_prior, graph.prior_sqrt_info),
+            "odometry": (r_odo, W_odo @ np.concatenate([J_a, J_b], axis=2)),
+            "observation": (r_obs, W_obs @ np.concatenate([J_p, J_l], axis=2)),
         }
         h_value, g_value = [], []
-        for kind, (r, blocks) in jacobians.items():
-            for (ok_a, pair_masks), J_1 in zip(self._masks[kind], blocks):
-                if ok_a is None:
-                    g_value.append(np.einsum("kmi,km->ki", J_1, r).ravel())
-                else:
-                    g_value.append(np.einsum("kmi,km->ki", J_1[ok_a], r[ok_a]).ravel())
-                for ok, J_2 in zip(pair_masks, blocks):
-                    if ok is None:
-                        h_value.append(np.einsum("kmi,kmj->kij", J_1, J_2).ravel())
-                    else:
-                        h_value.append(np.einsum("kmi,kmj->kij", J_1[ok], J_2[ok]).ravel())
+        for kind, (r, J) in factors.items():
+            keep_h, keep_g = self._keep[kind]
+            h = np.einsum("kmi,kmj->kij", J, J).ravel()
+            g = np.einsum("kmi,km->ki", J, r).ravel()
+            h_value.append(h if keep_h is None else h[keep_h])
+            g_value.append(g if keep_g is None else g[keep_g])
         H = np.bincount(self._h_index, np.concatenate(h_value), minlength=n * n).reshape(n, n)
         g = np.bincount(self._g_index, np.concatenate(g_value), minlength=n)
         return H, g, total

@@ -40,6 +40,10 @@ class SolverConfig:
     """Stop when the largest update component is below this (metres / radians)."""
     gradient_tolerance: float = 1e-10
     """Stop when the largest gradient component is below this."""
+    model_tolerance: float = 0.0
+    """Stop after an accepted, (nearly) undamped step whose actual and predicted cost decreases agree within this
+    fraction of the cost: the quadratic model held over the step, so the next step would gain about their
+    difference. 0 (default) turns it off; a smoother's per-step solves use it to save one relinearization."""
 
 
 @dataclass(frozen=True)
@@ -188,7 +192,8 @@ def solve(
         config: Solver settings.
         loss: Robust loss on observation factors, or None for plain least squares.
         prior: A dense quadratic prior on some columns of ``layout(graph)``; the system is then solved densely.
-        return_information: Also return ``J^T J`` (+ prior) at the solution, for covariances.
+        return_information: Also return ``J^T J`` (+ prior) at the last linearization point (the solution, or one
+            converged step before it), for covariances.
         dense: Assemble and factor the normal equations densely; default: when a prior is given or the
             problem has at most ``DENSE_LIMIT`` free variables (a smoother's window), sparse otherwise.
         graph_layout: ``layout(graph)`` when the caller has it already.
@@ -258,19 +263,31 @@ def solve(
             converged, message = True, "predicted decrease below tolerance"
             break
         new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
-        new_H, new_g, new_cost = system(new_poses, new_landmarks)
+        # The cost alone decides acceptance and convergence; the normal equations are assembled only at an
+        # accepted point the iterations go on from (at convergence H stays the last one assembled, one small
+        # step away: what the information matrix is used for does not see the difference).
+        new_cost = cost_only(new_poses, new_landmarks)
         actual = current - new_cost
         if actual >= 0.0 and np.isfinite(new_cost):
             rho = actual / predicted if predicted > 0 else 1.0
-            poses, landmarks, current, H, g = new_poses, new_landmarks, new_cost, new_H, new_g
+            undamped = lam <= cfg.initial_lambda
+            poses, landmarks, current = new_poses, new_landmarks, new_cost
             lam = lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if lam > 0 else 0.0
             nu = 2.0
             small_step = np.max(np.abs(dx)) < cfg.step_tolerance
             small_gain = actual <= cfg.relative_cost_tolerance * max(current + actual, 1e-300)
-            if small_step or small_gain:
+            model_held = undamped and abs(actual - predicted) <= cfg.model_tolerance * current
+            if small_step or small_gain or model_held:
                 converged = True
-                message = "step below tolerance" if small_step else "cost change below tolerance"
+                message = (
+                    "step below tolerance"
+                    if small_step
+                    else "cost change below tolerance"
+                    if small_gain
+                    else "quadratic model held within tolerance"
+                )
                 break
+            H, g, current = system(poses, landmarks)
         else:
             if np.max(np.abs(dx)) < cfg.step_tolerance:
                 converged, message = True, "step below tolerance"
