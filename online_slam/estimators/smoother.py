@@ -62,7 +62,7 @@ class SmootherConfig:
     """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
     solver: SolverConfig = field(
         default_factory=lambda: SolverConfig(
-            max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5, model_tolerance=1e-5
+            max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5, model_tolerance=1e-4
         )
     )
     """Levenberg-Marquardt settings of each window solve during the stream (max iterations, tolerances)."""
