@@ -180,7 +180,7 @@ def test_variance_fit_recovers_the_coefficients_of_simulated_increments() -> Non
 
 
 @needs_mrclam
-def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients() -> None:
+def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path: Path) -> None:
     fit = fit_mrclam_noise(MRCLAM)
     builtin = MrclamNoise()
     assert fit.increments > 8000 and fit.measurements > 15000
@@ -189,5 +189,12 @@ def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients() -> None
     # robust (median-based) sigmas: the core of the residuals, below the built-in Gaussian fits
     assert 0.05 < fit.noise.range_sigma < builtin.range_sigma
     assert 0.002 < fit.noise.bearing_sigma < builtin.bearing_sigma
-    header = next(iter(open_dataset(MRCLAM, robot=2, noise="fit")))
-    assert header.meta["noise"]["range_sigma"] == fit.noise.range_sigma
+    out = tmp_path / "robot2.jsonl"
+    done = subprocess.run(
+        [*EXE, "convert", "mrclam", str(MRCLAM), "--robot", "2", "--noise", "fit", "-o", str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    header = next(iter(read_stream(out)))
+    assert header.meta["noise"]["range_sigma"] == pytest.approx(fit.noise.range_sigma, rel=1e-12)
