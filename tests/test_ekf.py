@@ -131,6 +131,25 @@ def test_gross_outlier_is_gated_reported_and_harmless() -> None:
     assert ekf.finish().info["gated_observations"] == 1
 
 
+def test_a_landmark_failing_the_gate_persistently_is_used_again() -> None:
+    # A landmark that moved (or a filter that drifted) fails the gate every time; after gate_persistence - 1
+    # rejections in a row its next sighting is used, and the streak of another landmark is its own.
+    persistence = EkfConfig().gate_persistence
+    ekf = EkfSlam()
+    ekf.step(step_with(0, ("a", "b"), [[3.0, 0.5], [4.0, -0.5]]))
+    moved = [[3.0, 0.5 + 1.0], [4.0, -0.5]]
+    for index in range(1, persistence):
+        snap = ekf.step(step_with(index, ("a", "b"), moved, odometry=np.zeros(3)))
+        assert snap.info["gated"] == ("a",)
+    snap = ekf.step(step_with(persistence, ("a", "b"), moved, odometry=np.zeros(3)))
+    assert snap.info["gated"] == () and snap.info["nis"][0] > chi2.ppf(EkfConfig().gate_probability, 2)
+    assert ekf.finish().info["gated_observations"] == persistence - 1
+    strict = EkfSlam(EkfConfig(gate_persistence=0))
+    strict.step(step_with(0, ("a", "b"), [[3.0, 0.5], [4.0, -0.5]]))
+    for index in range(1, persistence + 3):
+        assert strict.step(step_with(index, ("a", "b"), moved, odometry=np.zeros(3))).info["gated"] == ("a",)
+
+
 def test_same_new_landmark_twice_in_one_step() -> None:
     ekf = EkfSlam()
     snap = ekf.step(step_with(0, (7, 7), [[3.0, 0.5], [3.01, 0.5]]))

@@ -80,6 +80,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
         help=f"EKF chi-square gate on each observation's NIS, 2 dof (default {EkfConfig.gate_probability}; 1 = off)",
     )
     p.add_argument(
+        "--gate-persistence",
+        type=int,
+        default=EkfConfig.gate_persistence,
+        metavar="N",
+        help="EKF: use a landmark's sighting after N-1 gated ones in a row (the filter drifted; default "
+        f"{EkfConfig.gate_persistence}; 0 = always reject)",
+    )
+    p.add_argument(
         "--robust",
         choices=("none", "huber", "cauchy"),
         default="none",
@@ -135,7 +143,9 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         )
     names = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
     try:
-        ekf = EkfConfig(gate_probability=args.gate_probability, update=args.ekf_update)
+        ekf = EkfConfig(
+            gate_probability=args.gate_probability, gate_persistence=args.gate_persistence, update=args.ekf_update
+        )
         loss = None if args.robust == "none" else RobustLoss(args.robust, args.robust_scale)
         window = getattr(args, "window", SmootherConfig.window)  # compare sets W and K lists of its own
         every = getattr(args, "relinearize_every", SmootherConfig.relinearize_every)

@@ -14,7 +14,10 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
   per step instead of the dense Joseph form's O(n^3), equal to it for the optimal gain, and exactly symmetric.
   A step's observations are combined into one update (``joint``), or applied one at a time (``sequential``).
 - every observation is gated on its own NIS against a chi-square quantile; gated ones are reported, never
-  silently lost. Bearing innovations are wrapped; the heading is wrapped after every update.
+  silently lost. A landmark failing the gate ``gate_persistence`` times in a row is used again: on Victoria Park
+  a strict gate starved the drifting filter (2,577 of 3,640 sightings rejected, end gap 249 m; with persistence 8:
+  245 rejected, 14.9 m, batch 14.2 m), while MRCLAM's misread barcodes (a few in a row) stay rejected.
+  Bearing innovations are wrapped; the heading is wrapped after every update.
 
 ``x_prior``/``P_prior``/``x_post``/``P_post`` are not maintained (copying P every step would cost O(n^2) for
 nothing); ``dim_x``, ``_I``, ``F`` and ``Q`` follow the state size so that stock filterpy calls stay valid.
@@ -53,6 +56,10 @@ class EkfConfig:
     gate_probability: float = 0.9999
     """Chi-square gate (2 dof) on each observation's NIS: an observation whose NIS exceeds this quantile
     (18.4 for 0.9999) is rejected and reported. 1.0 disables gating."""
+    gate_persistence: int = 8
+    """A landmark whose sightings fail the gate this many times in a row is used anyway: a one-off misreading
+    fails once, but repeated failures of one landmark mean the filter has drifted, and rejecting them would
+    starve it. 0 turns this off (every gated sighting rejected)."""
     update: str = "joint"
     """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
     relinearized after each."""
@@ -60,6 +67,8 @@ class EkfConfig:
     def __post_init__(self) -> None:
         if not 0.0 < self.gate_probability <= 1.0:
             raise ValueError("gate_probability must be in (0, 1]")
+        if self.gate_persistence < 0:
+            raise ValueError("gate_persistence must be >= 0")
         if self.update not in ("joint", "sequential"):
             raise ValueError("update must be 'joint' or 'sequential'")
 
@@ -86,6 +95,7 @@ class EkfSlam(ExtendedKalmanFilter):
             math.inf if self.config.gate_probability >= 1.0 else float(chi2.ppf(self.config.gate_probability, 2))
         )
         self.gated_total = 0
+        self._streak = np.zeros(0, dtype=np.int64)  # consecutive gated sightings per landmark
         self._poses: list[Array] = []
         self._times: list[float] = []
         self._blas = ThreadpoolController()
@@ -110,6 +120,7 @@ class EkfSlam(ExtendedKalmanFilter):
         ekf.Q = np.zeros((n, n))
         ekf.landmark_ids = list(landmark_ids)
         ekf._index = {lid: j for j, lid in enumerate(landmark_ids)}
+        ekf._streak = np.zeros(len(landmark_ids), dtype=np.int64)
         return ekf
 
     def single_threaded(self) -> object:
@@ -162,6 +173,7 @@ class EkfSlam(ExtendedKalmanFilter):
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
         self._index[landmark] = len(self.landmark_ids)
         self.landmark_ids.append(landmark)
+        self._streak = np.append(self._streak, 0)
         self._grow(position, cross, 0.5 * (block + block.T))
 
     # -- update ----------------------------------------------------------------------------------
@@ -195,6 +207,9 @@ class EkfSlam(ExtendedKalmanFilter):
         blocks = S.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :]  # (k, 2, 2) marginal S of each
         nis = np.einsum("ki,ki->k", y, np.linalg.solve(blocks, y[..., None])[..., 0])
         accepted = nis <= self._gate
+        if self.config.gate_persistence:
+            accepted |= self._streak[indices] >= self.config.gate_persistence - 1
+        self._streak[indices] = np.where(accepted, 0, self._streak[indices] + 1)
         if not accepted.all():
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
