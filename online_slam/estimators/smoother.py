@@ -370,7 +370,7 @@ class SlidingWindowSmoother:
             z_hat, J_p, J_l = range_bearing_with_jacobians(lin_o, lin_l)
             e = z_hat - z
             e[:, 1] = wrap(e[:, 1])
-            W = sqrt_information(z_cov)
+            W = obs[3] if z_cov is obs[2] else sqrt_information(z_cov)  # stored unless repeats were fused
             r0 = np.einsum("kij,kj->ki", W, e)
             if self.config.loss is not None:
                 W = W * np.sqrt(self.config.loss.weight(np.sum(r0 * r0, axis=1)))[:, None, None]

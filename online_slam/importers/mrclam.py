@@ -115,6 +115,48 @@ def _interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, n
     return poses, inside
 
 
+@dataclass(frozen=True)
+class RobotData:
+    """One robot's raw tables, its landmark sightings selected and sorted by time."""
+
+    odometry: np.ndarray
+    """Velocity commands (t, v, w), sorted by t, shape (C, 3)."""
+    measurements: np.ndarray
+    """Landmark sightings (t, barcode, range, bearing), sorted by t (stable), shape (N, 4)."""
+    subjects: np.ndarray
+    """Landmark subject number of each sighting, shape (N,)."""
+    times: np.ndarray
+    """Distinct sighting times: the pose times, shape (P,)."""
+    truth: np.ndarray
+    """Vicon poses (t, x, y, theta), shape (G, 4)."""
+    dropped_robots: int
+    """Sightings of other robots, dropped."""
+    dropped_unknown: int
+    """Sightings of barcodes not in ``Barcodes.dat``, dropped."""
+
+
+def load_robot(root: Path, robot: int) -> RobotData:
+    """Read one robot's odometry, measurements and Vicon truth, keeping landmark sightings only."""
+    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
+    subject_of = {int(b): int(s) for s, b in barcodes}
+    odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
+    measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
+    truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
+    subjects = np.array([subject_of.get(int(b), -1) for b in measurements[:, 1]])
+    is_landmark = subjects >= 6
+    kept, kept_subjects = measurements[is_landmark], subjects[is_landmark]
+    order = np.argsort(kept[:, 0], kind="stable")
+    return RobotData(
+        odometry=odometry[np.argsort(odometry[:, 0], kind="stable")],
+        measurements=kept[order],
+        subjects=kept_subjects[order],
+        times=np.unique(kept[:, 0]),
+        truth=truth,
+        dropped_robots=int(np.sum((subjects >= 1) & (subjects <= 5))),
+        dropped_unknown=int(np.sum(subjects < 0)),
+    )
+
+
 def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None) -> Iterator[Event]:
     """Stream one MRCLAM robot as events.
 
@@ -130,23 +172,10 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     cfg = noise or MrclamNoise()
     if not 1 <= robot <= 5:
         raise InputError(str(root), 0, "robot", f"expected a robot number 1..5, got {robot}")
-    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
-    subject_of = {int(b): int(s) for s, b in barcodes}
-    odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
-    measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
-    truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
+    data = load_robot(root, robot)
+    kept, kept_subjects, times, truth = data.measurements, data.subjects, data.times, data.truth
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
-    odometry = odometry[np.argsort(odometry[:, 0], kind="stable")]
-    subjects = np.array([subject_of.get(int(b), -1) for b in measurements[:, 1]])
-    is_landmark = subjects >= 6
-    dropped_robots = int(np.sum((subjects >= 1) & (subjects <= 5)))
-    dropped_unknown = int(np.sum(subjects < 0))
-    kept = measurements[is_landmark]
-    kept_subjects = subjects[is_landmark]
-    order = np.argsort(kept[:, 0], kind="stable")
-    kept, kept_subjects = kept[order], kept_subjects[order]
-    times = np.unique(kept[:, 0])
-    poses, path, turn = _dead_reckoning(odometry, times)
+    poses, path, turn = _dead_reckoning(data.odometry, times)
     increments = between(poses[:-1], poses[1:])
     dt, ds, da = np.diff(times), np.diff(path), np.diff(turn)
     variances = np.stack(
@@ -165,8 +194,8 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
             "robot": robot,
             "poses": int(len(times)),
             "landmark_observations": int(len(kept)),
-            "dropped_robot_observations": dropped_robots,
-            "dropped_unknown_barcodes": dropped_unknown,
+            "dropped_robot_observations": data.dropped_robots,
+            "dropped_unknown_barcodes": data.dropped_unknown,
             "noise": cfg.__dict__,
         },
     )

@@ -23,7 +23,7 @@ from scipy.optimize import minimize
 
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning, _interpolate_truth, _table
+from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning, _interpolate_truth, _table, load_robot
 
 Array = NDArray[np.float64]
 
@@ -75,26 +75,20 @@ def fit_variance(errors: Array, dt: Array, size: Array, floor: float) -> tuple[f
     return float(a), float(b)
 
 
-def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array], subject_of: dict[int, int]):
+def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array]):
     """Odometry increment errors (with dt, path, turn) and measurement residuals of one robot."""
-    odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
-    measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
-    truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
-    odometry = odometry[np.argsort(odometry[:, 0], kind="stable")]
-    subjects = np.array([subject_of.get(int(b), -1) for b in measurements[:, 1]])
-    kept = measurements[subjects >= 6]
-    kept_subjects = subjects[subjects >= 6]
-    times = np.unique(kept[:, 0])
-    poses, path, turn = _dead_reckoning(odometry, times)
+    data = load_robot(root, robot)
+    times, kept, kept_subjects = data.times, data.measurements, data.subjects
+    poses, path, turn = _dead_reckoning(data.odometry, times)
     commanded = between(poses[:-1], poses[1:])
-    true_poses, covered = _interpolate_truth(truth, times)
+    true_poses, covered = _interpolate_truth(data.truth, times)
     actual = between(true_poses[:-1], true_poses[1:])
     both = covered[:-1] & covered[1:]
     errors = actual - commanded
     errors[:, 2] = wrap(errors[:, 2])
     odo = (errors[both], np.diff(times)[both], np.diff(path)[both], np.diff(turn)[both])
     # measurement residuals at covered times, surveyed landmarks only
-    at, inside = _interpolate_truth(truth, kept[:, 0])
+    at, inside = _interpolate_truth(data.truth, kept[:, 0])
     known = np.array([int(s) in landmark_xy for s in kept_subjects], dtype=bool)
     use = inside & known
     pose = at[use]
@@ -118,11 +112,9 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     """
     root = Path(folder)
     defaults = MrclamNoise()
-    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
-    subject_of = {int(b): int(s) for s, b in barcodes}
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     landmark_xy = {int(row[0]): row[1:3] for row in landmarks}
-    parts = [_robot_residuals(root, r, landmark_xy, subject_of) for r in robots]
+    parts = [_robot_residuals(root, r, landmark_xy) for r in robots]
     errors = np.concatenate([p[0][0] for p in parts])
     dt, path, turn = (np.concatenate([p[0][k] for p in parts]) for k in (1, 2, 3))
     range_residuals = np.concatenate([p[1] for p in parts])
