@@ -1,4 +1,4 @@
-"""The replay pipeline: source -> events -> front-end steps -> estimators -> snapshots -> sinks.
+"""The replay pipeline: source -> events -> engine (front-end steps, estimators) -> snapshots -> sinks.
 
 :func:`replay` is the library call behind ``online-slam replay``; it returns one :class:`Results` that the table,
 the JSON file and later sinks all read.
@@ -15,24 +15,16 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.engine import Engine, StepRecord
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
-from online_slam.evaluation.metrics import (
-    align_se2,
-    anchor_transform,
-    apply_transform,
-    endpoint_gap,
-    landmark_rmse,
-    pose_nees,
-    position_rmse,
-    transform_pose_covariance,
-)
-from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Results, Series
-from online_slam.frontend.steps import FrontEnd, FrontEndConfig, GroundTruth
+from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results, Series
+from online_slam.evaluation.scoring import evaluate, online_figures, truth_array
+from online_slam.frontend.steps import FrontEndConfig
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event
 from online_slam.sources.resolve import open_source
@@ -76,53 +68,6 @@ def make_estimator(name: str, config: ReplayConfig) -> Estimator:
     raise OnlineSlamError(f"unknown estimator {name!r}; expected one of {', '.join(ESTIMATORS)}")
 
 
-@dataclass(frozen=True)
-class Errors:
-    """Errors of one trajectory against truth."""
-
-    rmse_m: float | None
-    """Position RMSE over poses with truth (None without truth)."""
-    landmark_rmse_m: float | None
-    """Landmark RMSE over landmarks with truth (None without)."""
-    endpoint_gap_m: float
-    """Last-to-first position distance of the estimate (needs no truth)."""
-    transform: Array | None = None
-    """The rigid motion ``[x, y, theta]`` that put the estimate in the truth's frame (None without truth)."""
-    indices: NDArray[np.int64] | None = None
-    """Poses that had truth."""
-
-
-def evaluate(estimate: Estimate, truth: GroundTruth, alignment: str = "anchor") -> Errors:
-    """Compare an estimate with the truth gathered by the front-end.
-
-    Args:
-        estimate: A final (or online) estimate.
-        truth: Ground truth by step index and landmark id.
-        alignment: ``anchor`` or ``se2``.
-
-    Returns:
-        The errors; RMSEs are None where there is no truth to compare with.
-    """
-    if alignment not in ("anchor", "se2"):
-        raise OnlineSlamError(f"unknown alignment {alignment!r}; expected anchor or se2")
-    gap = endpoint_gap(estimate.poses) if len(estimate.poses) else float("nan")
-    indices = np.array(sorted(i for i in truth.poses if i < len(estimate.poses)), dtype=np.int64)
-    if len(indices) == 0:
-        return Errors(None, None, gap)
-    true_poses = np.array([truth.poses[i] for i in indices])
-    if alignment == "se2" and len(indices) >= 2:
-        T = align_se2(estimate.poses[indices], true_poses)
-    else:
-        T = anchor_transform(estimate.poses[indices[0]], true_poses[0])
-    rmse = position_rmse(apply_transform(T, estimate.poses[indices]), true_poses)
-    common = [(k, lid) for k, lid in enumerate(estimate.landmark_ids) if lid in truth.landmarks]
-    lm_rmse = None
-    if common:
-        est = apply_transform(T, estimate.landmarks[[k for k, _ in common]])
-        lm_rmse = landmark_rmse(est, np.array([truth.landmarks[lid] for _, lid in common]))
-    return Errors(rmse, lm_rmse, gap, T, indices)
-
-
 @dataclass
 class _Track:
     """What the pipeline records of one estimator while it runs."""
@@ -141,39 +86,6 @@ class _Track:
         self.times.append(snapshot.t)
         nis = np.asarray(snapshot.info.get("nis", ()), dtype=float)
         self.nis.append(float(np.nanmean(nis)) if np.isfinite(nis).any() else np.nan)
-
-
-def _online_figures(track: _Track, final: Estimate, truth: GroundTruth, alignment: str) -> tuple:
-    """Online RMSE, mean NEES, latency and the per-step series of an estimator with real-time snapshots."""
-    online = Estimate(final.estimator, np.array(track.poses), final.landmark_ids, final.landmarks)
-    errors = evaluate(online, truth, alignment)
-    n = len(track.poses)
-    error_m, nees = np.full(n, np.nan), np.full(n, np.nan)
-    sigma = np.array([np.sqrt(np.trace(c[:2, :2])) if c is not None else np.nan for c in track.covariances])
-    nees_mean = None
-    if errors.indices is not None:
-        idx = errors.indices
-        true_poses = np.array([truth.poses[i] for i in idx])
-        moved = apply_transform(errors.transform, online.poses[idx])
-        error_m[idx] = np.hypot(*(moved[:, :2] - true_poses[:, :2]).T)
-        if all(track.covariances[i] is not None for i in idx):
-            covs = transform_pose_covariance(errors.transform, np.array([track.covariances[i] for i in idx]))
-            nees[idx] = pose_nees(moved, covs, true_poses)
-            nees_mean = float(np.nanmean(nees)) if np.isfinite(nees).any() else None
-    ms = np.array(track.seconds) * 1e3
-    latency = Latency(float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max()))
-    series = Series(np.array(track.times), online.poses, error_m, sigma, nees, np.array(track.nis), ms)
-    return errors.rmse_m, nees_mean, latency, series
-
-
-def _truth_array(truth: GroundTruth, steps: int) -> Array | None:
-    if not truth.poses:
-        return None
-    out = np.full((steps, 3), np.nan)
-    for i, pose in truth.poses.items():
-        if i < steps:
-            out[i] = pose
-    return out
 
 
 def replay(
@@ -210,35 +122,40 @@ def replay(
     else:
         label, events = "<events>", iter(source)
     label = name or label
-    frontend = FrontEnd(cfg.frontend)
     odometry = DeadReckoning()
-    tracks = [_Track(e) for e in estimators]
-    steps = observations = 0
+    engine = Engine([odometry, *estimators], cfg.frontend)
+    tracks = {e.name: _Track(e) for e in estimators}
+
+    def take(record: StepRecord | None) -> None:
+        if record is None:
+            return
+        for estimator_name, track in tracks.items():
+            track.record(record.snapshots[estimator_name], record.seconds[estimator_name])
+        if sinks:
+            snapshots = {n: dataclasses.replace(s, wall_s=record.seconds[n]) for n, s in record.snapshots.items()}
+            for sink in sinks:
+                sink.on_step(record.step, snapshots, engine.frontend.truth)
+
     error: str | None = None
     try:
-        for step in frontend.steps(events):
-            steps += 1
-            observations += len(step.landmarks)
-            snapshots = {"odometry": odometry.step(step)}
-            for track in tracks:
-                started = time.perf_counter()
-                snapshot = track.estimator.step(step)
-                elapsed = time.perf_counter() - started
-                track.record(snapshot, elapsed)
-                snapshots[track.estimator.name] = dataclasses.replace(snapshot, wall_s=elapsed) if sinks else snapshot
-            for sink in sinks:
-                sink.on_step(step, snapshots, frontend.truth)
+        for event in events:
+            take(engine.push(event))
     except InputError as exc:
-        if steps == 0:
+        if engine.steps == 0 and engine.frontend.pending is None:
             raise
         error = str(exc)
+    take(engine.close())
+    steps = engine.steps
     if steps == 0:
         raise InputError(label, 0, "", "the stream holds no pose")
+    truth = engine.frontend.truth
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
-    tracks.sort(key=lambda tr: isinstance(tr.estimator, BatchEstimator))  # batch last: it may start from another
+    ordered = sorted(
+        tracks.values(), key=lambda tr: isinstance(tr.estimator, BatchEstimator)
+    )  # batch may start from another
     figures: dict[str, EstimatorResult] = {}
     series: dict[str, Series] = {}
-    for track in tracks:
+    for track in ordered:
         estimator = track.estimator
         started = time.perf_counter()
         initial = estimates.get(cfg.batch.initial) if isinstance(estimator, BatchEstimator) else None
@@ -247,37 +164,45 @@ def replay(
         estimate = estimator.finish(initial) if initial is not None else estimator.finish()
         final_s = time.perf_counter() - started
         estimates[estimator.name] = estimate
-        errors = evaluate(estimate, frontend.truth, cfg.alignment)
-        online_rmse = nees_mean = latency = None
-        if getattr(estimator, "online", True):
-            online_rmse, nees_mean, latency, series[estimator.name] = _online_figures(
-                track, estimate, frontend.truth, cfg.alignment
+        errors = evaluate(estimate, truth, cfg.alignment)
+        online = None
+        if estimator.online:
+            online = online_figures(
+                estimate,
+                np.array(track.poses),
+                track.covariances,
+                np.array(track.times),
+                np.array(track.nis),
+                np.array(track.seconds),
+                truth,
+                cfg.alignment,
             )
+            series[estimator.name] = online.series
         figures[estimator.name] = EstimatorResult(
             final_rmse_m=errors.rmse_m,
             endpoint_gap_m=errors.endpoint_gap_m,
             landmark_rmse_m=errors.landmark_rmse_m,
             total_s=float(np.sum(track.seconds)) + final_s,
-            online_rmse_m=online_rmse,
-            nees_mean=nees_mean,
-            step_ms=latency,
+            online_rmse_m=None if online is None else online.rmse_m,
+            nees_mean=None if online is None else online.nees_mean,
+            step_ms=None if online is None else online.latency,
             details=dict(estimate.info),
         )
-    odo = evaluate(estimates["odometry"], frontend.truth, cfg.alignment)
+    odo = evaluate(estimates["odometry"], truth, cfg.alignment)
     results = Results(
         source=label,
         poses=steps,
         landmarks=len(estimates["odometry"].landmark_ids),
-        observations=observations,
+        observations=engine.observations,
         odometry=OdometryResult(odo.rmse_m, odo.endpoint_gap_m, odo.landmark_rmse_m),
         estimators=figures,
         estimates=estimates,
         alignment=cfg.alignment,
         series=series,
-        truth_poses=_truth_array(frontend.truth, steps),
-        truth_landmarks=dict(frontend.truth.landmarks),
+        truth_poses=truth_array(truth, steps),
+        truth_landmarks=dict(truth.landmarks),
         error=error,
     )
     for sink in sinks:
-        sink.on_finish(results, frontend.truth)
+        sink.on_finish(results, truth)
     return results

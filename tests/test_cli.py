@@ -120,9 +120,10 @@ def test_bad_input_gives_one_line_and_exit_2(tmp_path: Path, case: str) -> None:
     errors = done.stderr.strip().splitlines()
     assert len(errors) == 1
     assert errors[0].startswith(f"online-slam: error: {path}{where}") and what in errors[0]
-    # What was estimated before the bad line is not lost: the two complete poses are reported.
+    # What was estimated before the bad line is not lost: every valid event before it is used (three poses:
+    # the third's odometry came before the bad line).
     partial = json.loads(out.read_text())
-    assert partial["poses"] == 2 and partial["error"] is not None and "batch" in partial["estimators"]
+    assert partial["poses"] == 3 and partial["error"] is not None and "batch" in partial["estimators"]
 
 
 def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:

@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 
 from online_slam.estimators import Estimate
 from online_slam.evaluation import align_se2, anchor_transform, apply_transform, endpoint_gap, position_rmse
+from online_slam.evaluation.scoring import evaluate
 from online_slam.frontend import GroundTruth
-from online_slam.pipeline import evaluate
 
 
 def test_rmse_and_gap() -> None:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
@@ -97,7 +98,9 @@ class EkfSlam(ExtendedKalmanFilter):
         self.gated_total = 0
         self._streak = np.zeros(0, dtype=np.int64)  # consecutive gated sightings per landmark
         self._poses: list[Array] = []
-        self._times: list[float] = []
+        self._step_nis: list[Array] = []  # what the newest step's observations did (for its snapshot)
+        self._step_gated: list[LandmarkId] = []
+        self._step_new: list[LandmarkId] = []
         self._blas = ThreadpoolController()
 
     @classmethod
@@ -234,44 +237,99 @@ class EkfSlam(ExtendedKalmanFilter):
         with self.single_threaded():
             return self._step(step)
 
+    def extend(self, step: Step, start: int) -> Snapshot:
+        """The newest step grew: update with its observations ``start:`` (no prediction)."""
+        with self.single_threaded():
+            self._observe(step, start)
+            return self.snapshot(step)
+
     def _step(self, step: Step) -> Snapshot:
         if step.odometry is None:
             self.x[:3, 0] = step.prior
             self.P[:3, :3] = 0.0 if step.prior_cov is None else step.prior_cov
         else:
             self.predict(step.odometry, step.odometry_cov)
-        k = len(step.landmarks)
+        self._poses.append(self.x[:3, 0].copy())
+        self._step_nis, self._step_gated, self._step_new = [], [], []
+        self._observe(step, 0)
+        return self.snapshot(step)
+
+    def _observe(self, step: Step, start: int) -> None:
+        """Update with the step's observations ``start:``, add new landmarks, record what happened."""
+        ids, z_all, R_all = step.landmarks[start:], step.z[start:], step.z_cov[start:]
+        k = len(ids)
         nis = np.full(k, np.nan)
         gated: list[LandmarkId] = []
-        known = np.array([lid in self._index for lid in step.landmarks], dtype=bool)
+        known = np.array([lid in self._index for lid in ids], dtype=bool)
         if known.any():
             where = np.flatnonzero(known)
-            indices = np.array([self._index[step.landmarks[i]] for i in where], dtype=np.int64)
+            indices = np.array([self._index[ids[i]] for i in where], dtype=np.int64)
             if self.config.update == "joint":
-                nis[where], accepted = self.update_structured(indices, step.z[where], step.z_cov[where])
+                nis[where], accepted = self.update_structured(indices, z_all[where], R_all[where])
             else:
                 accepted = np.ones(len(where), dtype=bool)
                 for j, i in enumerate(where):
                     nis[i : i + 1], accepted[j : j + 1] = self.update_structured(
-                        indices[j : j + 1], step.z[i : i + 1], step.z_cov[i : i + 1]
+                        indices[j : j + 1], z_all[i : i + 1], R_all[i : i + 1]
                     )
-            gated = [step.landmarks[i] for i in where[~accepted]]
+            gated = [ids[i] for i in where[~accepted]]
         new: list[LandmarkId] = []
         for i in np.flatnonzero(~known):
-            lid = step.landmarks[i]
+            lid = ids[i]
             if lid in self._index:  # seen twice in this step: the first sighting initialised it
                 nis[i : i + 1], ok = self.update_structured(
-                    np.array([self._index[lid]]), step.z[i : i + 1], step.z_cov[i : i + 1]
+                    np.array([self._index[lid]]), z_all[i : i + 1], R_all[i : i + 1]
                 )
                 if not ok[0]:
                     gated.append(lid)
                 continue
-            self.add_landmark(lid, step.z[i], step.z_cov[i])
+            self.add_landmark(lid, z_all[i], R_all[i])
             new.append(lid)
         self.gated_total += len(gated)
-        self._poses.append(self.x[:3, 0].copy())
-        self._times.append(step.t)
-        return self.snapshot(step, nis, gated, new)
+        self._poses[-1] = self.x[:3, 0].copy()
+        self._step_nis.append(nis)
+        self._step_gated += gated
+        self._step_new += new
+
+    def trajectory(self) -> Array:
+        """Estimate of every pose so far (each as it was when newest), shape (N, 3)."""
+        return np.array(self._poses).reshape(-1, 3)
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue exactly where the filter is (numbers and arrays only)."""
+        return {
+            "x": self.x[:, 0].copy(),
+            "P": self.P.copy(),
+            "Q": self.Q[:3, :3].copy(),
+            "landmark_ids": list(self.landmark_ids),
+            "streak": self._streak.copy(),
+            "gated_total": self.gated_total,
+            "poses": self.trajectory(),
+            "step_nis": list(self._step_nis),
+            "step_gated": list(self._step_gated),
+            "step_new": list(self._step_new),
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict` (this filter's config is kept)."""
+        x = np.array(state["x"], dtype=float).reshape(-1, 1)
+        n = len(x)
+        landmark_ids = list(state["landmark_ids"])
+        if n != 3 + 2 * len(landmark_ids) or np.shape(state["P"]) != (n, n):
+            raise ValueError("x, P and landmark_ids disagree in size")
+        self.x, self.P, self.dim_x = x, np.array(state["P"], dtype=float), n
+        self._I = self.F = np.eye(n)
+        self.Q = np.zeros((n, n))
+        self.Q[:3, :3] = state["Q"]
+        self.K = np.zeros((n, 1))
+        self.landmark_ids = landmark_ids
+        self._index = {lid: j for j, lid in enumerate(landmark_ids)}
+        self._streak = np.array(state["streak"], dtype=np.int64).reshape(len(landmark_ids))
+        self.gated_total = int(state["gated_total"])
+        self._poses = [row.copy() for row in np.array(state["poses"], dtype=float).reshape(-1, 3)]
+        self._step_nis = [np.array(a, dtype=float) for a in state["step_nis"]]
+        self._step_gated = list(state["step_gated"])
+        self._step_new = list(state["step_new"])
 
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
@@ -281,8 +339,8 @@ class EkfSlam(ExtendedKalmanFilter):
         cols = first[:, None, None] + np.arange(2)[None, None, :]
         return self.P[rows, cols]
 
-    def snapshot(self, step: Step, nis: Array, gated: list[LandmarkId], new: list[LandmarkId]) -> Snapshot:
-        """The current estimate as an immutable snapshot."""
+    def snapshot(self, step: Step) -> Snapshot:
+        """The current estimate as an immutable snapshot; ``info`` covers all of the step's observations."""
         return Snapshot(
             estimator=self.name,
             index=step.index,
@@ -292,7 +350,12 @@ class EkfSlam(ExtendedKalmanFilter):
             landmark_ids=tuple(self.landmark_ids),
             landmarks=self.x[3:, 0].reshape(-1, 2).copy(),
             landmark_covs=self.landmark_marginals(),
-            info={"nis": nis, "observed": step.landmarks, "gated": tuple(gated), "new_landmarks": tuple(new)},
+            info={
+                "nis": np.concatenate(self._step_nis) if self._step_nis else np.zeros(0),
+                "observed": step.landmarks,
+                "gated": tuple(self._step_gated),
+                "new_landmarks": tuple(self._step_new),
+            },
         )
 
     def finish(self) -> Estimate:

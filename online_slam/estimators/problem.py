@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -24,7 +26,6 @@ class ProblemLog:
 
     def __init__(self) -> None:
         self.poses: list[Array] = []
-        self.times: list[float] = []
         self.landmark_ids: tuple[LandmarkId, ...] = ()
         self._landmark_index: dict[LandmarkId, int] = {}
         self._landmarks: list[Array] = []
@@ -58,23 +59,60 @@ class ProblemLog:
             self._odo_delta.append(step.odometry)
             self._odo_cov.append(step.odometry_cov)
         self.poses.append(pose)
-        self.times.append(step.t)
-        if step.landmarks:
-            new = [j for j, lid in enumerate(step.landmarks) if lid not in self._landmark_index]
-            ids = list(self.landmark_ids)
-            for j in new:
-                lid = step.landmarks[j]
-                if lid in self._landmark_index:  # the same new landmark twice in one step
-                    continue
+        self.extend(step, 0)
+        return pose
+
+    def extend(self, step: Step, start: int) -> None:
+        """Record the newest step's observations ``start:`` (new landmarks placed from their first sight)."""
+        if step.index != len(self.poses) - 1:
+            raise ValueError(f"only the newest step can grow: {len(self.poses) - 1}, not {step.index}")
+        ids_now = step.landmarks[start:]
+        if not ids_now:
+            return
+        pose = self.poses[-1]
+        ids = list(self.landmark_ids)
+        for lid, z in zip(ids_now, step.z[start:]):
+            if lid not in self._landmark_index:
                 self._landmark_index[lid] = len(ids)
                 ids.append(lid)
-                self._landmarks.append(landmark_from_observation(pose, step.z[j]))
-            self.landmark_ids = tuple(ids)
-            self._obs_pose.append(np.full(len(step.landmarks), step.index))
-            self._obs_landmark.append(self.landmark_indices(step.landmarks))
-            self._obs_z.append(step.z)
-            self._obs_cov.append(step.z_cov)
-        return pose
+                self._landmarks.append(landmark_from_observation(pose, z))
+        self.landmark_ids = tuple(ids)
+        self._obs_pose.append(np.full(len(ids_now), step.index))
+        self._obs_landmark.append(self.landmark_indices(ids_now))
+        self._obs_z.append(step.z[start:])
+        self._obs_cov.append(step.z_cov[start:])
+
+    def state_dict(self) -> dict[str, Any]:
+        """Every factor and initial value (numbers and arrays only)."""
+        return {
+            "poses": np.array(self.poses).reshape(-1, 3),
+            "landmark_ids": list(self.landmark_ids),
+            "landmarks": self.landmarks,
+            "prior": None if self.prior is None else list(self.prior),
+            "odo_delta": np.array(self._odo_delta).reshape(-1, 3),
+            "odo_cov": np.array(self._odo_cov).reshape(-1, 3, 3),
+            "obs": [list(chunk) for chunk in zip(self._obs_pose, self._obs_landmark, self._obs_z, self._obs_cov)],
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict`."""
+        rows = lambda a, n: [r.copy() for r in np.array(a, dtype=float).reshape(-1, *n)]  # noqa: E731
+        self.poses = rows(state["poses"], (3,))
+        self.landmark_ids = tuple(state["landmark_ids"])
+        self._landmark_index = {lid: k for k, lid in enumerate(self.landmark_ids)}
+        self._landmarks = rows(state["landmarks"], (2,))
+        prior = state["prior"]
+        self.prior = (
+            None
+            if prior is None
+            else (np.array(prior[0], dtype=float), None if prior[1] is None else np.array(prior[1], dtype=float))
+        )
+        self._odo_delta, self._odo_cov = rows(state["odo_delta"], (3,)), rows(state["odo_cov"], (3, 3))
+        chunks = state["obs"]
+        self._obs_pose = [np.array(c[0], dtype=np.int64) for c in chunks]
+        self._obs_landmark = [np.array(c[1], dtype=np.int64) for c in chunks]
+        self._obs_z = [np.array(c[2], dtype=float).reshape(-1, 2) for c in chunks]
+        self._obs_cov = [np.array(c[3], dtype=float).reshape(-1, 2, 2) for c in chunks]
 
     def graph(self) -> FactorGraph:
         """All factors recorded so far as one graph (start pose fixed, or a prior on it)."""

@@ -61,7 +61,13 @@ class Estimate:
 
 @runtime_checkable
 class Estimator(Protocol):
-    """Consumes steps one at a time; ``finish`` closes the stream and returns the final estimate."""
+    """Consumes steps one at a time; ``finish`` closes the stream and returns the final estimate.
+
+    ``step`` takes a new pose (with its odometry and the sightings known so far); ``extend`` takes further
+    sightings of that newest pose. Results depend only on what was given, in which calls: the engine
+    (:class:`~online_slam.engine.Engine`) gives each complete step in one ``step`` call unless a query asked for
+    the newest pose earlier.
+    """
 
     name: str
     online: bool
@@ -69,6 +75,30 @@ class Estimator(Protocol):
 
     def step(self, step: Step) -> Snapshot:
         """Consume the next step (indices arrive in order 0, 1, 2, ...) and report the current estimate."""
+        ...
+
+    def extend(self, step: Step, start: int) -> Snapshot:
+        """The newest step grew (same index, pose and odometry): its observations ``start:`` are new.
+
+        The engine calls this when a query made it show a pose to the estimators before all of its sightings
+        had arrived; the snapshot covers the whole step.
+        """
+        ...
+
+    def snapshot(self, step: Step) -> Snapshot:
+        """The current estimate, labelled as the newest step ``step`` (no state changes)."""
+        ...
+
+    def trajectory(self) -> Array:
+        """Current estimate of every pose so far, shape (N, 3)."""
+        ...
+
+    def state_dict(self) -> dict[str, Any]:
+        """The whole state as numbers, strings, lists, dicts and numpy arrays (a checkpoint holds it)."""
+        ...
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict` into an estimator built with the same configuration."""
         ...
 
     def finish(self) -> Estimate:

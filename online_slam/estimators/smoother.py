@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg as la
@@ -155,6 +156,8 @@ class SlidingWindowSmoother:
         self._since_solve = 0
         self._unsolved: set[int] = set()
         self.solves = self.marginalized = 0
+        self._step_report: dict[str, float] = {}  # the newest step's last solve and marginalizations
+        self._step_marginalized: list[int] = []
         self._blas = ThreadpoolController()
 
     @property
@@ -182,20 +185,26 @@ class SlidingWindowSmoother:
         self.poses[i] = pose
         self.final_poses.append(pose)
         self._unsolved.add(i)
-        if step.landmarks:
-            indices = []
-            for lid, z in zip(step.landmarks, step.z):
-                if lid not in self._index:
-                    self._index[lid] = len(self.landmark_ids)
-                    self.landmark_ids.append(lid)
-                    self._landmarks = np.vstack([self._landmarks, landmark_from_observation(pose, z)])
-                indices.append(self._index[lid])
-            self._observations[i] = (
-                np.array(indices, dtype=np.int64),
-                step.z,
-                step.z_cov,
-                sqrt_information(step.z_cov),
-            )
+        self._add_observations(step, 0)
+
+    def _add_observations(self, step: Step, start: int) -> None:
+        """Factors for the newest pose's observations ``start:``; new landmarks from their first sight."""
+        if len(step.landmarks) <= start:
+            return
+        i = step.index
+        pose = self.poses[i]
+        indices = []
+        for lid, z in zip(step.landmarks[start:], step.z[start:]):
+            if lid not in self._index:
+                self._index[lid] = len(self.landmark_ids)
+                self.landmark_ids.append(lid)
+                self._landmarks = np.vstack([self._landmarks, landmark_from_observation(pose, z)])
+            indices.append(self._index[lid])
+        z, z_cov = step.z[start:], step.z_cov[start:]
+        factors = (np.array(indices, dtype=np.int64), z, z_cov, sqrt_information(z_cov))
+        if i in self._observations:  # more sightings of the newest pose
+            factors = tuple(np.concatenate([a, b]) for a, b in zip(self._observations[i], factors))  # type: ignore[assignment]
+        self._observations[i] = factors
 
     def _graph(self, active: Index) -> tuple[FactorGraph, dict[int, int]]:
         """The window's factors as a graph over local pose indices and the active landmarks (local order)."""
@@ -429,10 +438,98 @@ class SlidingWindowSmoother:
                     report = self._solve()
                 marginalized.append(self.window[0])
                 self._marginalize_oldest()
-            return self.snapshot(step, report, marginalized)
+            self._step_report, self._step_marginalized = report, marginalized
+            return self.snapshot(step)
 
-    def snapshot(self, step: Step, report: dict[str, float], marginalized: list[int]) -> Snapshot:
+    def extend(self, step: Step, start: int) -> Snapshot:
+        """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
+        with self._blas.limit(limits=1, user_api="blas"):
+            self._add_observations(step, start)
+            if self._since_solve == 0:  # this step solved: its new sightings are used at once
+                self._step_report = self._solve()
+            return self.snapshot(step)
+
+    def trajectory(self) -> Array:
+        """Current estimate of every pose so far (window poses as now, older ones as they left), shape (N, 3)."""
+        return np.array(self.final_poses).reshape(-1, 3)
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue exactly where the smoother is (numbers and arrays only)."""
+        p = self.prior
+        return {
+            "window": list(self.window),
+            "poses": [self.poses[g] for g in self.window],
+            "final_poses": self.trajectory(),
+            "landmark_ids": list(self.landmark_ids),
+            "landmarks": self._landmarks.copy(),
+            "odometry": [[i, *factor] for i, factor in self._odometry.items()],
+            "observations": [[i, *factor] for i, factor in self._observations.items()],
+            "start": None if self._start is None else list(self._start),
+            "prior": None
+            if p is None
+            else {
+                "pose": p.pose,
+                "landmarks": p.landmarks,
+                "x_lin": p.x_lin,
+                "mu": p.mu,
+                "Sigma": p.Sigma.copy(),
+                "capacity": (p.Sigma.base if p.Sigma.base is not None else p.Sigma).shape[0],
+            },
+            "pose_cov": self._pose_cov,
+            "since_solve": self._since_solve,
+            "unsolved": sorted(self._unsolved),
+            "solves": self.solves,
+            "marginalized": self.marginalized,
+            "step_report": dict(self._step_report),
+            "step_marginalized": list(self._step_marginalized),
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict` (this smoother's config is kept)."""
+        as_float = lambda a: np.array(a, dtype=float)  # noqa: E731
+        self.window = [int(g) for g in state["window"]]
+        self.poses = {g: as_float(pose) for g, pose in zip(self.window, state["poses"])}
+        final = as_float(state["final_poses"]).reshape(-1, 3)
+        self.final_poses = [row.copy() for row in final]
+        for g in self.window:  # window poses are shared with final_poses, as while running
+            self.final_poses[g] = self.poses[g]
+        self.landmark_ids = list(state["landmark_ids"])
+        self._index = {lid: j for j, lid in enumerate(self.landmark_ids)}
+        self._landmarks = as_float(state["landmarks"]).reshape(-1, 2)
+        self._odometry = {int(i): (as_float(d), as_float(c), as_float(w)) for i, d, c, w in state["odometry"]}
+        self._observations = {
+            int(i): (np.array(j, dtype=np.int64), as_float(z), as_float(c), as_float(w))
+            for i, j, z, c, w in state["observations"]
+        }
+        start = state["start"]
+        self._start = (
+            None
+            if start is None
+            else (int(start[0]), as_float(start[1]), None if start[2] is None else as_float(start[2]))
+        )
+        prior = state["prior"]
+        self.prior = None
+        if prior is not None:
+            n = len(prior["mu"])
+            buffer = np.empty((max(int(prior["capacity"]), n),) * 2)
+            buffer[:n, :n] = prior["Sigma"]
+            self.prior = _Prior(
+                int(prior["pose"]),
+                np.array(prior["landmarks"], dtype=np.int64),
+                as_float(prior["x_lin"]),
+                as_float(prior["mu"]),
+                buffer[:n, :n],
+            )
+        self._pose_cov = as_float(state["pose_cov"])
+        self._since_solve = int(state["since_solve"])
+        self._unsolved = {int(g) for g in state["unsolved"]}
+        self.solves, self.marginalized = int(state["solves"]), int(state["marginalized"])
+        self._step_report = dict(state["step_report"])
+        self._step_marginalized = [int(g) for g in state["step_marginalized"]]
+
+    def snapshot(self, step: Step) -> Snapshot:
         """The current estimate as an immutable snapshot."""
+        report = self._step_report
         return Snapshot(
             estimator=self.name,
             index=step.index,
@@ -445,7 +542,7 @@ class SlidingWindowSmoother:
                 "window": tuple(self.window),
                 "window_poses": np.array([self.poses[g] for g in self.window]),
                 "relinearized": bool(report),
-                "marginalized": tuple(marginalized),
+                "marginalized": tuple(self._step_marginalized),
                 **report,
             },
         )

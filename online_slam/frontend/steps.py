@@ -1,8 +1,9 @@
 """Events -> steps.
 
 Step 0 is the start pose; each odometry event makes a new pose; an observation at time t belongs to the newest
-pose with time <= t. A step is emitted once it is complete: when the next pose begins, or at the end of the
-stream. Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
+pose with time <= t. A step is complete when the next pose begins, or at the end of the stream; until then it
+is pending (the engine may show it to the estimators early, so that queries see every sighting at once).
+Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
 
 Optional keyframing merges consecutive odometry events with no observation in between into one step (the
 increments composed and their covariance propagated), up to distance, angle and time limits.
@@ -95,8 +96,8 @@ class GroundTruth:
 
 
 @dataclass
-class _Pending:
-    """The newest pose, still open for observations."""
+class PendingStep:
+    """The newest pose, still open for observations (``freeze`` gives its step as it stands)."""
 
     index: int
     t: float
@@ -109,6 +110,7 @@ class _Pending:
     landmarks: list[LandmarkId] = field(default_factory=list)
     z: list[tuple[float, float]] = field(default_factory=list)
     z_cov: list[Array] = field(default_factory=list)
+    sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
 
     def freeze(self) -> Step:
         k = len(self.landmarks)
@@ -127,12 +129,17 @@ class _Pending:
 
 
 class FrontEnd:
-    """Consumes events lazily and yields steps; collects header, truth and counts on the way.
+    """Turns events into steps, one event at a time; collects header, truth and counts on the way.
+
+    :meth:`push` takes one validated event and returns the step it completed, if any (an odometry event
+    completes the newest pose); :attr:`pending` is the newest pose, still open for observations; :meth:`close`
+    completes it at the end of the stream. :meth:`steps` wraps the three for an iterable of events.
 
     Attributes:
         header: The stream's header, if it had one.
         truth: Ground truth met so far.
         counts: Events seen by type, and observations dropped by ``first_observation_only``.
+        pending: The newest pose (None before the first event); ``pending.sealed`` once an estimator has seen it.
     """
 
     def __init__(self, config: FrontEndConfig | None = None) -> None:
@@ -140,6 +147,7 @@ class FrontEnd:
         self.header: Header | None = None
         self.truth = GroundTruth()
         self.counts: dict[str, int] = {}
+        self.pending: PendingStep | None = None
         self._seen: set[LandmarkId] = set()
 
     def _count(self, key: str) -> None:
@@ -154,59 +162,78 @@ class FrontEnd:
         Yields:
             Steps in index order, each once it is complete.
         """
-        pending: _Pending | None = None
         for event in events:
-            if isinstance(event, Odometry):
-                self._count("odometry")
-                if pending is None:
-                    pending = self._start_pose(None, event.t)
-                if self._merge(pending, event):
-                    continue
-                yield pending.freeze()
-                pending = _Pending(
+            step = self.push(event)
+            if step is not None:
+                yield step
+        last = self.close()
+        if last is not None:
+            yield last
+
+    def push(self, event: Event) -> Step | None:
+        """Consume one event.
+
+        Args:
+            event: The next validated event.
+
+        Returns:
+            The step this event completed (the previous pose, when an odometry event starts a new one), or None.
+        """
+        completed: Step | None = None
+        if isinstance(event, Odometry):
+            self._count("odometry")
+            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            if not self._merge(pending, event):
+                completed = pending.freeze()
+                self.pending = PendingStep(
                     index=pending.index + 1,
                     t=event.t,
                     t_begin=pending.t,
                     odometry=np.array(event.delta),
                     odometry_cov=event.covariance,
                 )
-            elif isinstance(event, Observation):
-                self._count("observation")
-                if pending is None:
-                    pending = self._start_pose(None, event.t)
-                if self.config.first_observation_only:
-                    if event.landmark in self._seen:
-                        self._count("dropped_repeat_observation")
-                        continue
-                    self._seen.add(event.landmark)
-                pending.landmarks.append(event.landmark)
-                pending.z.append((event.range, event.bearing))
-                pending.z_cov.append(event.covariance)
-            elif isinstance(event, Truth):
-                self._count("truth")
-                if pending is None:
-                    pending = self._start_pose(None, event.t)
-                if event.t == pending.t:
-                    self.truth.poses[pending.index] = np.array(event.pose)
-            elif isinstance(event, Start):
-                pending = self._start_pose(event, event.t)
-            elif isinstance(event, LandmarkTruth):
-                self._count("landmark_truth")
-                self.truth.landmarks[event.landmark] = np.array(event.position)
-            elif isinstance(event, Header):
-                self.header = event
-        if pending is not None:
-            yield pending.freeze()
+        elif isinstance(event, Observation):
+            self._count("observation")
+            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            if self.config.first_observation_only:
+                if event.landmark in self._seen:
+                    self._count("dropped_repeat_observation")
+                    return None
+                self._seen.add(event.landmark)
+            pending.landmarks.append(event.landmark)
+            pending.z.append((event.range, event.bearing))
+            pending.z_cov.append(event.covariance)
+        elif isinstance(event, Truth):
+            self._count("truth")
+            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            if event.t == pending.t:
+                self.truth.poses[pending.index] = np.array(event.pose)
+        elif isinstance(event, Start):
+            self._start_pose(event, event.t)
+        elif isinstance(event, LandmarkTruth):
+            self._count("landmark_truth")
+            self.truth.landmarks[event.landmark] = np.array(event.position)
+        elif isinstance(event, Header):
+            self.header = event
+        return completed
 
-    def _start_pose(self, start: Start | None, t: float) -> _Pending:
+    def close(self) -> Step | None:
+        """End of stream: the newest pose, complete (None if there was none)."""
+        pending, self.pending = self.pending, None
+        return None if pending is None else pending.freeze()
+
+    def _start_pose(self, start: Start | None, t: float) -> PendingStep:
         prior_cov = None if start is None or start.fixed else start.covariance
         pose = np.zeros(3) if start is None else np.array(start.pose)
-        return _Pending(index=0, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov)
+        self.pending = PendingStep(
+            index=0, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov
+        )
+        return self.pending
 
-    def _merge(self, pending: _Pending, event: Odometry) -> bool:
+    def _merge(self, pending: PendingStep, event: Odometry) -> bool:
         """Fold the odometry event into the pending step if keyframing allows it."""
         limits = self.config.keyframing
-        if limits is None or pending.odometry is None or pending.landmarks:
+        if limits is None or pending.odometry is None or pending.landmarks or pending.sealed:
             return False
         delta, cov = compose_increments(pending.odometry, pending.odometry_cov, np.array(event.delta), event.covariance)
         if (

@@ -1,0 +1,162 @@
+"""Scoring estimates against truth: final and online errors, NEES and its chi-square bounds, latency.
+
+Everything a table, a JSON file, a plot or a Rerun recording reports is computed here, once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from online_slam.errors import OnlineSlamError
+from online_slam.estimators.protocol import Estimate
+from online_slam.evaluation.metrics import (
+    align_se2,
+    anchor_transform,
+    apply_transform,
+    endpoint_gap,
+    landmark_rmse,
+    pose_nees,
+    position_rmse,
+    transform_pose_covariance,
+)
+from online_slam.evaluation.results import Latency, Series
+from online_slam.frontend.steps import GroundTruth
+
+Array = NDArray[np.float64]
+NEES_DOF = 3
+"""Pose NEES has 3 degrees of freedom."""
+
+
+@dataclass(frozen=True)
+class Errors:
+    """Errors of one trajectory against truth."""
+
+    rmse_m: float | None
+    """Position RMSE over poses with truth (None without truth)."""
+    landmark_rmse_m: float | None
+    """Landmark RMSE over landmarks with truth (None without)."""
+    endpoint_gap_m: float
+    """Last-to-first position distance of the estimate (needs no truth)."""
+    transform: Array | None = None
+    """The rigid motion ``[x, y, theta]`` that put the estimate in the truth's frame (None without truth)."""
+    indices: NDArray[np.int64] | None = None
+    """Poses that had truth."""
+
+
+def evaluate(estimate: Estimate, truth: GroundTruth, alignment: str = "anchor") -> Errors:
+    """Compare an estimate with the truth gathered by the front-end.
+
+    Args:
+        estimate: A final (or online) estimate.
+        truth: Ground truth by step index and landmark id.
+        alignment: ``anchor`` (first pose with truth) or ``se2`` (least-squares rigid alignment).
+
+    Returns:
+        The errors; RMSEs are None where there is no truth to compare with.
+    """
+    if alignment not in ("anchor", "se2"):
+        raise OnlineSlamError(f"unknown alignment {alignment!r}; expected anchor or se2")
+    gap = endpoint_gap(estimate.poses) if len(estimate.poses) else float("nan")
+    indices = np.array(sorted(i for i in truth.poses if i < len(estimate.poses)), dtype=np.int64)
+    if len(indices) == 0:
+        return Errors(None, None, gap)
+    true_poses = np.array([truth.poses[i] for i in indices])
+    if alignment == "se2" and len(indices) >= 2:
+        T = align_se2(estimate.poses[indices], true_poses)
+    else:
+        T = anchor_transform(estimate.poses[indices[0]], true_poses[0])
+    rmse = position_rmse(apply_transform(T, estimate.poses[indices]), true_poses)
+    common = [(k, lid) for k, lid in enumerate(estimate.landmark_ids) if lid in truth.landmarks]
+    lm_rmse = None
+    if common:
+        est = apply_transform(T, estimate.landmarks[[k for k, _ in common]])
+        lm_rmse = landmark_rmse(est, np.array([truth.landmarks[lid] for _, lid in common]))
+    return Errors(rmse, lm_rmse, gap, T, indices)
+
+
+@dataclass(frozen=True)
+class OnlineFigures:
+    """What an estimator with real-time estimates is scored on, besides its final estimate."""
+
+    rmse_m: float | None
+    """RMSE of each pose as estimated when it was the newest (None without truth)."""
+    nees_mean: float | None
+    """Mean pose NEES over steps with truth and a covariance (None where there is none)."""
+    latency: Latency
+    """Wall time per step."""
+    series: Series
+    """Per-step figures (time, pose, error, sigma, NEES, NIS, step time)."""
+
+
+def online_figures(
+    final: Estimate,
+    poses: Array,
+    covariances: list[Array | None],
+    times: Array,
+    nis: Array,
+    seconds: Array,
+    truth: GroundTruth,
+    alignment: str,
+) -> OnlineFigures:
+    """Score the online estimates of one estimator (N steps).
+
+    Args:
+        final: Its final estimate (for landmark ids and values).
+        poses: The newest pose after each step, shape (N, 3).
+        covariances: Its covariance after each step, (3, 3) or None, length N.
+        times: Step times, shape (N,).
+        nis: Mean NIS of each step's observations (NaN where none), shape (N,).
+        seconds: Wall time of each step, shape (N,).
+        truth: Ground truth.
+        alignment: ``anchor`` or ``se2``, as for the final estimate.
+    """
+    online = Estimate(final.estimator, poses, final.landmark_ids, final.landmarks)
+    errors = evaluate(online, truth, alignment)
+    n = len(poses)
+    error_m, nees = np.full(n, np.nan), np.full(n, np.nan)
+    sigma = np.array([np.sqrt(np.trace(c[:2, :2])) if c is not None else np.nan for c in covariances])
+    nees_mean = None
+    if errors.indices is not None:
+        idx = errors.indices
+        true_poses = np.array([truth.poses[i] for i in idx])
+        moved = apply_transform(errors.transform, poses[idx])
+        error_m[idx] = np.hypot(*(moved[:, :2] - true_poses[:, :2]).T)
+        if all(covariances[i] is not None for i in idx):
+            covs = transform_pose_covariance(errors.transform, np.array([covariances[i] for i in idx]))
+            nees[idx] = pose_nees(moved, covs, true_poses)
+            nees_mean = float(np.nanmean(nees)) if np.isfinite(nees).any() else None
+    ms = np.asarray(seconds, dtype=float) * 1e3
+    latency = Latency(float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max()))
+    series = Series(np.asarray(times, dtype=float), poses, error_m, sigma, nees, np.asarray(nis, dtype=float), ms)
+    return OnlineFigures(errors.rmse_m, nees_mean, latency, series)
+
+
+def truth_array(truth: GroundTruth, steps: int) -> Array | None:
+    """True poses by step, shape (steps, 3), NaN where a step has none; None without any truth."""
+    if not truth.poses:
+        return None
+    out = np.full((steps, 3), np.nan)
+    for i, pose in truth.poses.items():
+        if i < steps:
+            out[i] = pose
+    return out
+
+
+def nees_bounds(runs: int, probability: float = 0.95) -> tuple[float, float]:
+    """Two-sided bounds on a 3-dof NEES averaged over ``runs`` independent runs."""
+    tail = (1.0 - probability) / 2.0
+    low, high = chi2.ppf([tail, 1.0 - tail], NEES_DOF * runs) / runs
+    return float(low), float(high)
+
+
+def share_in_bounds(nees: Array, runs: int = 1) -> float | None:
+    """Fraction of finite per-step NEES values inside the two-sided 95% bounds (None if there are none)."""
+    finite = nees[np.isfinite(nees)]
+    if len(finite) == 0:
+        return None
+    low, high = nees_bounds(runs)
+    return float(np.mean((finite >= low) & (finite <= high)))

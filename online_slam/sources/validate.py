@@ -1,0 +1,272 @@
+"""Validation of stream-v1 records: one rule set for the file reader and the engine API.
+
+:class:`EventValidator` turns one JSON object (a ``dict``) into an event, or raises
+:class:`~online_slam.errors.InputError` naming the source, the line, the field and what was expected. Cross-line
+rules (non-decreasing time, ``start`` before any timed event, the header first) use a little state, which is
+changed only once a record has passed every check: a rejected record leaves the validator as it was, so a
+caller may skip it and go on.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from online_slam.errors import InputError
+from online_slam.sources.events import (
+    Event,
+    Header,
+    LandmarkId,
+    LandmarkTruth,
+    Observation,
+    Odometry,
+    Start,
+    Truth,
+)
+
+FORMAT = "online-slam"
+VERSION = 1
+
+
+def _show(value: Any, limit: int = 60) -> str:
+    """A short JSON-like rendering of an offending value for messages."""
+    try:
+        text = json.dumps(value, default=repr)
+    except (TypeError, ValueError, RecursionError):
+        text = repr(type(value).__name__)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _finite(value: Any) -> bool | None:
+    """True for a finite real number, False for NaN/inf or a number too large for a float, None for a non-number."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
+
+
+FIELDS: dict[str, set[str]] = {
+    "header": {"type"},  # free-form: every other field is metadata
+    "start": {"type", "t", "pose", "sigma", "cov"},
+    "odometry": {"type", "t", "delta", "sigma", "cov"},
+    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov"},
+    "truth": {"type", "t", "pose"},
+    "landmark_truth": {"type", "landmark", "position"},
+}
+"""Allowed fields of each event type."""
+
+MAX_MAGNITUDE = 1e9
+"""Largest magnitude of any number but a time (metres, radians): larger ones overflow the estimators."""
+SIGMA_RANGE = (1e-8, 1e8)
+"""Allowed standard deviations (and square roots of covariance eigenvalues)."""
+
+
+@dataclass
+class ValidatorState:
+    """What the cross-line rules remember (saved in checkpoints)."""
+
+    last_t: float = -math.inf
+    """Newest time seen, seconds."""
+    first_pose_t: float | None = None
+    """Time of the first timed event (the first pose), or None before it."""
+    seen_content: bool = False
+    """True once any event was accepted (a header must come first)."""
+
+
+class EventValidator:
+    """Checks one record at a time; a record that fails changes nothing.
+
+    Args:
+        name: Source name used in error messages (a file name, ``<stdin>``, or an API method).
+    """
+
+    def __init__(self, name: str, state: ValidatorState | None = None) -> None:
+        self.name = name
+        self.state = state or ValidatorState()
+        self._pending = ValidatorState()
+
+    def fail(self, line: int, field: str, message: str) -> InputError:
+        return InputError(self.name, line, field, message)
+
+    def parse_line(self, text: str, line: int) -> Event:
+        """Validate one JSON line (a JSON object)."""
+        try:
+            record = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise self.fail(line, "", f"invalid JSON ({exc.msg} at column {exc.colno})") from None
+        except RecursionError:
+            raise self.fail(line, "", "invalid JSON (nested too deeply)") from None
+        return self.parse_record(record, line)
+
+    def parse_record(self, record: Any, line: int = 0) -> Event:
+        """Validate one decoded record; on success the cross-line state moves on.
+
+        Args:
+            record: A decoded JSON value (should be an object).
+            line: Line number for messages (0: not tied to a line).
+
+        Returns:
+            The event.
+
+        Raises:
+            InputError: The first rule the record breaks; the validator's state is unchanged.
+        """
+        if not isinstance(record, dict):
+            raise self.fail(line, "", "expected a JSON object")
+        kind = record.get("type")
+        if not isinstance(kind, str) or kind not in FIELDS:
+            expected = ", ".join(sorted(FIELDS))
+            shown = _show(kind)
+            raise self.fail(line, "type", f"unknown event type {shown}; expected one of {expected}")
+        if kind != "header":
+            unknown = set(record) - FIELDS[kind]
+            if unknown:
+                raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for a {kind} event")
+        self._pending = ValidatorState(self.state.last_t, self.state.first_pose_t, self.state.seen_content)
+        event = getattr(self, f"_{kind}")(record, line)
+        self.state = self._pending
+        return event
+
+    # -- field helpers -------------------------------------------------------------------------
+    def number(self, record: dict[str, Any], key: str, line: int) -> float:
+        if key not in record:
+            raise self.fail(line, key, "missing required field")
+        value = record[key]
+        ok = _finite(value)
+        if ok is None:
+            raise self.fail(line, key, f"expected a number, got {_show(value)}")
+        if not ok:
+            raise self.fail(line, key, f"expected a finite number, got {_show(value)}")
+        if key != "t" and abs(value) > MAX_MAGNITUDE:
+            raise self.fail(line, key, f"expected a magnitude <= {MAX_MAGNITUDE:g}, got {_show(value)}")
+        return float(value)
+
+    def vector(self, record: dict[str, Any], key: str, n: int, line: int) -> tuple[float, ...]:
+        if key not in record:
+            raise self.fail(line, key, "missing required field")
+        value = record[key]
+        if not isinstance(value, list) or len(value) != n:
+            raise self.fail(line, key, f"expected a list of {n} numbers, got {_show(value)}")
+        out = []
+        for i, item in enumerate(value):
+            ok = _finite(item)
+            if ok is None:
+                raise self.fail(line, f"{key}[{i}]", f"expected a number, got {_show(item)}")
+            if not ok:
+                raise self.fail(line, f"{key}[{i}]", f"expected a finite number, got {_show(item)}")
+            if abs(item) > MAX_MAGNITUDE:
+                raise self.fail(line, f"{key}[{i}]", f"expected a magnitude <= {MAX_MAGNITUDE:g}, got {_show(item)}")
+            out.append(float(item))
+        return tuple(out)
+
+    def noise(
+        self, record: dict[str, Any], n: int, line: int, required: bool = True
+    ) -> tuple[tuple[float, ...] | None, tuple[tuple[float, ...], ...] | None]:
+        has_sigma, has_cov = "sigma" in record, "cov" in record
+        if has_sigma and has_cov:
+            raise self.fail(line, "cov", "give either sigma or cov, not both")
+        if has_sigma:
+            sigma = self.vector(record, "sigma", n, line)
+            for i, s in enumerate(sigma):
+                if not SIGMA_RANGE[0] <= s <= SIGMA_RANGE[1]:
+                    low, high = SIGMA_RANGE
+                    expected = f"expected a standard deviation > 0 within [{low:g}, {high:g}]"
+                    raise self.fail(line, f"sigma[{i}]", f"{expected}, got {s}")
+            return sigma, None
+        if has_cov:
+            value = record["cov"]
+            if not isinstance(value, list) or len(value) != n or not all(isinstance(r, list) for r in value):
+                raise self.fail(line, "cov", f"expected a {n}x{n} list of lists, got {_show(value)}")
+            rows = tuple(self.vector({"cov": row}, "cov", n, line) for row in value)
+            matrix = np.array(rows)
+            scale = max(float(np.max(np.abs(matrix))), 1e-300)
+            if not np.allclose(matrix, matrix.T, rtol=0.0, atol=1e-9 * scale):
+                raise self.fail(line, "cov", "expected a symmetric matrix")
+            try:
+                np.linalg.cholesky(matrix)
+            except np.linalg.LinAlgError:
+                raise self.fail(line, "cov", "expected a positive definite covariance") from None
+            eigenvalues = np.linalg.eigvalsh(0.5 * (matrix + matrix.T))
+            low, high = SIGMA_RANGE[0] ** 2, SIGMA_RANGE[1] ** 2
+            if eigenvalues[0] < low or eigenvalues[-1] > high:
+                raise self.fail(line, "cov", f"expected eigenvalues in [{low:g}, {high:g}] (variances)")
+            return None, rows
+        if required:
+            raise self.fail(line, "sigma", "missing noise: give sigma or cov")
+        return None, None
+
+    def time(self, record: dict[str, Any], line: int) -> float:
+        t = self.number(record, "t", line)
+        last = self._pending.last_t
+        if t < last:
+            raise self.fail(line, "t", f"time goes backwards ({t} after {last}); expected non-decreasing")
+        self._pending.last_t = t
+        if self._pending.first_pose_t is None:
+            self._pending.first_pose_t = t
+        elif t < self._pending.first_pose_t:
+            raise self.fail(line, "t", f"no pose exists at t={t}: the first pose is at t={self._pending.first_pose_t}")
+        self._pending.seen_content = True
+        return t
+
+    def landmark(self, record: dict[str, Any], line: int) -> LandmarkId:
+        if "landmark" not in record:
+            raise self.fail(line, "landmark", "missing required field")
+        value = record["landmark"]
+        if isinstance(value, bool) or not isinstance(value, (int, str)) or value == "":
+            raise self.fail(line, "landmark", f"expected an integer or a non-empty string id, got {_show(value)}")
+        return value
+
+    # -- one method per event type -------------------------------------------------------------
+    def _header(self, record: dict[str, Any], line: int) -> Header:
+        if self._pending.seen_content:
+            raise self.fail(line, "type", "a header must be the first line")
+        if record.get("format", FORMAT) != FORMAT:
+            raise self.fail(line, "format", f"expected {FORMAT!r}, got {_show(record.get('format'))}")
+        version = record.get("version", VERSION)
+        if version != VERSION or isinstance(version, bool):
+            raise self.fail(line, "version", f"unsupported version {_show(version)}; this reader knows 1")
+        name = record.get("name")
+        if name is not None and not isinstance(name, str):
+            raise self.fail(line, "name", f"expected a string, got {_show(name)}")
+        meta = {k: v for k, v in record.items() if k not in {"type", "format", "version", "name"}}
+        self._pending.seen_content = True
+        return Header(name=name, meta=meta, version=VERSION)
+
+    def _start(self, record: dict[str, Any], line: int) -> Start:
+        if self._pending.first_pose_t is not None:
+            raise self.fail(line, "type", "start must come before every timed event")
+        t = self.time(record, line)
+        pose = self.vector(record, "pose", 3, line)
+        sigma, cov = self.noise(record, 3, line, required=False)
+        return Start(t=t, pose=pose, sigma=sigma, cov=cov)
+
+    def _odometry(self, record: dict[str, Any], line: int) -> Odometry:
+        t = self.time(record, line)
+        delta = self.vector(record, "delta", 3, line)
+        sigma, cov = self.noise(record, 3, line)
+        return Odometry(t=t, delta=delta, sigma=sigma, cov=cov)
+
+    def _observation(self, record: dict[str, Any], line: int) -> Observation:
+        t = self.time(record, line)
+        landmark = self.landmark(record, line)
+        rng = self.number(record, "range", line)
+        if rng <= 0.0:
+            raise self.fail(line, "range", f"expected a range > 0, got {rng}")
+        bearing = self.number(record, "bearing", line)
+        sigma, cov = self.noise(record, 2, line)
+        return Observation(t=t, landmark=landmark, range=rng, bearing=bearing, sigma=sigma, cov=cov)
+
+    def _truth(self, record: dict[str, Any], line: int) -> Truth:
+        t = self.time(record, line)
+        return Truth(t=t, pose=self.vector(record, "pose", 3, line))
+
+    def _landmark_truth(self, record: dict[str, Any], line: int) -> LandmarkTruth:
+        landmark = self.landmark(record, line)
+        self._pending.seen_content = True
+        return LandmarkTruth(landmark=landmark, position=self.vector(record, "position", 2, line))
