@@ -30,5 +30,5 @@ class InputError(OnlineSlamError):
         return f"{where}: {what}"
 
 
-class SolverError(OnlineSlamError):
-    """A solver could not produce an estimate (e.g. a singular system with no way around it)."""
+class ConfigError(OnlineSlamError, ValueError):
+    """A setting out of range, an unknown option or estimator name."""

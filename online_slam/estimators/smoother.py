@@ -292,8 +292,13 @@ class SlidingWindowSmoother:
         self.solves += 1
         return {"iterations": result.iterations, "cost_before": result.initial_cost, "cost_after": result.final_cost}
 
-    def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
-        """The prior's marginal on its pose and the active landmarks, and a function recovering the others."""
+    def _prior_split(self, active: Index) -> tuple[Index, Index, NDArray[np.bool_], Array]:
+        """The prior's state split into the part the window solve sees and the passive landmarks.
+
+        Returns:
+            (state rows of the active landmarks then the pose, rows of the passive landmarks, which prior
+            landmarks are active, the information ``Sigma_aa^-1`` of the active part).
+        """
         p = self.prior
         assert p is not None
         n = len(p.mu)
@@ -305,7 +310,13 @@ class SlidingWindowSmoother:
             A = la.cho_solve(la.cho_factor(S_aa), np.eye(len(order)))
         except la.LinAlgError:  # rank-deficient: the information of the directions it has
             A = np.linalg.pinv(S_aa, hermitian=True)
-        A = 0.5 * (A + A.T)
+        return order, passive, is_active, 0.5 * (A + A.T)
+
+    def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
+        """The prior's marginal on its pose and the active landmarks, and a function recovering the others."""
+        p = self.prior
+        assert p is not None
+        order, passive, is_active, A = self._prior_split(active)
         mu_a = p.mu[order]
         local = np.searchsorted(active, p.landmarks[is_active])
         columns = np.r_[(landmark_column[local][:, None] + np.arange(2)).reshape(-1), pose_column + np.arange(3)]
@@ -324,6 +335,67 @@ class SlidingWindowSmoother:
             self._landmarks[passive_ids] = (p.x_lin[passive] + d_p).reshape(-1, 2)
 
         return quadratic, recover
+
+    def landmark_marginals(self) -> Array:
+        """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
+
+        The window's factors and the reduced prior are linearized once at the current estimate (no iteration,
+        no state change): landmarks a window pose observes read their block of the inverse information;
+        passive landmarks add the prior's conditional covariance to the propagated uncertainty of the part
+        they are conditioned on. NaN where the system is singular.
+        """
+        out = np.full((len(self.landmark_ids), 2, 2), np.nan)
+        if not self.window:
+            return out
+        with self._blas.limit(limits=1, user_api="blas"):
+            observed = [self._observations[i][0] for i in self.window if i in self._observations]
+            active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+            graph, local = self._graph(active)
+            sparse = layout(graph, entries=False)
+            quadratic = None
+            if self.prior is not None:
+                quadratic, _ = self._reduced_prior(
+                    active, sparse.pose_column[local[self.prior.pose]], sparse.landmark_column
+                )
+            poses = np.array([self.poses[g] for g in self.window])
+            linearized = solve(
+                graph,
+                poses,
+                self._landmarks[active],
+                SolverConfig(max_iterations=0),
+                loss=self.config.loss,
+                prior=quadratic,
+                return_information=True,
+                graph_layout=sparse,
+                dense=True,
+            )
+            if linearized.information is None:  # no free variable
+                return out
+            H = np.asarray(linearized.information)
+            try:
+                C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
+            except la.LinAlgError:
+                return out
+            cols = sparse.landmark_column[np.arange(len(active))][:, None] + np.arange(2)  # (A, 2)
+            out[active] = C[cols[:, :, None], cols[:, None, :]]
+            if self.prior is None or quadratic is None:
+                return out
+            p = self.prior
+            order, passive, is_active, A = self._prior_split(active)
+            if len(passive) == 0:
+                return out
+            S_pa = p.Sigma[np.ix_(passive, order)]
+            B = S_pa @ A  # d_p = mu_p + B (d_a - mu_a) + noise
+            C_a = C[np.ix_(quadratic.columns, quadratic.columns)]
+            q = len(order)
+            B3, S3 = B.reshape(-1, 2, q), S_pa.reshape(-1, 2, q)
+            pairs = passive.reshape(-1, 2)
+            S_pp = p.Sigma[pairs[:, :, None], pairs[:, None, :]]
+            conditional = S_pp - np.einsum("piq,pjq->pij", B3, S3)
+            propagated = np.einsum("piq,qr,pjr->pij", B3, C_a, B3)
+            blocks = conditional + propagated
+            out[p.landmarks[~is_active]] = 0.5 * (blocks + blocks.transpose(0, 2, 1))
+        return out
 
     # -- marginalization -------------------------------------------------------------------------
     def _initial_prior(self) -> _Prior:

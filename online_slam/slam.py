@@ -1,0 +1,296 @@
+"""``online_slam.Slam``: the engine as a library — push odometry and sightings, read the estimate at once.
+
+Each ``add_*`` call is validated by the same rules as a stream-v1 line (one of sigma/cov, finite numbers,
+range > 0, non-decreasing time, ``start`` first); bad input raises :class:`~online_slam.errors.InputError`
+naming the field and changes nothing. :meth:`Slam.estimate` reflects every event added so far: sightings of the
+newest pose are used before its successor's odometry arrives (see :mod:`online_slam.engine` for how, and why a
+replay gives the same numbers).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.checkpoint import read_checkpoint, write_checkpoint
+from online_slam.engine import Engine
+from online_slam.errors import ConfigError, InputError
+from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+from online_slam.factors.robust import RobustLoss
+from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
+from online_slam.sources.events import Event, LandmarkId
+from online_slam.sources.validate import EventValidator, ValidatorState
+
+Array = NDArray[np.float64]
+
+ESTIMATORS = ("ekf", "smoother")
+"""Estimators a :class:`Slam` can run."""
+
+OPTIONS: dict[str, tuple[type, str]] = {
+    "window": (int, "smoother: poses kept in the window (W, >= 1)"),
+    "relinearize_every": (int, "smoother: relinearize and solve every K steps (>= 1)"),
+    "robust": (str, "smoother: robust loss on observations, 'none', 'huber' or 'cauchy'"),
+    "robust_scale": (float, "smoother: robust loss threshold in sigmas (> 0)"),
+    "gate_probability": (float, "ekf: chi-square gate on each observation's NIS, in (0, 1]"),
+    "gate_persistence": (int, "ekf: use a landmark again after this many gated sightings in a row (>= 0)"),
+    "ekf_update": (str, "ekf: 'joint' or 'sequential'"),
+    "first_observation_only": (bool, "keep only the first sighting of each landmark"),
+    "keyframe_distance": (float, "merge observation-free odometry up to this many metres"),
+    "keyframe_angle": (float, "... and up to this many radians"),
+    "keyframe_time": (float, "... and up to this many seconds"),
+}
+"""Options of :class:`Slam`, named as the CLI's flags (``--relinearize-every`` -> ``relinearize_every``)."""
+
+_ESTIMATOR_OPTIONS = {
+    "ekf": {"gate_probability", "gate_persistence", "ekf_update"},
+    "smoother": {"window", "relinearize_every", "robust", "robust_scale"},
+}
+_CHECKPOINT_KIND = "slam"
+
+
+@dataclass(frozen=True)
+class SlamEstimate:
+    """The estimate after every event added so far (read-only arrays and mappings)."""
+
+    t: float
+    """Time of the newest pose, seconds."""
+    index: int
+    """Index of the newest pose (0 is the start)."""
+    pose: Array
+    """Newest pose ``[x, y, theta]``, shape (3,)."""
+    pose_cov: Array
+    """Its covariance, shape (3, 3)."""
+    trajectory: Array
+    """Current estimate of every pose so far, shape (N, 3), N = index + 1."""
+    landmarks: Mapping[LandmarkId, Array]
+    """Landmark id -> position ``[x, y]``, shape (2,)."""
+    landmark_covs: Mapping[LandmarkId, Array] | None
+    """Landmark id -> 2x2 marginal covariance, or None when not asked for."""
+
+
+def _read_only(array: Array) -> Array:
+    array = np.array(array, dtype=float)
+    array.flags.writeable = False
+    return array
+
+
+def _plain(value: Any) -> Any:
+    """numpy arrays and scalars, and tuples, as the JSON-like values the validator checks."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | SmootherConfig, FrontEndConfig]:
+    """Check the options and build the estimator's and the front-end's configurations."""
+    if estimator not in ESTIMATORS:
+        raise ConfigError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
+    for key, value in options.items():
+        if key not in OPTIONS:
+            raise ConfigError(f"unknown option {key!r}; options: {', '.join(sorted(OPTIONS))}")
+        kind, help_text = OPTIONS[key]
+        ok = (
+            isinstance(value, bool)
+            if kind is bool
+            else isinstance(value, int) and not isinstance(value, bool)
+            if kind is int
+            else isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            if kind is float
+            else isinstance(value, str)
+        )
+        if not ok:
+            raise ConfigError(f"option {key}: expected {kind.__name__}, got {value!r} ({help_text})")
+        owner = next((name for name, keys in _ESTIMATOR_OPTIONS.items() if key in keys), estimator)
+        if owner != estimator:
+            raise ConfigError(f"option {key} is for the {owner}, not the {estimator}")
+    try:
+        if estimator == "ekf":
+            config: EkfConfig | SmootherConfig = EkfConfig(
+                gate_probability=options.get("gate_probability", EkfConfig.gate_probability),
+                gate_persistence=options.get("gate_persistence", EkfConfig.gate_persistence),
+                update=options.get("ekf_update", EkfConfig.update),
+            )
+        else:
+            robust = options.get("robust", "none")
+            if robust not in ("none", "huber", "cauchy"):
+                raise ValueError(f"robust must be 'none', 'huber' or 'cauchy', not {robust!r}")
+            loss = None if robust == "none" else RobustLoss(robust, options.get("robust_scale", RobustLoss.scale))
+            config = SmootherConfig(
+                window=options.get("window", SmootherConfig.window),
+                relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
+                loss=loss,
+            )
+        keyframing = None
+        limits = ("keyframe_distance", "keyframe_angle", "keyframe_time")
+        if any(k in options for k in limits):
+            defaults = KeyframeConfig()
+            keyframing = KeyframeConfig(
+                max_distance=options.get("keyframe_distance", defaults.max_distance),
+                max_angle=options.get("keyframe_angle", defaults.max_angle),
+                max_time=options.get("keyframe_time", math.inf),
+            )
+        frontend = FrontEndConfig(keyframing, options.get("first_observation_only", False))
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    return config, frontend
+
+
+class Slam:
+    """Online 2D landmark SLAM in a robot's loop: push events, query the estimate.
+
+    Args:
+        estimator: ``"smoother"`` (sliding-window least squares, default) or ``"ekf"``.
+        **options: Settings named as the CLI's flags (see :data:`OPTIONS`), e.g. ``window=50``,
+            ``robust="cauchy"``, ``gate_probability=0.999``.
+
+    Raises:
+        ConfigError: Unknown estimator or option, or a value out of range.
+
+    Example:
+        >>> slam = Slam("ekf")
+        >>> slam.add_observation(0.0, landmark=7, range=2.0, bearing=0.5, sigma=[0.1, 0.01])
+        >>> slam.add_odometry(1.0, delta=[1.0, 0.0, 0.0], sigma=[0.05, 0.05, 0.01])
+        >>> slam.estimate().index
+        1
+    """
+
+    def __init__(self, estimator: str = "smoother", **options: Any) -> None:
+        config, frontend = _configs(estimator, options)
+        self.estimator_name = estimator
+        self.options: dict[str, Any] = dict(options)
+        self._estimator = EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
+        self._engine = Engine([self._estimator], frontend)
+        self._validator = EventValidator("Slam")
+
+    # -- events --------------------------------------------------------------------------------------
+    def start(self, t: float, pose: Any, sigma: Any = None, cov: Any = None) -> None:
+        """The first pose (optional: by default the origin at the first event's time, held fixed).
+
+        Args:
+            t: Time, seconds.
+            pose: ``[x, y, theta]``.
+            sigma: Standard deviations ``[sx, sy, stheta]`` of a prior on it, or None.
+            cov: Full 3x3 prior covariance, or None. With neither, the start pose is held fixed.
+        """
+        self._push("start", {"type": "start", "t": t, "pose": pose}, sigma, cov)
+
+    def add_odometry(self, t: float, delta: Any, sigma: Any = None, cov: Any = None) -> None:
+        """Motion since the previous pose, in its frame; makes a new pose at ``t``.
+
+        Args:
+            t: Time of the new pose, seconds (never before the previous event).
+            delta: ``[dx, dy, dtheta]``.
+            sigma: Standard deviations ``[sx, sy, stheta]``, or None when ``cov`` is given.
+            cov: Full 3x3 covariance, or None when ``sigma`` is given.
+        """
+        self._push("add_odometry", {"type": "odometry", "t": t, "delta": delta}, sigma, cov)
+
+    def add_observation(
+        self, t: float, landmark: LandmarkId, range: float, bearing: float, sigma: Any = None, cov: Any = None
+    ) -> None:
+        """A range-bearing sighting of a landmark; belongs to the newest pose with time <= ``t``.
+
+        Args:
+            t: Time, seconds.
+            landmark: Landmark id (int or non-empty string; ``3`` and ``"3"`` differ).
+            range: Distance, metres (> 0).
+            bearing: Angle from the heading, radians.
+            sigma: ``[s_range, s_bearing]``, or None when ``cov`` is given.
+            cov: Full 2x2 covariance, or None when ``sigma`` is given.
+        """
+        record = {"type": "observation", "t": t, "landmark": landmark, "range": range, "bearing": bearing}
+        self._push("add_observation", record, sigma, cov)
+
+    def add(self, event: Event) -> None:
+        """Add any stream-v1 event object (e.g. from :func:`~online_slam.sources.stream.read_stream`).
+
+        Truth events are kept apart for evaluation, as in a replay; no estimator sees them.
+        """
+        record = event.to_record()
+        self._push(f"add({record['type']})", record, None, None)
+
+    def _push(self, method: str, record: dict[str, Any], sigma: Any, cov: Any) -> None:
+        record = {key: _plain(value) for key, value in record.items()}
+        if sigma is not None:
+            record["sigma"] = _plain(sigma)
+        if cov is not None:
+            record["cov"] = _plain(cov)
+        self._validator.name = f"Slam.{method}"
+        event: Event = self._validator.parse_record(record)
+        self._engine.push(event)
+
+    # -- queries -------------------------------------------------------------------------------------
+    def estimate(self, landmark_covs: bool = True) -> SlamEstimate:
+        """The current estimate, including every event added so far.
+
+        Args:
+            landmark_covs: Also give each landmark's 2x2 marginal covariance (the smoother computes them on
+                request: one linearization of its window; pass False to skip).
+
+        Raises:
+            InputError: Before any event (there is no pose yet).
+        """
+        snapshot = self._engine.sync().get(self._estimator.name)
+        if snapshot is None:
+            raise InputError("Slam.estimate", 0, "", "no pose yet: add an event first")
+        ids = snapshot.landmark_ids
+        landmarks = MappingProxyType({lid: _read_only(p) for lid, p in zip(ids, snapshot.landmarks)})
+        covs = None
+        if landmark_covs:
+            blocks = self._estimator.landmark_marginals()
+            covs = MappingProxyType({lid: _read_only(c) for lid, c in zip(ids, blocks)})
+        pose_cov = snapshot.pose_cov if snapshot.pose_cov is not None else np.full((3, 3), np.nan)
+        return SlamEstimate(
+            t=snapshot.t,
+            index=snapshot.index,
+            pose=_read_only(snapshot.pose),
+            pose_cov=_read_only(pose_cov),
+            trajectory=_read_only(self._estimator.trajectory()),
+            landmarks=landmarks,
+            landmark_covs=covs,
+        )
+
+    @property
+    def poses(self) -> int:
+        """Poses so far (0 before the first event)."""
+        pending = self._engine.frontend.pending
+        return self._engine.steps + (pending is not None)
+
+    # -- checkpoints ---------------------------------------------------------------------------------
+    def save(self, path: str | Path) -> None:
+        """Write the whole state to ``path`` atomically (data only; see :mod:`online_slam.checkpoint`)."""
+        state = {
+            "estimator": self.estimator_name,
+            "options": dict(self.options),
+            "validator": vars(self._validator.state),
+            "engine": self._engine.state_dict(),
+        }
+        write_checkpoint(path, _CHECKPOINT_KIND, state)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Slam:
+        """A :class:`Slam` continuing exactly where a saved one stopped.
+
+        Raises:
+            InputError: Missing, truncated, damaged or altered file, or one of another kind or version.
+        """
+        state = read_checkpoint(path, _CHECKPOINT_KIND)
+        try:
+            slam = cls(state["estimator"], **state["options"])
+            slam._validator.state = ValidatorState(**state["validator"])
+            slam._engine.load_state(state["engine"])
+        except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
+            raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
+        return slam
