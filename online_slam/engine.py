@@ -160,7 +160,7 @@ def _pending_state(p: PendingStep) -> dict[str, Any]:
         "merged": p.merged,
         "landmarks": list(p.landmarks),
         "z": np.array(p.z, dtype=float).reshape(-1, 2),
-        "z_cov": np.array(p.z_cov, dtype=float).reshape(-1, 2, 2),
+        "z_cov": p.z_covariances(),
         "sealed": p.sealed,
     }
 
@@ -180,6 +180,6 @@ def _pending_from(s: dict[str, Any]) -> PendingStep:
         merged=int(s["merged"]),
         landmarks=list(s["landmarks"]),
         z=[(float(r), float(b)) for r, b in np.array(s["z"], dtype=float).reshape(-1, 2)],
-        z_cov=[c.copy() for c in np.array(s["z_cov"], dtype=float).reshape(-1, 2, 2)],
+        z_noise=[c.copy() for c in np.array(s["z_cov"], dtype=float).reshape(-1, 2, 2)],
         sealed=bool(s["sealed"]),
     )

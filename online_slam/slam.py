@@ -9,9 +9,11 @@ replay gives the same numbers).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -58,7 +60,8 @@ _CHECKPOINT_KIND = "slam"
 
 @dataclass(frozen=True)
 class SlamEstimate:
-    """The estimate after every event added so far (read-only arrays and mappings)."""
+    """The estimate after every event added so far. Arrays are read-only; ``trajectory``, ``landmarks`` and
+    ``landmark_covs`` are assembled on first access (from data captured at query time)."""
 
     t: float
     """Time of the newest pose, seconds."""
@@ -68,12 +71,31 @@ class SlamEstimate:
     """Newest pose ``[x, y, theta]``, shape (3,)."""
     pose_cov: Array
     """Its covariance, shape (3, 3)."""
-    trajectory: Array
-    """Current estimate of every pose so far, shape (N, 3), N = index + 1."""
-    landmarks: Mapping[LandmarkId, Array]
-    """Landmark id -> position ``[x, y]``, shape (2,)."""
-    landmark_covs: Mapping[LandmarkId, Array] | None
-    """Landmark id -> 2x2 marginal covariance, or None when not asked for."""
+    landmark_ids: tuple[LandmarkId, ...]
+    """Landmark ids in the order of ``landmark_array``, length M."""
+    landmark_array: Array
+    """Landmark positions, shape (M, 2)."""
+    landmark_cov_array: Array | None
+    """Landmark 2x2 marginal covariances, shape (M, 2, 2), or None when not asked for."""
+    trajectory_parts: tuple[Array, Array]
+    """Poses that no longer change (a read-only view) and the poses that still may, as of the query."""
+
+    @cached_property
+    def trajectory(self) -> Array:
+        """Current estimate of every pose so far, shape (N, 3), N = index + 1."""
+        return _read_only(np.concatenate(self.trajectory_parts))
+
+    @cached_property
+    def landmarks(self) -> Mapping[LandmarkId, Array]:
+        """Landmark id -> position ``[x, y]``, shape (2,)."""
+        return MappingProxyType(dict(zip(self.landmark_ids, self.landmark_array)))
+
+    @cached_property
+    def landmark_covs(self) -> Mapping[LandmarkId, Array] | None:
+        """Landmark id -> 2x2 marginal covariance, or None when not asked for."""
+        if self.landmark_cov_array is None:
+            return None
+        return MappingProxyType(dict(zip(self.landmark_ids, self.landmark_cov_array)))
 
 
 def _read_only(array: Array) -> Array:
@@ -82,8 +104,22 @@ def _read_only(array: Array) -> Array:
     return array
 
 
+def _locked(array: Array) -> Array:
+    """Make an array that only this estimate refers to (a snapshot's copy) read-only, without copying it."""
+    array.flags.writeable = False
+    return array
+
+
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
 def _plain(value: Any) -> Any:
     """numpy arrays and scalars, and tuples, as the JSON-like values the validator checks."""
+    kind = type(value)
+    if kind in _SCALARS:
+        return value
+    if (kind is tuple or kind is list) and all(type(v) in _SCALARS for v in value):
+        return list(value)
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
@@ -213,6 +249,34 @@ class Slam:
         record = {"type": "observation", "t": t, "landmark": landmark, "range": range, "bearing": bearing}
         self._push("add_observation", record, sigma, cov)
 
+    def add_observations(
+        self,
+        t: float,
+        landmarks: Any,
+        ranges: Any,
+        bearings: Any,
+        sigma: Any = None,
+        cov: Any = None,
+    ) -> None:
+        """A scan: k sightings taken at one time, checked as a whole (all are added, or none).
+
+        Args:
+            t: Time, seconds.
+            landmarks: k landmark ids.
+            ranges: k distances, metres (> 0).
+            bearings: k angles from the heading, radians.
+            sigma: ``[s_range, s_bearing]`` shared by all, or one per sighting (k, 2).
+            cov: A 2x2 covariance shared by all, or one per sighting (k, 2, 2).
+
+        Raises:
+            InputError: Naming the first bad sighting's field, e.g. ``range[3]``; nothing is added.
+        """
+        self._validator.name = "Slam.add_observations"
+        scan = self._validator.parse_scan(
+            _plain(t), _plain(landmarks), _plain(ranges), _plain(bearings), _plain(sigma), _plain(cov)
+        )
+        self._engine.push(scan)
+
     def add(self, event: Event) -> None:
         """Add any stream-v1 event object (e.g. from :func:`~online_slam.sources.stream.read_stream`).
 
@@ -245,21 +309,21 @@ class Slam:
         snapshot = self._engine.sync().get(self._estimator.name)
         if snapshot is None:
             raise InputError("Slam.estimate", 0, "", "no pose yet: add an event first")
-        ids = snapshot.landmark_ids
-        landmarks = MappingProxyType({lid: _read_only(p) for lid, p in zip(ids, snapshot.landmarks)})
         covs = None
         if landmark_covs:
-            blocks = self._estimator.landmark_marginals()
-            covs = MappingProxyType({lid: _read_only(c) for lid, c in zip(ids, blocks)})
+            covs = _read_only(self._estimator.landmark_marginals())
         pose_cov = snapshot.pose_cov if snapshot.pose_cov is not None else np.full((3, 3), np.nan)
+        frozen, tail = self._estimator.trajectory_parts()
+        tail.flags.writeable = False
         return SlamEstimate(
             t=snapshot.t,
             index=snapshot.index,
-            pose=_read_only(snapshot.pose),
-            pose_cov=_read_only(pose_cov),
-            trajectory=_read_only(self._estimator.trajectory()),
-            landmarks=landmarks,
-            landmark_covs=covs,
+            pose=_locked(snapshot.pose),
+            pose_cov=_locked(pose_cov),
+            landmark_ids=snapshot.landmark_ids,
+            landmark_array=_locked(snapshot.landmarks),
+            landmark_cov_array=covs,
+            trajectory_parts=(frozen, tail),
         )
 
     @property
@@ -274,7 +338,7 @@ class Slam:
         state = {
             "estimator": self.estimator_name,
             "options": dict(self.options),
-            "validator": vars(self._validator.state),
+            "validator": dataclasses.asdict(self._validator.state),
             "engine": self._engine.state_dict(),
         }
         write_checkpoint(path, _CHECKPOINT_KIND, state)

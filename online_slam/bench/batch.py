@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from online_slam.bench import gtsam_peer
+from online_slam.engine import Engine
 from online_slam.estimators.batch import BatchEstimator
 from online_slam.factors.graph import evaluate
-from online_slam.frontend.steps import FrontEnd
 from online_slam.solvers.least_squares import solve
 from online_slam.sources.worlds import GridConfig, grid_world
 
@@ -55,10 +55,11 @@ def run_batch_bench(config: GridConfig, repeats: int = 3) -> BatchBench:
     Returns:
         The figures.
     """
-    frontend = FrontEnd()
     batch = BatchEstimator()
-    for step in frontend.steps(grid_world(config)):
-        batch.step(step)
+    engine = Engine([batch])
+    for event in grid_world(config):
+        engine.push(event)
+    engine.close()
     graph = batch.log.graph()
     poses0, landmarks0 = np.array(batch.log.poses), batch.log.landmarks
 

@@ -12,8 +12,8 @@ from filterpy.kalman import ExtendedKalmanFilter
 from numpy.typing import NDArray
 
 from online_slam.bench import gtsam_peer
+from online_slam.engine import Engine
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
-from online_slam.frontend.steps import FrontEnd
 from online_slam.geometry.angles import wrap
 from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
 from online_slam.sources.worlds import GridConfig, grid_world
@@ -109,23 +109,29 @@ def _latency(label: str, seconds: Array, poses: Array, truth: Array) -> StepLate
     return StepLatency(label, float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max()), rmse)
 
 
+def _drive(estimator: object, events: list) -> tuple[Array, Array, Array, list]:
+    """Push events through the engine (the one way in); per-step seconds, online poses, truth, and the steps."""
+    engine = Engine([estimator])  # type: ignore[list-item]
+    seconds, poses, steps = [], [], []
+    name = estimator.name  # type: ignore[attr-defined]
+    for event in [*events, None]:
+        record = engine.push(event) if event is not None else engine.close()
+        if record is not None:
+            seconds.append(record.seconds[name])
+            poses.append(record.snapshots[name].pose)
+            steps.append(record.step)
+    truth = np.array([engine.frontend.truth.poses[s.index] for s in steps])
+    return np.array(seconds), np.array(poses), truth, steps
+
+
 def time_steps(config: GridConfig, with_peer: bool = True) -> tuple[int, list[StepLatency]]:
-    """Run the EKF (and iSAM2, when available) step by step over a grid world.
+    """Run the EKF (and iSAM2, when available) step by step over a grid world, through the engine.
 
     Returns:
         (number of steps, latency per estimator).
     """
-    frontend = FrontEnd()
-    steps = list(frontend.steps(grid_world(config)))
-    truth = np.array([frontend.truth.poses[s.index] for s in steps])
-    ekf = EkfSlam()
-    seconds, poses = [], []
-    for step in steps:
-        started = time.perf_counter()
-        snap = ekf.step(step)
-        seconds.append(time.perf_counter() - started)
-        poses.append(snap.pose)
-    rows = [_latency("online-slam EKF", np.array(seconds), np.array(poses), truth)]
+    seconds, poses, truth, steps = _drive(EkfSlam(), list(grid_world(config)))
+    rows = [_latency("online-slam EKF", seconds, poses, truth)]
     if with_peer and gtsam_peer.available():
         peer = gtsam_peer.isam2_online(steps)
         rows.append(_latency("GTSAM iSAM2", peer.step_s, peer.poses, truth))
@@ -136,16 +142,9 @@ def time_smoother(config: GridConfig, windows: tuple[int, ...] = (10, 20, 50)) -
     """Per-step latency and online RMSE of the sliding-window smoother at several window sizes."""
     from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 
-    frontend = FrontEnd()
-    steps = list(frontend.steps(grid_world(config)))
-    truth = np.array([frontend.truth.poses[s.index] for s in steps])
+    events = list(grid_world(config))
     rows = []
     for window in windows:
-        smoother = SlidingWindowSmoother(SmootherConfig(window=window))
-        seconds, poses = [], []
-        for step in steps:
-            started = time.perf_counter()
-            poses.append(smoother.step(step).pose)
-            seconds.append(time.perf_counter() - started)
-        rows.append(_latency(f"smoother W={window}", np.array(seconds), np.array(poses), truth))
+        seconds, poses, truth, _ = _drive(SlidingWindowSmoother(SmootherConfig(window=window)), events)
+        rows.append(_latency(f"smoother W={window}", seconds, poses, truth))
     return rows

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 from threadpoolctl import ThreadpoolController
 
+from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.frontend.steps import Step
@@ -97,7 +98,7 @@ class EkfSlam(ExtendedKalmanFilter):
         )
         self.gated_total = 0
         self._streak = np.zeros(0, dtype=np.int64)  # consecutive gated sightings per landmark
-        self._poses: list[Array] = []
+        self._history = PoseHistory()  # every pose before the newest, as it was when newest
         self._step_nis: list[Array] = []  # what the newest step's observations did (for its snapshot)
         self._step_gated: list[LandmarkId] = []
         self._step_new: list[LandmarkId] = []
@@ -248,8 +249,8 @@ class EkfSlam(ExtendedKalmanFilter):
             self.x[:3, 0] = step.prior
             self.P[:3, :3] = 0.0 if step.prior_cov is None else step.prior_cov
         else:
+            self._history.append(self.x[:3, 0])  # the previous pose is complete
             self.predict(step.odometry, step.odometry_cov)
-        self._poses.append(self.x[:3, 0].copy())
         self._step_nis, self._step_gated, self._step_new = [], [], []
         self._observe(step, 0)
         return self.snapshot(step)
@@ -286,14 +287,17 @@ class EkfSlam(ExtendedKalmanFilter):
             self.add_landmark(lid, z_all[i], R_all[i])
             new.append(lid)
         self.gated_total += len(gated)
-        self._poses[-1] = self.x[:3, 0].copy()
         self._step_nis.append(nis)
         self._step_gated += gated
         self._step_new += new
 
+    def trajectory_parts(self) -> tuple[Array, Array]:
+        """(poses that no longer change, read-only (N - 1, 3) view; the newest pose, a copy (1, 3))."""
+        return self._history.view(), self.x[:3, 0].reshape(1, 3).copy()
+
     def trajectory(self) -> Array:
         """Estimate of every pose so far (each as it was when newest), shape (N, 3)."""
-        return np.array(self._poses).reshape(-1, 3)
+        return np.concatenate(self.trajectory_parts())
 
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue exactly where the filter is (numbers and arrays only)."""
@@ -326,7 +330,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self._index = {lid: j for j, lid in enumerate(landmark_ids)}
         self._streak = np.array(state["streak"], dtype=np.int64).reshape(len(landmark_ids))
         self.gated_total = int(state["gated_total"])
-        self._poses = [row.copy() for row in np.array(state["poses"], dtype=float).reshape(-1, 3)]
+        self._history = PoseHistory(np.array(state["poses"], dtype=float).reshape(-1, 3)[:-1])
         self._step_nis = [np.array(a, dtype=float) for a in state["step_nis"]]
         self._step_gated = list(state["step_gated"])
         self._step_new = list(state["step_new"])
@@ -362,7 +366,7 @@ class EkfSlam(ExtendedKalmanFilter):
         """The filter has no smoothing: each pose keeps the estimate it had when it was the newest."""
         return Estimate(
             self.name,
-            np.array(self._poses).reshape(-1, 3),
+            self.trajectory(),
             tuple(self.landmark_ids),
             self.x[3:, 0].reshape(-1, 2).copy(),
             {"gated_observations": self.gated_total, "state_size": self.dim_x},

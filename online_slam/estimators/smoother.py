@@ -37,6 +37,7 @@ import scipy.linalg as la
 from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
+from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.factors.graph import FactorGraph, layout, sqrt_information
@@ -143,7 +144,7 @@ class SlidingWindowSmoother:
         self.name = name
         self.window: list[int] = []
         self.poses: dict[int, Array] = {}
-        self.final_poses: list[Array] = []
+        self.history = PoseHistory()  # final estimates of the poses that left the window
         self.landmark_ids: list[LandmarkId] = []
         self._index: dict[LandmarkId, int] = {}
         self._landmarks = np.zeros((0, 2))
@@ -183,7 +184,6 @@ class SlidingWindowSmoother:
             )
         self.window.append(i)
         self.poses[i] = pose
-        self.final_poses.append(pose)
         self._unsolved.add(i)
         self._add_observations(step, 0)
 
@@ -272,7 +272,6 @@ class SlidingWindowSmoother:
         )
         for k, g in enumerate(self.window):
             self.poses[g] = result.poses[k]
-            self.final_poses[g] = result.poses[k]
         self._landmarks[active] = result.landmarks
         if recover is not None:
             recover(result.poses[0], result.landmarks)
@@ -489,7 +488,7 @@ class SlidingWindowSmoother:
         mu = np.r_[mu[:keep], M @ mu[keep:] + offset]
         x_lin = np.r_[x_lin[:keep], np.concatenate([a[3] for a in appended])]
         self.prior = _Prior(n1, np.array(landmarks, dtype=np.int64), x_lin, mu, grown)
-        self.final_poses[o] = self.poses.pop(o)
+        self.history.append(self.poses.pop(o))
         self._odometry.pop(n1)
         self._observations.pop(o, None)
         self.window.pop(0)
@@ -523,7 +522,11 @@ class SlidingWindowSmoother:
 
     def trajectory(self) -> Array:
         """Current estimate of every pose so far (window poses as now, older ones as they left), shape (N, 3)."""
-        return np.array(self.final_poses).reshape(-1, 3)
+        return np.concatenate(self.trajectory_parts())
+
+    def trajectory_parts(self) -> tuple[Array, Array]:
+        """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3))."""
+        return self.history.view(), np.array([self.poses[g] for g in self.window]).reshape(-1, 3)
 
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to continue exactly where the smoother is (numbers and arrays only)."""
@@ -561,10 +564,9 @@ class SlidingWindowSmoother:
         as_float = lambda a: np.array(a, dtype=float)  # noqa: E731
         self.window = [int(g) for g in state["window"]]
         self.poses = {g: as_float(pose) for g, pose in zip(self.window, state["poses"])}
-        final = as_float(state["final_poses"]).reshape(-1, 3)
-        self.final_poses = [row.copy() for row in final]
-        for g in self.window:  # window poses are shared with final_poses, as while running
-            self.final_poses[g] = self.poses[g]
+        self.history = PoseHistory(
+            as_float(state["final_poses"]).reshape(-1, 3)[: len(state["final_poses"]) - len(self.window)]
+        )
         self.landmark_ids = list(state["landmark_ids"])
         self._index = {lid: j for j, lid in enumerate(self.landmark_ids)}
         self._landmarks = as_float(state["landmarks"]).reshape(-1, 2)
@@ -627,7 +629,7 @@ class SlidingWindowSmoother:
                 self._solve(final=True)
         return Estimate(
             self.name,
-            np.array(self.final_poses).reshape(-1, 3),
+            self.trajectory(),
             tuple(self.landmark_ids),
             self._landmarks.copy(),
             {

@@ -26,6 +26,7 @@ from online_slam.sources.events import (
     LandmarkTruth,
     Observation,
     Odometry,
+    Scan,
     Start,
     Truth,
 )
@@ -109,10 +110,35 @@ class PendingStep:
     merged: int = 1
     landmarks: list[LandmarkId] = field(default_factory=list)
     z: list[tuple[float, float]] = field(default_factory=list)
-    z_cov: list[Array] = field(default_factory=list)
+    z_noise: list = field(default_factory=list)  # per observation: its sigma (2,) or its full covariance (2, 2)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
+    _frozen: tuple | None = field(default=None, repr=False, compare=False)
+
+    def z_covariances(self) -> Array:
+        """Observation covariances, shape (k, 2, 2): ``diag(sigma^2)`` (vectorized) or the full matrix given."""
+        k = len(self.z_noise)
+        out = np.zeros((k, 2, 2))
+        if k == 0:
+            return out
+        diagonal = [len(n) == 2 and not isinstance(n[0], (tuple, list, np.ndarray)) for n in self.z_noise]
+        if all(diagonal):
+            sigma = np.array(self.z_noise, dtype=float)
+            out[:, 0, 0], out[:, 1, 1] = np.square(sigma[:, 0]), np.square(sigma[:, 1])
+            return out
+        for i, (noise, is_sigma) in enumerate(zip(self.z_noise, diagonal)):
+            out[i] = np.diag(np.square(np.array(noise, dtype=float))) if is_sigma else np.array(noise, dtype=float)
+        return out
 
     def freeze(self) -> Step:
+        """The step as it stands (cached until an observation or a merge changes it)."""
+        key = (len(self.landmarks), self.merged)
+        if self._frozen is not None and self._frozen[0] == key:
+            return self._frozen[1]
+        step = self._freeze()
+        self._frozen = (key, step)
+        return step
+
+    def _freeze(self) -> Step:
         k = len(self.landmarks)
         return Step(
             index=self.index,
@@ -121,7 +147,7 @@ class PendingStep:
             odometry_cov=self.odometry_cov,
             landmarks=tuple(self.landmarks),
             z=np.array(self.z, dtype=float).reshape(k, 2),
-            z_cov=np.array(self.z_cov, dtype=float).reshape(k, 2, 2),
+            z_cov=self.z_covariances(),
             prior=self.prior,
             prior_cov=self.prior_cov,
             merged=self.merged,
@@ -202,7 +228,18 @@ class FrontEnd:
                 self._seen.add(event.landmark)
             pending.landmarks.append(event.landmark)
             pending.z.append((event.range, event.bearing))
-            pending.z_cov.append(event.covariance)
+            pending.z_noise.append(event.sigma if event.cov is None else event.cov)
+        elif isinstance(event, Scan):
+            self.counts["observation"] = self.counts.get("observation", 0) + len(event.landmarks)
+            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            keep = range(len(event.landmarks))
+            if self.config.first_observation_only:
+                keep = [i for i, lid in enumerate(event.landmarks) if lid not in self._seen and not self._seen.add(lid)]
+                dropped = len(event.landmarks) - len(keep)
+                self.counts["dropped_repeat_observation"] = self.counts.get("dropped_repeat_observation", 0) + dropped
+            pending.landmarks.extend(event.landmarks[i] for i in keep)
+            pending.z.extend((event.ranges[i], event.bearings[i]) for i in keep)
+            pending.z_noise.extend(event.noise[i] for i in keep)
         elif isinstance(event, Truth):
             self._count("truth")
             pending = self.pending if self.pending is not None else self._start_pose(None, event.t)

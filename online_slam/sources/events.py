@@ -174,5 +174,33 @@ class LandmarkTruth:
         return {"type": "landmark_truth", "landmark": self.landmark, "position": list(self.position)}
 
 
+@dataclass(frozen=True)
+class Scan:
+    """Several observations taken at one time (the engine API's ``add_observations``; not a stream-v1 line)."""
+
+    t: float
+    """Time of the observations."""
+    landmarks: tuple[LandmarkId, ...]
+    """Identifiers of the observed landmarks, length k."""
+    ranges: tuple[float, ...]
+    """Distances, metres (> 0), length k."""
+    bearings: tuple[float, ...]
+    """Angles from the heading, radians, length k."""
+    noise: tuple
+    """Per observation, its sigma ``(s_range, s_bearing)`` or its 2x2 covariance (nested tuples), length k."""
+
+    def observations(self) -> list[Observation]:
+        """The same sightings as stream-v1 observation events."""
+        out = []
+        for lid, r, b, n in zip(self.landmarks, self.ranges, self.bearings, self.noise):
+            full = isinstance(n[0], tuple)
+            out.append(Observation(self.t, lid, r, b, sigma=None if full else n, cov=n if full else None))
+        return out
+
+    def to_record(self) -> dict[str, Any]:
+        """Not a stream-v1 line: scans are written as their observations."""
+        raise TypeError("a scan is written as one observation line per sighting (see observations())")
+
+
 Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth
 """Any event of stream format v1."""

@@ -24,6 +24,7 @@ from online_slam.sources.events import (
     LandmarkTruth,
     Observation,
     Odometry,
+    Scan,
     Start,
     Truth,
 )
@@ -39,6 +40,14 @@ def _show(value: Any, limit: int = 60) -> str:
     except (TypeError, ValueError, RecursionError):
         text = repr(type(value).__name__)
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _nesting(value: Any) -> int:
+    """How deeply lists nest at the front of a value (0 for a scalar)."""
+    depth = 0
+    while isinstance(value, (list, tuple)) and len(value):
+        value, depth = value[0], depth + 1
+    return depth
 
 
 def _finite(value: Any) -> bool | None:
@@ -67,7 +76,7 @@ SIGMA_RANGE = (1e-8, 1e8)
 """Allowed standard deviations (and square roots of covariance eigenvalues)."""
 
 
-@dataclass
+@dataclass(slots=True)
 class ValidatorState:
     """What the cross-line rules remember (saved in checkpoints)."""
 
@@ -90,6 +99,7 @@ class EventValidator:
         self.name = name
         self.state = state or ValidatorState()
         self._pending = ValidatorState()
+        self._parsers = {kind: getattr(self, f"_{kind}") for kind in FIELDS}
 
     def fail(self, line: int, field: str, message: str) -> InputError:
         return InputError(self.name, line, field, message)
@@ -125,16 +135,101 @@ class EventValidator:
             shown = _show(kind)
             raise self.fail(line, "type", f"unknown event type {shown}; expected one of {expected}")
         if kind != "header":
-            unknown = set(record) - FIELDS[kind]
+            unknown = record.keys() - FIELDS[kind]
             if unknown:
                 raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for a {kind} event")
-        self._pending = ValidatorState(self.state.last_t, self.state.first_pose_t, self.state.seen_content)
-        event = getattr(self, f"_{kind}")(record, line)
+        state = self.state
+        self._pending = ValidatorState(state.last_t, state.first_pose_t, state.seen_content)
+        event = self._parsers[kind](record, line)
         self.state = self._pending
         return event
 
+    def parse_scan(
+        self, t: Any, landmarks: Any, ranges: Any, bearings: Any, sigma: Any = None, cov: Any = None
+    ) -> Scan:
+        """Validate k sightings taken at one time as a whole: all are accepted, or none (state unchanged).
+
+        Each sighting obeys the rules of an ``observation`` line. ``sigma`` (2,) or ``cov`` (2, 2) is shared by
+        all sightings, or given per sighting as (k, 2) / (k, 2, 2). Errors name the sighting: ``range[3]``.
+
+        Raises:
+            InputError: The first rule a sighting breaks.
+        """
+        if not isinstance(landmarks, (list, tuple)):
+            raise self.fail(0, "landmarks", f"expected a list of ids, got {_show(landmarks)}")
+        k = len(landmarks)
+        for key, values in (("ranges", ranges), ("bearings", bearings)):
+            if not isinstance(values, (list, tuple)) or len(values) != k:
+                raise self.fail(0, key, f"expected a list of {k} numbers (one per landmark), got {_show(values)}")
+        noise_key, noise = ("cov", cov) if cov is not None else ("sigma", sigma)
+        if sigma is not None and cov is not None:
+            raise self.fail(0, "cov", "give either sigma or cov, not both")
+        if noise is None:
+            raise self.fail(0, "sigma", "missing noise: give sigma or cov")
+        depth = 2 if noise_key == "cov" else 1  # nesting of one sighting's noise
+        per_sighting = _nesting(noise) > depth
+        if per_sighting and (not isinstance(noise, list) or len(noise) != k):
+            raise self.fail(0, noise_key, f"expected one {noise_key} shared by all sightings or one per sighting")
+        saved = self.state
+        trial = EventValidator(self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content))
+        trial._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
+        t_value = trial.time({"t": t}, 0)
+        fast = self._scan_fast(landmarks, ranges, bearings) if not per_sighting else None
+        if fast is not None:
+            shared = trial.noise({noise_key: noise}, 2, 0)
+            one = shared[0] if shared[0] is not None else shared[1]
+            scan = Scan(t_value, tuple(landmarks), fast[0], fast[1], (one,) * k)
+        else:  # one sighting at a time: the exact error of the first bad one
+            events = []
+            for i in range(k):
+                record = {"type": "observation", "t": t, "landmark": landmarks[i], "range": ranges[i]}
+                record["bearing"] = bearings[i]
+                record[noise_key] = noise[i] if per_sighting else noise
+                try:
+                    events.append(trial.parse_record(record))
+                except InputError as exc:
+                    head, bracket, rest = exc.field.partition("[")
+                    if head in ("landmark", "range", "bearing") or per_sighting:
+                        field = f"{head}[{i}]{bracket}{rest}"
+                    else:
+                        field = exc.field
+                    raise self.fail(0, field, exc.message) from None
+            noises = tuple(e.sigma if e.cov is None else e.cov for e in events)
+            scan = Scan(
+                t_value,
+                tuple(landmarks),
+                tuple(e.range for e in events),
+                tuple(e.bearing for e in events),
+                noises,
+            )
+        trial._pending.seen_content = True
+        self.state = trial._pending
+        return scan
+
+    @staticmethod
+    def _scan_fast(landmarks: Any, ranges: Any, bearings: Any) -> tuple[tuple, tuple] | None:
+        """Ranges and bearings as float tuples when every sighting plainly passes, else None (check one by one)."""
+        for lid in landmarks:
+            if type(lid) is not int and (type(lid) is not str or lid == ""):
+                return None
+        try:
+            r = np.asarray(ranges)
+            b = np.asarray(bearings)
+        except (ValueError, TypeError, OverflowError):
+            return None
+        if r.dtype.kind not in "fi" or b.dtype.kind not in "fi" or r.ndim != 1 or b.ndim != 1:
+            return None
+        r, b = r.astype(float), b.astype(float)
+        limit = MAX_MAGNITUDE
+        if not (np.all(r > 0.0) and np.all(r <= limit) and np.all(np.abs(b) <= limit)):  # NaN fails too
+            return None
+        return tuple(r.tolist()), tuple(b.tolist())
+
     # -- field helpers -------------------------------------------------------------------------
     def number(self, record: dict[str, Any], key: str, line: int) -> float:
+        value = record.get(key)
+        if type(value) is float and -MAX_MAGNITUDE <= value <= MAX_MAGNITUDE:  # the common case (NaN fails)
+            return value
         if key not in record:
             raise self.fail(line, key, "missing required field")
         value = record[key]
@@ -153,6 +248,11 @@ class EventValidator:
         value = record[key]
         if not isinstance(value, list) or len(value) != n:
             raise self.fail(line, key, f"expected a list of {n} numbers, got {_show(value)}")
+        for v in value:  # the common case first: finite floats in range (NaN fails the comparison)
+            if type(v) is not float or not -MAX_MAGNITUDE <= v <= MAX_MAGNITUDE:
+                break
+        else:
+            return tuple(value)
         out = []
         for i, item in enumerate(value):
             ok = _finite(item)

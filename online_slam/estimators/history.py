@@ -1,0 +1,40 @@
+"""An append-only record of poses that no longer change, readable without copying."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+
+class PoseHistory:
+    """Poses in order, appended once and never rewritten (amortized O(1) per append).
+
+    :meth:`view` returns a read-only view of the rows so far; later appends never change those rows (a growth
+    moves the buffer, and an old view keeps the old one), so a view is a valid snapshot for as long as it lives.
+    """
+
+    def __init__(self, rows: Array | None = None) -> None:
+        rows = np.zeros((0, 3)) if rows is None else np.asarray(rows, dtype=float).reshape(-1, 3)
+        self._buffer = np.empty((max(64, 2 * len(rows)), 3))
+        self._buffer[: len(rows)] = rows
+        self._n = len(rows)
+
+    def __len__(self) -> int:
+        return self._n
+
+    def append(self, pose: Array) -> None:
+        """Add the next pose, shape (3,)."""
+        if self._n == len(self._buffer):
+            grown = np.empty((2 * len(self._buffer), 3))
+            grown[: self._n] = self._buffer[: self._n]
+            self._buffer = grown
+        self._buffer[self._n] = pose
+        self._n += 1
+
+    def view(self) -> Array:
+        """The poses so far, shape (N, 3), read-only, without a copy."""
+        out = self._buffer[: self._n]
+        out.flags.writeable = False
+        return out
