@@ -25,9 +25,9 @@ from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfi
 from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results, Series
 from online_slam.evaluation.scoring import evaluate, online_figures, truth_array
 from online_slam.frontend.steps import FrontEndConfig
+from online_slam.importers.resolve import open_source
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event
-from online_slam.sources.resolve import open_source
 
 Array = NDArray[np.float64]
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("rerun", reason="rerun-sdk is not installed")
@@ -56,6 +57,21 @@ def test_recording_reads_back_with_the_json_figures(square_recording: tuple[Path
     assert expected <= set(paths)
     ekf = last["estimators"]["ekf"]
     assert ekf["landmarks"] == 12 and abs(ekf["pose"][0]) < 0.2 and abs(ekf["pose"][1]) < 0.2
+
+
+def test_recorded_errors_are_the_tables_even_after_se2_alignment(tmp_path: Path) -> None:
+    rrd, out = tmp_path / "se2.rrd", tmp_path / "se2.json"
+    done = cli("replay", "square", "--align", "se2", "--rrd", str(rrd), "--json", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    results = json.loads(out.read_text())
+    with Recording(rrd) as recording:
+        for name in ("ekf", "smoother"):
+            steps, errors = recording.metric(name, "position_error_m")
+            assert steps == list(range(25))
+            rmse = float(np.sqrt(np.mean(np.square(errors))))
+            assert rmse == pytest.approx(results["estimators"][name]["online_rmse_m"], rel=1e-6)  # float32 in Rerun
+            _, nees = recording.metric(name, "nees")
+            assert np.mean(nees) == pytest.approx(results["estimators"][name]["nees_mean"], rel=1e-5)
 
 
 def test_default_blueprint_is_in_the_recording(square_recording: tuple[Path, dict]) -> None:

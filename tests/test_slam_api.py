@@ -309,3 +309,56 @@ def test_each_kind_of_bad_input_names_its_field(call, field: str) -> None:
         call(slam)
     assert caught.value.field == field and caught.value.source.startswith("Slam.")
     assert _fingerprint(slam) == before
+
+
+# -- scans ---------------------------------------------------------------------------------------------------
+
+
+def test_scans_equal_single_sightings() -> None:
+    events = list(grid_world(GridConfig(poses=200, landmarks=40, seed=9)))
+    one, scans = Slam("smoother"), Slam("smoother")
+    pending: list[Observation] = []
+
+    def flush() -> None:
+        if pending:
+            o = pending[0]
+            scans.add_observations(
+                o.t, [p.landmark for p in pending], np.array([p.range for p in pending]),
+                np.array([p.bearing for p in pending]), sigma=np.array(o.sigma),
+            )  # fmt: skip
+            pending.clear()
+
+    for event in events:
+        if isinstance(event, Observation):
+            one.add(event)
+            if pending and (event.t != pending[0].t or event.sigma != pending[0].sigma):
+                flush()
+            pending.append(event)
+        elif isinstance(event, (Odometry, Start)):
+            one.add(event)
+            flush()
+            if isinstance(event, Odometry):
+                scans.add_odometry(event.t, event.delta, sigma=event.sigma)
+            else:
+                scans.start(event.t, event.pose, event.sigma, event.cov)
+    flush()
+    np.testing.assert_array_equal(one.estimate().trajectory, scans.estimate().trajectory)
+
+
+def test_a_bad_sighting_rejects_the_whole_scan() -> None:
+    slam = _warm_slam("smoother")
+    before = _fingerprint(slam)
+    with pytest.raises(InputError) as caught:
+        slam.add_observations(100.0, [1, 2, 3, 4], [1.0, 2.0, 3.0, -4.0], [0.1, 0.2, 0.3, 0.4], sigma=[0.1, 0.01])
+    assert caught.value.field == "range[3]" and "range > 0" in caught.value.message
+    with pytest.raises(InputError) as caught:
+        slam.add_observations(100.0, [1, True], [1.0, 2.0], [0.1, 0.2], sigma=[[0.1, 0.01], [0.1, 0.0]])
+    assert caught.value.field == "landmark[1]"
+    with pytest.raises(InputError) as caught:
+        slam.add_observations(100.0, [1, 2], [1.0, 2.0], [0.1, 0.2], sigma=[[0.1, 0.01], [0.1, 0.0]])
+    assert caught.value.field == "sigma[1][1]"
+    with pytest.raises(InputError, match="ranges"):
+        slam.add_observations(100.0, [1, 2], [1.0], [0.1, 0.2], sigma=[0.1, 0.01])
+    assert _fingerprint(slam) == before
+    slam.add_observations(100.0, [1, "new"], [1.0, 2.0], [0.1, 0.2], cov=np.diag([0.01, 1e-4]))
+    assert "new" in slam.estimate().landmarks

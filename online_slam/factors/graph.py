@@ -363,10 +363,3 @@ class DenseAssembler:
         H = np.bincount(self._h_index, np.concatenate(h_value), minlength=n * n).reshape(n, n)
         g = np.bincount(self._g_index, np.concatenate(g_value), minlength=n)
         return H, g, total
-
-
-def normal_equations(
-    graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array, loss: RobustLoss | None = None
-) -> tuple[Array, Array, float]:
-    """Dense normal equations and cost in one call (see :class:`DenseAssembler`, which caches the layout)."""
-    return DenseAssembler(graph, sparse)(poses, landmarks, loss)

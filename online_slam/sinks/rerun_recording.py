@@ -18,7 +18,6 @@ unchanged maps not at all, and landmark covariance ellipses every ``map_every`` 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import re
@@ -40,7 +39,6 @@ from online_slam.errors import OnlineSlamError
 from online_slam.estimators.protocol import Snapshot
 from online_slam.evaluation.results import Results
 from online_slam.frontend.steps import GroundTruth, Step
-from online_slam.geometry.angles import wrap
 from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.reports.palette import COLORS
 from online_slam.sinks.geometry import ellipses
@@ -130,6 +128,9 @@ class _Columns:
 
     def add(self, entity: str, kind: str, step: Step, value: Any) -> None:
         self.rows.setdefault((entity, kind), []).append((step.index, step.t, value))
+
+    def add_at(self, entity: str, kind: str, index: int, t: float, value: Any) -> None:
+        self.rows.setdefault((entity, kind), []).append((index, t, value))
 
     def flush(self) -> None:
         for (entity, kind), rows in self.rows.items():
@@ -277,18 +278,6 @@ class RerunSink:
                 )
             if snap.wall_s is not None:
                 add(f"metrics/{name}/step_ms", "scalar", step, 1e3 * snap.wall_s)
-            if true_pose is not None:
-                add(
-                    f"metrics/{name}/position_error_m",
-                    "scalar",
-                    step,
-                    float(np.hypot(*(snap.pose[:2] - true_pose[:2]))),
-                )
-                if snap.pose_cov is not None:
-                    e = snap.pose - true_pose
-                    e[2] = wrap(e[2])
-                    with contextlib.suppress(np.linalg.LinAlgError):
-                        add(f"metrics/{name}/nees", "scalar", step, float(e @ np.linalg.solve(snap.pose_cov, e)))
             events += self._events(name, snap, step)
         current = next((snapshots[n] for n in ("smoother", "ekf", "odometry") if n in snapshots), None)
         rays: list[Array] = []
@@ -342,6 +331,13 @@ class RerunSink:
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
         """Send what is buffered, the batch solution at the last step, the summary; close the file."""
         rec = self.rec
+        # Errors and NEES as the table computes them (same frame and alignment: known only at the end).
+        for name, series in results.series.items():
+            for entity, values in (("position_error_m", series.position_error_m), ("nees", series.nees)):
+                for index in np.flatnonzero(np.isfinite(values)):
+                    self.columns.add_at(
+                        f"metrics/{name}/{entity}", "scalar", int(index), float(series.t[index]), float(values[index])
+                    )
         self.columns.flush()
         if self._last_step is not None:
             self._time(self._last_step)
@@ -483,6 +479,15 @@ class Recording:
             results=results,
             latency_ms=latency,
         )
+
+    def metric(self, estimator: str, name: str) -> tuple[list[int], list[float]]:
+        """One logged per-step figure (e.g. ``position_error_m``, ``nees``): (steps, values) in step order."""
+        entity = f"/metrics/{estimator}/{name}"
+        table = self._table([entity], "step")
+        values = _column(table, f"{entity}:Scalars:scalars")
+        steps = table.column("step").to_pylist() if "step" in table.column_names else []
+        pairs = sorted((int(st), float(v[0])) for st, v in zip(steps, values) if st is not None and v)
+        return [p[0] for p in pairs], [p[1] for p in pairs]
 
     def entity_paths(self) -> list[str]:
         """Entity paths that hold data on the ``step`` timeline."""

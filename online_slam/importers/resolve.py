@@ -1,4 +1,7 @@
-"""Resolve a user's SOURCE argument: a built-in world name, a stream file, a ``.gz`` file, or ``-``."""
+"""Resolve a user's SOURCE argument: a built-in world, a stream file (``.gz`` allowed), ``-``, or a dataset.
+
+It lives with the importers, which it dispatches to, so that ``sources`` never depends on ``importers``.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from online_slam.errors import InputError
+from online_slam.importers.detect import detect_format, open_dataset
 from online_slam.sources.events import Event
 from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
@@ -29,8 +33,6 @@ def open_source(spec: str | Path, **dataset_options: object) -> tuple[str, Itera
     text = str(spec)
     if text in WORLDS and not Path(text).exists():
         return text, WORLDS[text]()
-    from online_slam.importers.detect import detect_format, open_dataset
-
     kind = dataset_options.pop("format", None) or (detect_format(text) if text != "-" else None)
     if kind is not None:
         options = {k: v for k, v in dataset_options.items() if v is not None}
