@@ -8,6 +8,7 @@ average NEES across runs against its chi-square bounds.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -17,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
-from online_slam.errors import OnlineSlamError
+from online_slam.errors import InputError, OnlineSlamError
 from online_slam.evaluation.results import Results
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.worlds import GridConfig, grid_world, square_world
@@ -109,6 +110,7 @@ class Comparison:
             "observations": self.results.observations,
             "alignment": self.results.alignment,
             "estimators": {name: row.__dict__ for name, row in self.rows.items()},
+            "input": self.results.input.to_json(),
         }
         if self.monte_carlo is not None:
             out["monte_carlo"] = dict(self.monte_carlo.__dict__, seeds=list(self.monte_carlo.seeds))
@@ -196,12 +198,15 @@ def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict
     return rows_of(results), {name: s.nees for name, s in results.series.items()}
 
 
-def compare(source: str | Path, config: CompareConfig | None = None) -> Comparison:
+def compare(
+    source: str | Path, config: CompareConfig | None = None, on_skip: Callable[[InputError], None] | None = None
+) -> Comparison:
     """Run EKF, smoother configurations and batch on the same stream; optionally Monte Carlo over seeds.
 
     Args:
         source: A stream path, ``-``, or a built-in world (``square``, ``grid``).
         config: Smoother grid, replay settings, Monte Carlo runs.
+        on_skip: Told of each bad line skipped (``config.replay.on_error == "skip"``).
 
     Returns:
         The comparison (table rows, per-step series through ``results``, Monte Carlo figures).
@@ -212,7 +217,7 @@ def compare(source: str | Path, config: CompareConfig | None = None) -> Comparis
     if any(w < 1 for w in cfg.windows) or any(k < 1 for k in cfg.relinearize_every):
         raise OnlineSlamError("smoother windows and relinearization periods must be >= 1")
     replay_config = _replay_config(cfg)
-    results = replay(source, replay_config)
+    results = replay(source, replay_config, on_skip=on_skip)
     rows = rows_of(results)
     monte_carlo = None
     if cfg.runs > 1:

@@ -24,6 +24,26 @@ class InputError(OnlineSlamError):
         self.message = message
         super().__init__(str(self))
 
+    @property
+    def reason(self) -> str:
+        """A short category of the error, for counts of skipped lines (e.g. ``time_order``, ``not_finite``)."""
+        message, field = self.message, self.field
+        rules = (
+            (message.startswith("invalid JSON"), "invalid_json"),
+            (message.startswith("expected a JSON object"), "not_an_object"),
+            (message.startswith("unknown event type"), "unknown_type"),
+            (message.startswith("unknown field"), "unknown_field"),
+            (message.startswith("missing"), "missing_field"),
+            ("a finite number" in message, "not_finite"),
+            ("magnitude" in message, "out_of_range"),
+            ("range > 0" in message, "range_not_positive"),
+            (field.startswith(("sigma", "cov")), "bad_noise"),
+            (field == "t", "time_order"),
+            (field in ("type", "format", "version"), "out_of_order"),
+            ("gzip" in message or "UTF-8" in message, "corrupt_data"),
+        )
+        return next((name for hit, name in rules if hit), "wrong_value")
+
     def __str__(self) -> str:
         where = f"{self.source}:{self.line}" if self.line else self.source
         what = f"{self.field}: {self.message}" if self.field else self.message

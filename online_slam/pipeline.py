@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +22,7 @@ from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
-from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results, Series
+from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
 from online_slam.evaluation.scoring import evaluate, online_figures, truth_array
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.importers.resolve import open_source
@@ -55,6 +55,13 @@ class ReplayConfig:
     """Frame for errors: ``anchor`` (first pose with truth) or ``se2`` (least-squares rigid alignment)."""
     dataset: dict = field(default_factory=dict)
     """Options for dataset sources: ``format``, ``robot`` (MRCLAM), ``truth``, ``dt``, ``convention``."""
+    on_error: str = "stop"
+    """A bad line of a stream file or stdin: ``stop`` the replay there (figures cover what came before), or
+    ``skip`` it and go on (counted in ``Results.input``; the results equal those of the stream without it)."""
+
+    def __post_init__(self) -> None:
+        if self.on_error not in ("stop", "skip"):
+            raise OnlineSlamError(f"on_error must be 'stop' or 'skip', not {self.on_error!r}")
 
 
 def make_estimator(name: str, config: ReplayConfig) -> Estimator:
@@ -94,6 +101,7 @@ def replay(
     *,
     name: str | None = None,
     sinks: Sequence[ReplaySink] = (),
+    on_skip: Callable[[InputError], None] | None = None,
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -102,6 +110,7 @@ def replay(
         config: What to run; defaults run dead reckoning, the EKF, the smoother and the batch solver.
         name: Source name for reports (defaults to the path or world name).
         sinks: Given every step with all estimators' snapshots (``wall_s`` set), then the results.
+        on_skip: With ``config.on_error == "skip"``, told of each skipped line (e.g. to print it).
 
     Returns:
         The results. When the input turns bad part-way, the results cover every step before the bad line
@@ -117,8 +126,15 @@ def replay(
     names = [e.name for e in estimators]
     if len(set(names)) != len(names):
         raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")
+    skipped: dict[str, int] = {}
+
+    def skip(error: InputError) -> None:
+        skipped[error.reason] = skipped.get(error.reason, 0) + 1
+        if on_skip is not None:
+            on_skip(error)
+
     if isinstance(source, (str, Path)):
-        label, events = open_source(source, **dict(cfg.dataset))
+        label, events = open_source(source, skip if cfg.on_error == "skip" else None, **dict(cfg.dataset))
     else:
         label, events = "<events>", iter(source)
     label = name or label
@@ -202,6 +218,7 @@ def replay(
         truth_poses=truth_array(truth, steps),
         truth_landmarks=dict(truth.landmarks),
         error=error,
+        input=InputReport(sum(skipped.values()), skipped),
     )
     for sink in sinks:
         sink.on_finish(results, truth)

@@ -6,7 +6,7 @@ import argparse
 import sys
 from dataclasses import replace
 
-from online_slam.cli.replay import config_from, write_json
+from online_slam.cli.replay import config_from, report_skip, write_json
 from online_slam.compare import CompareConfig, compare
 from online_slam.errors import OnlineSlamError
 from online_slam.reports.compare_table import format_comparison
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         runs=args.runs,
         workers=args.workers,
     )
-    comparison = compare(args.source, config)
+    comparison = compare(args.source, config, on_skip=report_skip)
     if not args.quiet:
         print(format_comparison(comparison))
     if args.json:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from online_slam.cli.replay import add_on_error, on_error_of, report_skip
 from online_slam.errors import OnlineSlamError
 from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP, open_dataset
 from online_slam.sources.stream import write_stream
@@ -27,6 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dt", type=float, help="synthetic seconds per pose for files without timestamps (default 1)")
     p.add_argument("--convention", choices=("gtsam", "isam"), help="GTSAM/iSAM text noise convention")
     p.add_argument("--poses", type=int, help="keep only the first N poses (for shipped excerpts)")
+    add_on_error(p)
 
 
 def _first_poses(events, limit: int | None):  # noqa: ANN001, ANN202 - a generator filter
@@ -51,8 +53,13 @@ def run(args: argparse.Namespace) -> int:
 
         if not str(args.output).endswith(".g2o"):
             raise OnlineSlamError("convert stream: the output must be a .g2o file")
-        lines = write_g2o(args.output, _first_poses(read_stream(args.input), args.poses))
+        on_error = report_skip if on_error_of(args, args.input) == "skip" else None
+        lines = write_g2o(args.output, _first_poses(read_stream(args.input, on_error), args.poses))
     else:
+        if args.on_error == "skip":
+            raise OnlineSlamError(
+                "convert: --on-error skip applies to stream input; dataset readers stop at a bad record"
+            )
         options = {
             "robot": args.robot,
             "noise": args.noise,

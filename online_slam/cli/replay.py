@@ -8,7 +8,7 @@ import math
 import sys
 from pathlib import Path
 
-from online_slam.errors import OnlineSlamError
+from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig
 from online_slam.estimators.smoother import SmootherConfig
@@ -116,7 +116,28 @@ def add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--convention", choices=("gtsam", "isam"), help="GTSAM/iSAM text noise convention (default: detected)"
     )
+    add_on_error(p)
     p.add_argument("--quiet", action="store_true", help="print no table and no progress")
+
+
+def add_on_error(p: argparse.ArgumentParser) -> None:
+    """``--on-error``, shared by replay, compare and convert."""
+    p.add_argument(
+        "--on-error",
+        choices=("stop", "skip"),
+        help="a bad line of a stream: stop there (default for files) or report it on stderr and skip it "
+        "(default for stdin: a live stream goes on)",
+    )
+
+
+def on_error_of(args: argparse.Namespace, source: str) -> str:
+    """The ``--on-error`` policy asked for, or the default for this source (skip for stdin, else stop)."""
+    return args.on_error or ("skip" if str(source) == "-" else "stop")
+
+
+def report_skip(error: InputError) -> None:
+    """Tell the user about one skipped line, once, on stderr."""
+    print(f"online-slam: skipped {error}", file=sys.stderr)
 
 
 def write_json(destination: str, document: dict) -> None:
@@ -167,6 +188,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
             "convention": args.convention,
         },
         alignment=args.align,
+        on_error=on_error_of(args, args.source),
     )
 
 
@@ -194,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     sinks = sinks_from(args, config)
-    results = replay(args.source, config, sinks=sinks)
+    results = replay(args.source, config, sinks=sinks, on_skip=report_skip)
     if not args.quiet:
         print(format_results(results))
     if args.json:

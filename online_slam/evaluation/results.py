@@ -106,6 +106,20 @@ class Series:
 
 
 @dataclass(frozen=True)
+class InputReport:
+    """What the reader skipped (``--on-error skip``)."""
+
+    skipped_lines: int = 0
+    """Bad lines skipped."""
+    skipped_by_reason: dict[str, int] = field(default_factory=dict)
+    """Their count by reason (``invalid_json``, ``time_order``, ``not_finite``, ``unknown_type``, ...)."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``"input"`` object of the results JSON."""
+        return {"skipped_lines": self.skipped_lines, "skipped_by_reason": dict(sorted(self.skipped_by_reason.items()))}
+
+
+@dataclass(frozen=True)
 class Results:
     """Everything a replay produced."""
 
@@ -133,6 +147,8 @@ class Results:
     """True landmark positions by id."""
     error: str | None = None
     """The input error that ended the stream early, or None; the figures cover what came before it."""
+    input: InputReport = field(default_factory=InputReport)
+    """Lines skipped by the reader (``--on-error skip``)."""
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON schema of ``online-slam replay --json``."""
@@ -148,5 +164,6 @@ class Results:
                 "landmark_rmse_m": _finite_or_none(self.odometry.landmark_rmse_m),
             },
             "estimators": {name: result.to_json() for name, result in self.estimators.items()},
+            "input": self.input.to_json(),
             "error": self.error,
         }

@@ -5,7 +5,7 @@ It lives with the importers, which it dispatches to, so that ``sources`` never d
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from online_slam.errors import InputError
@@ -15,13 +15,17 @@ from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
 
 
-def open_source(spec: str | Path, **dataset_options: object) -> tuple[str, Iterator[Event]]:
+def open_source(
+    spec: str | Path, on_error: Callable[[InputError], None] | None = None, **dataset_options: object
+) -> tuple[str, Iterator[Event]]:
     """Open a source lazily.
 
     Args:
         spec: A built-in world name (``square``, ``grid``) unless a file of that name exists; a path to a
             stream-v1 file (``.gz`` allowed); ``-`` for standard input; or a dataset (an MRCLAM folder, a
             GTSAM/iSAM text file, a ``.g2o`` file), converted on the fly.
+        on_error: Stream files and stdin: given each bad line, which is then skipped (None: the first one
+            raises). Datasets and built-in worlds ignore it (an importer stops at its first bad record).
         dataset_options: Passed to the dataset importer (``robot``, ``truth``, ``dt``, ``convention``, ``format``).
 
     Returns:
@@ -40,4 +44,4 @@ def open_source(spec: str | Path, **dataset_options: object) -> tuple[str, Itera
     if text != "-" and not Path(text).is_file():
         worlds = ", ".join(sorted(WORLDS))
         raise InputError(text, 0, "", f"no such file (and not a built-in world: {worlds})")
-    return source_name(text), read_stream(text)
+    return source_name(text), read_stream(text, on_error)

@@ -46,6 +46,9 @@ def format_comparison(comparison: Comparison) -> str:
         out.append("  ".join([line[0].ljust(widths[0]), *(c.rjust(w) for c, w in zip(line[1:], widths[1:]))]))
     if r.alignment != "anchor":
         out.append(f"\nerrors after {r.alignment} alignment")
+    if r.input.skipped_lines:
+        reasons = ", ".join(f"{k}: {v}" for k, v in sorted(r.input.skipped_by_reason.items()))
+        out.append(f"input: {r.input.skipped_lines} bad lines skipped ({reasons})")
     mc = comparison.monte_carlo
     if mc is not None:
         low, high = mc.anees_bounds

@@ -63,6 +63,9 @@ def format_results(results: Results) -> str:
             )
         if "gated_observations" in d:
             notes.append(f"{name}: {d['gated_observations']} observations rejected by the chi-square gate")
+    if results.input.skipped_lines:
+        reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
+        notes.append(f"input: {results.input.skipped_lines} bad lines skipped ({reasons})")
     if results.error:
         notes.append(f"stopped early at bad input; figures cover the {results.poses} poses before it")
     if notes:

@@ -12,7 +12,7 @@ import io
 import json
 import sys
 import zlib
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import IO
 
@@ -38,17 +38,20 @@ def _open_text(path: str | Path) -> IO[str]:
         raise InputError(str(path), 0, "", f"cannot open: {exc.strerror or exc}") from None
 
 
-def read_stream(path: str | Path) -> Iterator[Event]:
+def read_stream(path: str | Path, on_error: Callable[[InputError], None] | None = None) -> Iterator[Event]:
     """Read a stream v1 file lazily.
 
     Args:
         path: A ``.jsonl`` path, a ``.gz`` path, or ``-`` for standard input.
+        on_error: None: the first bad line raises. Otherwise each bad line is given to this function and
+            skipped (the validator's state is as if the line were absent); data that cannot be read on
+            (truncated gzip, bytes that are not UTF-8) still raises.
 
     Yields:
         Events in file order.
 
     Raises:
-        InputError: On the first bad line (or an unreadable/truncated file).
+        InputError: On the first bad line without ``on_error`` (or an unreadable/truncated file).
     """
     name = source_name(path)
     handle = _open_text(path)
@@ -68,7 +71,14 @@ def read_stream(path: str | Path) -> Iterator[Event]:
                 number += 1
                 if not line.strip():
                     continue
-                yield validator.parse_line(line, number)
+                try:
+                    event = validator.parse_line(line, number)
+                except InputError as exc:
+                    if on_error is None:
+                        raise
+                    on_error(exc)
+                    continue
+                yield event
     finally:
         handle.close()
 
