@@ -110,6 +110,7 @@ def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:
                     archive.writestr(name, data)
             raw.flush()
             os.fsync(raw.fileno())
+        os.chmod(temporary, 0o644)
         os.replace(temporary, target)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

@@ -119,8 +119,10 @@ class Engine:
             "seconds": dict(self._seconds),
             "frontend": {
                 "header": None if fe.header is None else {"name": fe.header.name, "meta": fe.header.meta},
-                "truth_poses": [[i, pose] for i, pose in fe.truth.poses.items()],
-                "truth_landmarks": [[lid, pos] for lid, pos in fe.truth.landmarks.items()],
+                "truth_indices": np.array(list(fe.truth.poses), dtype=np.int64),
+                "truth_poses": np.array(list(fe.truth.poses.values()), dtype=float).reshape(-1, 3),
+                "truth_landmark_ids": list(fe.truth.landmarks),
+                "truth_landmarks": np.array(list(fe.truth.landmarks.values()), dtype=float).reshape(-1, 2),
                 "counts": dict(fe.counts),
                 "seen": list(fe._seen),
                 "pending": None if pending is None else _pending_state(pending),
@@ -139,8 +141,10 @@ class Engine:
         fe, saved = self.frontend, state["frontend"]
         header = saved["header"]
         fe.header = None if header is None else Header(name=header["name"], meta=dict(header["meta"]))
-        fe.truth.poses = {int(i): np.array(p, dtype=float) for i, p in saved["truth_poses"]}
-        fe.truth.landmarks = {lid: np.array(p, dtype=float) for lid, p in saved["truth_landmarks"]}
+        poses = np.array(saved["truth_poses"], dtype=float).reshape(-1, 3)
+        fe.truth.poses = {int(i): p.copy() for i, p in zip(saved["truth_indices"], poses)}
+        positions = np.array(saved["truth_landmarks"], dtype=float).reshape(-1, 2)
+        fe.truth.landmarks = {lid: p.copy() for lid, p in zip(saved["truth_landmark_ids"], positions)}
         fe.counts = {str(k): int(v) for k, v in saved["counts"].items()}
         fe._seen = set(saved["seen"])
         fe.pending = None if saved["pending"] is None else _pending_from(saved["pending"])

@@ -7,14 +7,18 @@ the JSON file and later sinks all read.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import itertools
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, StepRecord
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
@@ -95,6 +99,72 @@ class _Track:
         self.nis.append(float(np.nanmean(nis)) if np.isfinite(nis).any() else np.nan)
 
 
+@dataclass(frozen=True)
+class Checkpointing:
+    """Where and how often a replay saves its whole state (see :func:`replay`)."""
+
+    directory: Path
+    """Folder of the checkpoint (``replay.ckpt`` inside it, replaced atomically each time)."""
+    every: int = 100
+    """Steps between checkpoints (>= 1)."""
+
+    def __post_init__(self) -> None:
+        if self.every < 1:
+            raise OnlineSlamError("--checkpoint-every must be >= 1")
+
+
+CHECKPOINT_FILE = "replay.ckpt"
+"""Name of the checkpoint file inside a checkpoint folder."""
+_FINGERPRINT_EVENTS = 1000
+
+
+class _SourcePosition:
+    """Counts the events taken from the source and fingerprints them (the first 1000, and the last one)."""
+
+    def __init__(self) -> None:
+        self.consumed = 0
+        self._head = hashlib.sha256()
+        self.last = ""
+
+    def take(self, event: Event) -> None:
+        self.consumed += 1
+        self.last = repr(event)
+        if self.consumed <= _FINGERPRINT_EVENTS:
+            self._head.update(self.last.encode())
+
+    @property
+    def fingerprint(self) -> str:
+        return f"{self.consumed}:{self._head.hexdigest()}:{hashlib.sha256(self.last.encode()).hexdigest()}"
+
+
+def _tracks_state(tracks: dict[str, _Track]) -> dict[str, Any]:
+    out = {}
+    for name, track in tracks.items():
+        covs = np.array([np.full((3, 3), np.nan) if c is None else c for c in track.covariances]).reshape(-1, 3, 3)
+        out[name] = {
+            "poses": np.array(track.poses).reshape(-1, 3),
+            "covariances": covs,
+            "has_covariance": np.array([c is not None for c in track.covariances], dtype=bool),
+            "seconds": np.array(track.seconds, dtype=float),
+            "times": np.array(track.times, dtype=float),
+            "nis": np.array(track.nis, dtype=float),
+        }
+    return out
+
+
+def _load_tracks(tracks: dict[str, _Track], state: dict[str, Any]) -> None:
+    if sorted(state) != sorted(tracks):
+        raise ValueError("the checkpoint holds other estimators")
+    for name, track in tracks.items():
+        saved = state[name]
+        track.poses = [row.copy() for row in np.array(saved["poses"], dtype=float).reshape(-1, 3)]
+        covs = np.array(saved["covariances"], dtype=float).reshape(-1, 3, 3)
+        track.covariances = [c.copy() if ok else None for c, ok in zip(covs, saved["has_covariance"])]
+        track.seconds = [float(v) for v in saved["seconds"]]
+        track.times = [float(v) for v in saved["times"]]
+        track.nis = [float(v) for v in saved["nis"]]
+
+
 def replay(
     source: str | Path | Iterable[Event],
     config: ReplayConfig | None = None,
@@ -102,6 +172,8 @@ def replay(
     name: str | None = None,
     sinks: Sequence[ReplaySink] = (),
     on_skip: Callable[[InputError], None] | None = None,
+    checkpoint: Checkpointing | None = None,
+    resume: str | Path | None = None,
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -111,13 +183,19 @@ def replay(
         name: Source name for reports (defaults to the path or world name).
         sinks: Given every step with all estimators' snapshots (``wall_s`` set), then the results.
         on_skip: With ``config.on_error == "skip"``, told of each skipped line (e.g. to print it).
+        checkpoint: Save the whole state (estimators, position in the source, figures gathered so far) every
+            ``checkpoint.every`` steps, atomically.
+        resume: A checkpoint folder: continue the same source, with the same settings, from there. The source
+            is read again from its start and the events the checkpoint had consumed are skipped (and checked
+            against its fingerprint); the figures equal those of a run that never stopped (timings aside).
 
     Returns:
         The results. When the input turns bad part-way, the results cover every step before the bad line
         and ``Results.error`` holds the message.
 
     Raises:
-        InputError: When the input is bad before the first step is complete (nothing to report).
+        InputError: When the input is bad before the first step is complete (nothing to report); a damaged
+            checkpoint, one of another source, of other settings or of another format version.
     """
     cfg = config or ReplayConfig()
     estimators = [make_estimator(n, cfg) for n in cfg.estimators]
@@ -127,8 +205,12 @@ def replay(
     if len(set(names)) != len(names):
         raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")
     skipped: dict[str, int] = {}
+    position = _SourcePosition()
+    catching_up = 0  # events still to skip when resuming
 
     def skip(error: InputError) -> None:
+        if catching_up:  # counted before the checkpoint was written
+            return
         skipped[error.reason] = skipped.get(error.reason, 0) + 1
         if on_skip is not None:
             on_skip(error)
@@ -141,6 +223,37 @@ def replay(
     odometry = DeadReckoning()
     engine = Engine([odometry, *estimators], cfg.frontend)
     tracks = {e.name: _Track(e) for e in estimators}
+    settings = repr(cfg)
+    expected_fingerprint = None
+    if resume is not None:
+        where = Path(resume) / CHECKPOINT_FILE
+        state = read_checkpoint(where, "replay")
+        try:
+            if state["source"] != label:
+                raise InputError(
+                    str(where), 0, "", f"checkpoint of another source ({state['source']!r}, not {label!r})"
+                )
+            if state["settings"] != settings:
+                raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
+            engine.load_state(state["engine"])
+            _load_tracks(tracks, state["tracks"])
+            skipped.update({str(k): int(v) for k, v in state["skipped"].items()})
+            catching_up, expected_fingerprint = int(state["consumed"]), str(state["fingerprint"])
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise InputError(str(where), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
+
+    def save() -> None:
+        assert checkpoint is not None
+        state = {
+            "source": label,
+            "settings": settings,
+            "consumed": position.consumed,
+            "fingerprint": position.fingerprint,
+            "skipped": dict(skipped),
+            "engine": engine.state_dict(),
+            "tracks": _tracks_state(tracks),
+        }
+        write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
 
     def take(record: StepRecord | None) -> None:
         if record is None:
@@ -151,10 +264,20 @@ def replay(
             snapshots = {n: dataclasses.replace(s, wall_s=record.seconds[n]) for n, s in record.snapshots.items()}
             for sink in sinks:
                 sink.on_step(record.step, snapshots, engine.frontend.truth)
+        if checkpoint is not None and engine.steps % checkpoint.every == 0:
+            save()
 
+    events = iter(events)
+    if catching_up:  # read again what the checkpoint had consumed; it must be the same
+        for event in itertools.islice(events, catching_up):
+            position.take(event)
+        catching_up = 0
+        if position.fingerprint != expected_fingerprint:
+            raise InputError(str(resume), 0, "", "checkpoint of another source (its events differ from this one's)")
     error: str | None = None
     try:
         for event in events:
+            position.take(event)
             take(engine.push(event))
     except InputError as exc:
         if engine.steps == 0 and engine.frontend.pending is None:

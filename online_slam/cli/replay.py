@@ -15,7 +15,7 @@ from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.importers.detect import NOISE_HELP
-from online_slam.pipeline import ESTIMATORS, ReplayConfig, replay
+from online_slam.pipeline import ESTIMATORS, Checkpointing, ReplayConfig, replay
 from online_slam.reports.table import format_results
 from online_slam.sinks.live import Pacer, Progress
 from online_slam.solvers.least_squares import SolverConfig
@@ -44,6 +44,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         const="default",
         metavar="ADDR",
         help="stream to a running Rerun viewer (default address, or a rerun+http:// URL)",
+    )
+    p.add_argument(
+        "--checkpoint",
+        metavar="DIR",
+        help="save the whole replay state to DIR/replay.ckpt every --checkpoint-every steps (atomically)",
+    )
+    p.add_argument("--checkpoint-every", type=int, default=100, metavar="N", help="steps between checkpoints (100)")
+    p.add_argument(
+        "--resume",
+        metavar="DIR",
+        help="continue from DIR's checkpoint: same SOURCE and options; the figures equal an uninterrupted run's",
     )
     p.add_argument(
         "--rate",
@@ -215,8 +226,11 @@ def run(args: argparse.Namespace) -> int:
     config = config_from(args)
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
+    if args.resume and (args.rrd or args.connect):
+        raise OnlineSlamError("--resume: a Rerun recording cannot be continued; resume without --rrd/--connect")
+    checkpoint = Checkpointing(Path(args.checkpoint), args.checkpoint_every) if args.checkpoint else None
     sinks = sinks_from(args, config)
-    results = replay(args.source, config, sinks=sinks, on_skip=report_skip)
+    results = replay(args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume)
     if not args.quiet:
         print(format_results(results))
     if args.json:

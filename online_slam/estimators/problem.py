@@ -16,6 +16,10 @@ from online_slam.sources.events import LandmarkId
 Array = NDArray[np.float64]
 
 
+def _concat(chunks: list[np.ndarray], shape: tuple[int, ...], dtype: type) -> np.ndarray:
+    return np.concatenate(chunks) if chunks else np.zeros((0, *shape), dtype=dtype)
+
+
 class ProblemLog:
     """Every factor seen so far, plus initial values: poses by composed odometry, landmarks by first sight.
 
@@ -91,7 +95,11 @@ class ProblemLog:
             "prior": None if self.prior is None else list(self.prior),
             "odo_delta": np.array(self._odo_delta).reshape(-1, 3),
             "odo_cov": np.array(self._odo_cov).reshape(-1, 3, 3),
-            "obs": [list(chunk) for chunk in zip(self._obs_pose, self._obs_landmark, self._obs_z, self._obs_cov)],
+            "obs_sizes": np.array([len(c) for c in self._obs_pose], dtype=np.int64),
+            "obs_pose": _concat(self._obs_pose, (), np.int64),
+            "obs_landmark": _concat(self._obs_landmark, (), np.int64),
+            "obs_z": _concat(self._obs_z, (2,), float),
+            "obs_cov": _concat(self._obs_cov, (2, 2), float),
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -108,11 +116,17 @@ class ProblemLog:
             else (np.array(prior[0], dtype=float), None if prior[1] is None else np.array(prior[1], dtype=float))
         )
         self._odo_delta, self._odo_cov = rows(state["odo_delta"], (3,)), rows(state["odo_cov"], (3, 3))
-        chunks = state["obs"]
-        self._obs_pose = [np.array(c[0], dtype=np.int64) for c in chunks]
-        self._obs_landmark = [np.array(c[1], dtype=np.int64) for c in chunks]
-        self._obs_z = [np.array(c[2], dtype=float).reshape(-1, 2) for c in chunks]
-        self._obs_cov = [np.array(c[3], dtype=float).reshape(-1, 2, 2) for c in chunks]
+        cuts = np.cumsum(np.array(state["obs_sizes"], dtype=np.int64))[:-1]
+
+        def split(key: str, shape: tuple[int, ...], dtype: type) -> list[np.ndarray]:
+            if not len(state["obs_sizes"]):
+                return []
+            return [c.copy() for c in np.split(np.array(state[key], dtype=dtype).reshape(-1, *shape), cuts)]
+
+        self._obs_pose = split("obs_pose", (), np.int64)
+        self._obs_landmark = split("obs_landmark", (), np.int64)
+        self._obs_z = split("obs_z", (2,), float)
+        self._obs_cov = split("obs_cov", (2, 2), float)
 
     def graph(self) -> FactorGraph:
         """All factors recorded so far as one graph (start pose fixed, or a prior on it)."""

@@ -133,6 +133,48 @@ def _fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array,
     return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c)
 
 
+def _pack_odometry(factors: dict[int, tuple[Array, Array, Array]]) -> dict[str, Any]:
+    """Window odometry factors (delta, cov, sqrt-information) as stacked arrays (for checkpoints)."""
+    rows = list(factors.values())
+    return {
+        "poses": np.array(list(factors), dtype=np.int64),
+        "delta": np.array([r[0] for r in rows]).reshape(-1, 3),
+        "cov": np.array([r[1] for r in rows]).reshape(-1, 3, 3),
+        "sqrt_info": np.array([r[2] for r in rows]).reshape(-1, 3, 3),
+    }
+
+
+def _unpack_odometry(state: dict[str, Any]) -> dict[int, tuple[Array, Array, Array]]:
+    parts = [np.array(state[k], dtype=float) for k in ("delta", "cov", "sqrt_info")]
+    return {int(i): (parts[0][k].copy(), parts[1][k].copy(), parts[2][k].copy()) for k, i in enumerate(state["poses"])}
+
+
+def _pack_observations(factors: dict[int, tuple[Index, Array, Array, Array]]) -> dict[str, Any]:
+    """Window observation factors (landmarks, z, cov, sqrt-information) concatenated (for checkpoints)."""
+    rows = list(factors.values())
+
+    def cat(k: int, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+        return np.concatenate([r[k] for r in rows]) if rows else np.zeros((0, *shape), dtype=dtype)
+
+    return {
+        "poses": np.array(list(factors), dtype=np.int64),
+        "sizes": np.array([len(r[0]) for r in rows], dtype=np.int64),
+        "landmarks": cat(0, (), np.int64),
+        "z": cat(1, (2,), float),
+        "cov": cat(2, (2, 2), float),
+        "sqrt_info": cat(3, (2, 2), float),
+    }
+
+
+def _unpack_observations(state: dict[str, Any]) -> dict[int, tuple[Index, Array, Array, Array]]:
+    cuts = np.cumsum(np.array(state["sizes"], dtype=np.int64))[:-1]
+    landmarks = np.split(np.array(state["landmarks"], dtype=np.int64), cuts)
+    z, cov, w = (np.split(np.array(state[k], dtype=float), cuts) for k in ("z", "cov", "sqrt_info"))
+    return {
+        int(i): (landmarks[k].copy(), z[k].copy(), cov[k].copy(), w[k].copy()) for k, i in enumerate(state["poses"])
+    }
+
+
 class SlidingWindowSmoother:
     """Fixed-lag smoother over poses, keeping all landmarks; follows the estimator protocol."""
 
@@ -533,12 +575,12 @@ class SlidingWindowSmoother:
         p = self.prior
         return {
             "window": list(self.window),
-            "poses": [self.poses[g] for g in self.window],
+            "poses": np.array([self.poses[g] for g in self.window]).reshape(-1, 3),
             "final_poses": self.trajectory(),
             "landmark_ids": list(self.landmark_ids),
             "landmarks": self._landmarks.copy(),
-            "odometry": [[i, *factor] for i, factor in self._odometry.items()],
-            "observations": [[i, *factor] for i, factor in self._observations.items()],
+            "odometry": _pack_odometry(self._odometry),
+            "observations": _pack_observations(self._observations),
             "start": None if self._start is None else list(self._start),
             "prior": None
             if p is None
@@ -563,18 +605,15 @@ class SlidingWindowSmoother:
         """Restore a :meth:`state_dict` (this smoother's config is kept)."""
         as_float = lambda a: np.array(a, dtype=float)  # noqa: E731
         self.window = [int(g) for g in state["window"]]
-        self.poses = {g: as_float(pose) for g, pose in zip(self.window, state["poses"])}
+        self.poses = {g: pose.copy() for g, pose in zip(self.window, as_float(state["poses"]).reshape(-1, 3))}
         self.history = PoseHistory(
             as_float(state["final_poses"]).reshape(-1, 3)[: len(state["final_poses"]) - len(self.window)]
         )
         self.landmark_ids = list(state["landmark_ids"])
         self._index = {lid: j for j, lid in enumerate(self.landmark_ids)}
         self._landmarks = as_float(state["landmarks"]).reshape(-1, 2)
-        self._odometry = {int(i): (as_float(d), as_float(c), as_float(w)) for i, d, c, w in state["odometry"]}
-        self._observations = {
-            int(i): (np.array(j, dtype=np.int64), as_float(z), as_float(c), as_float(w))
-            for i, j, z, c, w in state["observations"]
-        }
+        self._odometry = _unpack_odometry(state["odometry"])
+        self._observations = _unpack_observations(state["observations"])
         start = state["start"]
         self._start = (
             None

@@ -1,0 +1,162 @@
+"""Checkpoints of a replay: kill -9 half-way, resume, same figures; damaged or foreign checkpoints refused."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from online_slam.checkpoint import read_checkpoint
+from online_slam.sources.stream import write_stream
+from online_slam.sources.worlds import GridConfig, grid_world
+
+EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300)
+
+
+def figures(document: dict) -> dict:
+    """Every figure of the results JSON but timings."""
+    out = json.loads(json.dumps(document))
+    for estimator in out["estimators"].values():
+        for key in ("total_s", "step_ms", "solve_s", "final_solve_s"):
+            estimator.pop(key, None)
+    return out
+
+
+def assert_same_figures(a: dict, b: dict, tolerance: float = 1e-9) -> None:
+    def walk(x, y, where: str) -> None:
+        if isinstance(x, dict):
+            assert set(x) == set(y), where
+            for k in x:
+                walk(x[k], y[k], f"{where}.{k}")
+        elif isinstance(x, float) and isinstance(y, float):
+            assert abs(x - y) <= tolerance * max(1.0, abs(x)), f"{where}: {x} != {y}"
+        else:
+            assert x == y, f"{where}: {x!r} != {y!r}"
+
+    walk(figures(a), figures(b), "results")
+
+
+@pytest.fixture(scope="module")
+def stream(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    folder = tmp_path_factory.mktemp("resume")
+    path = folder / "grid2000.jsonl"
+    write_stream(path, grid_world(GridConfig(poses=2000, seed=11)))
+    done = cli("replay", str(path), "--json", str(folder / "whole.json"), "--quiet")
+    assert done.returncode == 0, done.stderr
+    return path, json.loads((folder / "whole.json").read_text())
+
+
+def test_kill_9_half_way_then_resume_gives_the_uninterrupted_figures(stream, tmp_path: Path) -> None:
+    path, whole = stream
+    folder = tmp_path / "ck"
+    process = subprocess.Popen(
+        [*EXE, "replay", str(path), "--quiet", "--checkpoint", str(folder), "--checkpoint-every", "100"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        steps = 0
+        while steps < 1000 and time.monotonic() < deadline:  # wait until it is half-way
+            time.sleep(0.05)
+            try:
+                steps = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"]
+            except Exception:  # noqa: BLE001 - not written yet
+                steps = 0
+        assert process.poll() is None, "the replay ended before it could be killed"
+        os.kill(process.pid, signal.SIGKILL)
+        process.wait(timeout=10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == -signal.SIGKILL
+    saved = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"]
+    assert 1000 <= saved < 2000 and saved % 100 == 0
+    out = tmp_path / "resumed.json"
+    done = cli("replay", str(path), "--resume", str(folder), "--json", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert_same_figures(json.loads(out.read_text()), whole)
+
+
+def _rewrite(source: Path, target: Path, edit) -> None:
+    with zipfile.ZipFile(source) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    edit(members)
+    with zipfile.ZipFile(target, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+
+
+def test_damaged_foreign_and_other_version_checkpoints_are_one_line_exit_2(stream, tmp_path: Path) -> None:
+    path, _ = stream
+    small = tmp_path / "small.jsonl"
+    write_stream(small, grid_world(GridConfig(poses=300, seed=11)))
+    good = tmp_path / "good"
+    assert cli("replay", str(small), "--quiet", "--checkpoint", str(good), "--checkpoint-every", "50").returncode == 0
+    checkpoint = good / "replay.ckpt"
+
+    def refused(folder: Path, source: Path, *extra: str) -> str:
+        done = cli("replay", str(source), "--resume", str(folder), "--quiet", *extra)
+        assert done.returncode == 2, done.stdout + done.stderr
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("online-slam: error: ") and "Traceback" not in done.stderr
+        return lines[0]
+
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    data = checkpoint.read_bytes()
+    (cut / "replay.ckpt").write_bytes(data[: len(data) // 3])
+    assert "not a usable checkpoint" in refused(cut, small)
+    assert "another source" in refused(good, path)  # another file
+    version = tmp_path / "version"
+    version.mkdir()
+
+    def bump(members: dict) -> None:
+        manifest = json.loads(members["manifest.json"])
+        manifest["format_version"] = 99
+        members["manifest.json"] = json.dumps(manifest).encode()
+
+    _rewrite(checkpoint, version / "replay.ckpt", bump)
+    assert "format version 99" in refused(version, small)
+    settings = refused(good, small, "--window", "7")
+    assert "other settings" in settings
+    missing = refused(tmp_path / "nowhere", small)
+    assert "no such checkpoint" in missing
+    # the same file name, other contents: the events the checkpoint had consumed differ
+    write_stream(small, grid_world(GridConfig(poses=300, seed=12)))
+    assert "its events differ" in refused(good, small)
+
+
+def test_checkpoint_files_are_written_atomically(tmp_path: Path) -> None:
+    from online_slam.checkpoint import write_checkpoint
+
+    target = tmp_path / "state.ckpt"
+    write_checkpoint(target, "test", {"a": 1})
+
+    import numpy as np
+
+    with pytest.raises(TypeError):
+        write_checkpoint(target, "test", {"a": 2, "bad": object()})
+    assert read_checkpoint(target, "test") == {"a": 1}  # the previous checkpoint is intact
+    assert [p.name for p in tmp_path.iterdir()] == ["state.ckpt"]  # no temporary left behind
+    write_checkpoint(target, "test", {"x": np.arange(3.0), "ids": [1, "a"], "t": (1, 2), "m": {3: "x"}})
+    back = read_checkpoint(target, "test")
+    assert back["ids"] == [1, "a"] and back["t"] == (1, 2) and back["m"] == {3: "x"}
+    assert back["x"].tolist() == [0.0, 1.0, 2.0] and back["x"].flags.writeable
+    digest = hashlib.sha256(io.BytesIO(target.read_bytes()).getvalue()).hexdigest()
+    assert len(digest) == 64
