@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import time
 
 from online_slam.bench.batch import run_batch_bench
 from online_slam.bench.ekf import time_smoother, time_steps, time_updates
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
-SECTIONS = ("batch", "ekf-update", "online", "api")
+SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "fuzz", "soak")
+DEFAULT_SECTIONS = SECTIONS[:-1]
+"""The soak (100,000 poses, several minutes) runs only when asked for: ``--only soak``."""
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -28,7 +31,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="map sizes for the EKF update benchmark (default 50,200,500,1000)",
     )
     p.add_argument("--windows", default="10,20,50", help="smoother window sizes to time (default 10,20,50)")
-    p.add_argument("--only", default=",".join(SECTIONS), help=f"sections to run (default all: {','.join(SECTIONS)})")
+    p.add_argument(
+        "--only",
+        default=",".join(DEFAULT_SECTIONS),
+        help=f"sections to run (default: {','.join(DEFAULT_SECTIONS)}; 'soak' runs 100,000 poses, minutes)",
+    )
+    p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
+    p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
 
 
 def _batch(args: argparse.Namespace, world: GridConfig) -> None:
@@ -97,6 +106,49 @@ def _api(args: argparse.Namespace, world: GridConfig) -> None:
     print(f"target: default estimator (smoother) through the API with scans <= 1.05x direct: {verdict}")
 
 
+def _checkpoint(args: argparse.Namespace, world: GridConfig) -> None:
+    from online_slam.bench.reliability import measure_checkpoint_overhead
+
+    r = measure_checkpoint_overhead(world, every=100, repeats=max(1, args.repeats))
+    ratio = r.checkpointed_s / r.plain_s - 1.0
+    print(
+        f"checkpoint overhead: grid world, {r.poses} poses, EKF + smoother + batch, a checkpoint every {r.every} steps"
+    )
+    print(f"replay {r.plain_s:.3f} s, with checkpoints {r.checkpointed_s:.3f} s: overhead {ratio:.1%} "
+          f"(last checkpoint {r.size_mib:.1f} MiB; best of {max(1, args.repeats)})")  # fmt: skip
+    print(f"target: overhead <= 10%: {'met' if ratio <= 0.10 else 'NOT met'}")
+
+
+def _fuzz(args: argparse.Namespace) -> None:
+    try:
+        from online_slam.bench.fuzz import run_fuzz
+    except ImportError:  # pragma: no cover - hypothesis is a dev extra
+        raise OnlineSlamError("bench fuzz needs hypothesis: pip install '.[dev]'") from None
+    started = time.perf_counter()
+    report = run_fuzz(examples=max(1, args.fuzz_cases))
+    print(f"fuzzing: {report.total} generated cases in {time.perf_counter() - started:.1f} s; only InputError came out")
+    for name, count in report.cases.items():
+        print(f"  {name:<16}{count:>7} cases, {report.input_errors.get(name, 0):>6} refused with InputError")
+
+
+def _soak(args: argparse.Namespace) -> None:
+    from online_slam.bench.reliability import soak
+
+    runs = soak(poses=args.soak_poses)
+    print(f"soak: grid world, {args.soak_poses} poses (190 landmarks: bounded map), one estimator per run, --rrd on")
+    marks = sorted({m for r in runs for m in r.memory_mib})
+    head = "".join(f"{'RSS@' + format(m, ','):>13}" for m in marks)
+    print(
+        f"{'estimator':<10}{head}{'first 10k ms':>16}{'last 10k ms':>15}{'online RMSE':>13}{'rrd MiB':>9}{'total s':>9}"
+    )
+    for r in runs:
+        memory = "".join(f"{r.memory_mib.get(m, float('nan')):>10.0f} MiB" for m in marks)
+        first, last = f"{r.first_ms[0]:.2f}/{r.first_ms[1]:.2f}", f"{r.last_ms[0]:.2f}/{r.last_ms[1]:.2f}"
+        rmse = f"{r.online_rmse_m:.3f} m" if r.online_rmse_m is not None else "-"
+        print(f"{r.estimator:<10}{memory}{first:>16}{last:>15}{rmse:>13}{r.rrd_mib:>9.1f}{r.total_s:>9.1f}")
+    print("step times are median/p95; memory is the whole process (trajectory, truth and per-step figures kept)")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the selected benchmarks and print their tables."""
     chosen = [s.strip() for s in args.only.split(",") if s.strip()]
@@ -113,6 +165,12 @@ def run(args: argparse.Namespace) -> int:
             _ekf_update(args)
         elif section == "api":
             _api(args, world)
+        elif section == "checkpoint":
+            _checkpoint(args, world)
+        elif section == "fuzz":
+            _fuzz(args)
+        elif section == "soak":
+            _soak(args)
         else:
             _online_steps(args, world)
     return 0

@@ -21,7 +21,7 @@ class DeadReckoning:
     online = True
 
     def __init__(self) -> None:
-        self.log = ProblemLog()
+        self.log = ProblemLog(keep_factors=False)
 
     def step(self, step: Step) -> Snapshot:
         """Compose the step's increment onto the previous pose."""

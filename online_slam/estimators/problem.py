@@ -28,7 +28,9 @@ class ProblemLog:
         landmark_ids: Landmark ids in order of first observation.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, keep_factors: bool = True) -> None:
+        self.keep_factors = keep_factors
+        """False: keep initial values only (dead reckoning needs no factor), so memory grows with the path alone."""
         self.poses: list[Array] = []
         self.landmark_ids: tuple[LandmarkId, ...] = ()
         self._landmark_index: dict[LandmarkId, int] = {}
@@ -60,8 +62,9 @@ class ProblemLog:
             self.prior = (pose, step.prior_cov)
         else:
             pose = compose(self.poses[-1], step.odometry)
-            self._odo_delta.append(step.odometry)
-            self._odo_cov.append(step.odometry_cov)
+            if self.keep_factors:
+                self._odo_delta.append(step.odometry)
+                self._odo_cov.append(step.odometry_cov)
         self.poses.append(pose)
         self.extend(step, 0)
         return pose
@@ -80,7 +83,10 @@ class ProblemLog:
                 self._landmark_index[lid] = len(ids)
                 ids.append(lid)
                 self._landmarks.append(landmark_from_observation(pose, z))
-        self.landmark_ids = tuple(ids)
+        if len(ids) != len(self.landmark_ids):
+            self.landmark_ids = tuple(ids)
+        if not self.keep_factors:
+            return
         self._obs_pose.append(np.full(len(ids_now), step.index))
         self._obs_landmark.append(self.landmark_indices(ids_now))
         self._obs_z.append(step.z[start:])
@@ -130,6 +136,8 @@ class ProblemLog:
 
     def graph(self) -> FactorGraph:
         """All factors recorded so far as one graph (start pose fixed, or a prior on it)."""
+        if not self.keep_factors:
+            raise ValueError("this log keeps no factors")
         n = len(self.poses)
         fixed: list[int] = []
         prior_args: dict[str, object] = {}

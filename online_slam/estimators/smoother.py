@@ -415,7 +415,7 @@ class SlidingWindowSmoother:
             H = np.asarray(linearized.information)
             try:
                 C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
-            except la.LinAlgError:
+            except (la.LinAlgError, ValueError):  # singular, or not finite
                 return out
             cols = sparse.landmark_column[np.arange(len(active))][:, None] + np.arange(2)  # (A, 2)
             out[active] = C[cols[:, :, None], cols[:, None, :]]

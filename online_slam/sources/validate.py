@@ -72,6 +72,8 @@ FIELDS: dict[str, set[str]] = {
 
 MAX_MAGNITUDE = 1e9
 """Largest magnitude of any number but a time (metres, radians): larger ones overflow the estimators."""
+MIN_RANGE = 1e-6
+"""Smallest range, metres: the range-bearing Jacobian divides by it (a landmark at the sensor has no bearing)."""
 SIGMA_RANGE = (1e-8, 1e8)
 """Allowed standard deviations (and square roots of covariance eigenvalues)."""
 
@@ -221,7 +223,7 @@ class EventValidator:
             return None
         r, b = r.astype(float), b.astype(float)
         limit = MAX_MAGNITUDE
-        if not (np.all(r > 0.0) and np.all(r <= limit) and np.all(np.abs(b) <= limit)):  # NaN fails too
+        if not (np.all(r >= MIN_RANGE) and np.all(r <= limit) and np.all(np.abs(b) <= limit)):  # NaN fails too
             return None
         return tuple(r.tolist()), tuple(b.tolist())
 
@@ -356,8 +358,8 @@ class EventValidator:
         t = self.time(record, line)
         landmark = self.landmark(record, line)
         rng = self.number(record, "range", line)
-        if rng <= 0.0:
-            raise self.fail(line, "range", f"expected a range > 0, got {rng}")
+        if rng < MIN_RANGE:
+            raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")
         bearing = self.number(record, "bearing", line)
         sigma, cov = self.noise(record, 2, line)
         return Observation(t=t, landmark=landmark, range=rng, bearing=bearing, sigma=sigma, cov=cov)
