@@ -32,3 +32,82 @@ def numerical_jacobian(
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+# -- processes: every test stops what it starts, children included -------------------------------------------
+import contextlib  # noqa: E402
+import os  # noqa: E402
+import subprocess  # noqa: E402
+import time  # noqa: E402
+import uuid  # noqa: E402
+
+import psutil  # noqa: E402
+
+SESSION_MARK = "ONLINE_SLAM_TEST_SESSION"
+os.environ[SESSION_MARK] = uuid.uuid4().hex  # inherited by every process a test starts, and by theirs
+_SESSION_START = time.time()
+
+
+def _marked_processes() -> list[psutil.Process]:
+    """Live processes started during this session (at any depth, re-parented or not), but this one."""
+    me, mark = os.getpid(), os.environ[SESSION_MARK]
+    found = []
+    for process in psutil.process_iter(["pid", "create_time"]):
+        try:
+            if process.pid == me or process.info["create_time"] < _SESSION_START - 1:
+                continue
+            if process.environ().get(SESSION_MARK) == mark and process.status() != psutil.STATUS_ZOMBIE:
+                found.append(process)
+        except (psutil.NoSuchProcess, psutil.AccessDenied, psutil.ZombieProcess):
+            continue
+    return found
+
+
+def stop_process_tree(process: subprocess.Popen | psutil.Process, timeout: float = 10.0) -> None:
+    """Terminate a process and all its descendants (found before it dies, so orphans are not missed)."""
+    try:
+        root = psutil.Process(process.pid) if isinstance(process, subprocess.Popen) else process
+        tree = [root, *root.children(recursive=True)]
+    except psutil.NoSuchProcess:  # already gone (its own children, if any, are caught by the autouse check)
+        tree = []
+    for p in tree:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            p.terminate()
+    _, alive = psutil.wait_procs(tree, timeout=timeout)
+    for p in alive:
+        with contextlib.suppress(psutil.NoSuchProcess):
+            p.kill()
+    psutil.wait_procs(alive, timeout=timeout)
+    if isinstance(process, subprocess.Popen):
+        process.wait(timeout=timeout)
+
+
+@pytest.fixture
+def processes():
+    """Start processes for a test (``processes(cmd, **popen_kwargs)``); each tree is stopped at teardown."""
+    started: list[subprocess.Popen] = []
+
+    def start(command: list[str], **kwargs) -> subprocess.Popen:
+        process = subprocess.Popen(command, **kwargs)
+        started.append(process)
+        return process
+
+    yield start
+    for process in started:
+        stop_process_tree(process)
+
+
+@pytest.fixture(autouse=True)
+def no_process_outlives_its_test():
+    """Fail a test that leaves a process behind (and stop the process)."""
+    yield
+    deadline = time.monotonic() + 5.0
+    leaked = _marked_processes()
+    while leaked and time.monotonic() < deadline:  # give exiting processes (pool workers) a moment
+        time.sleep(0.1)
+        leaked = _marked_processes()
+    if leaked:
+        described = ", ".join(f"{p.pid} {' '.join(p.cmdline()[:3])}" for p in leaked if p.is_running())
+        for p in leaked:
+            stop_process_tree(p)
+        pytest.fail(f"processes outlived the test: {described}")

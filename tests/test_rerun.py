@@ -14,6 +14,8 @@ import pytest
 pytest.importorskip("rerun", reason="rerun-sdk is not installed")
 pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
 
+from conftest import stop_process_tree  # noqa: E402
+
 from online_slam.sinks.rerun_recording import Recording, blueprint_views  # noqa: E402
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -111,7 +113,7 @@ def test_inspect_bad_files_give_one_line_and_exit_2(
     assert len(lines) == 1 and lines[0].startswith("online-slam: error:")
 
 
-def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path) -> None:
+def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path, processes) -> None:
     rerun_cli = shutil.which("rerun")
     if rerun_cli is None:
         pytest.skip("the rerun command is not installed")
@@ -122,7 +124,8 @@ def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path) -> None:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     saved = tmp_path / "live.rrd"
-    server = subprocess.Popen(
+    # `rerun` is a Python wrapper around the viewer binary: the fixture stops the whole tree
+    server = processes(
         [rerun_cli, "--port", str(port), "--save", str(saved)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
     )
     try:
@@ -134,8 +137,7 @@ def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path) -> None:
         assert elapsed >= 24 / 50  # 24 s of stream at 50x
         time.sleep(1.0)
     finally:
-        server.terminate()
-        server.wait(timeout=30)
+        stop_process_tree(server)
     with Recording(saved, complete=False) as recording:  # a stream saved by the viewer has no footer
         summary = recording.summary()
     assert summary.steps == 25 and summary.source == "square"
