@@ -124,6 +124,8 @@ class Engine:
                 "truth_landmark_ids": list(fe.truth.landmarks),
                 "truth_landmarks": np.array(list(fe.truth.landmarks.values()), dtype=float).reshape(-1, 2),
                 "counts": dict(fe.counts),
+                "sightings": fe.sightings,
+                "outliers": {str(k): v for k, v in fe.truth.outliers.items()},
                 "seen": list(fe._seen),
                 "pending": None if pending is None else _pending_state(pending),
             },
@@ -146,6 +148,8 @@ class Engine:
         positions = np.array(saved["truth_landmarks"], dtype=float).reshape(-1, 2)
         fe.truth.landmarks = {lid: p.copy() for lid, p in zip(saved["truth_landmark_ids"], positions)}
         fe.counts = {str(k): int(v) for k, v in saved["counts"].items()}
+        fe.sightings = int(saved["sightings"])
+        fe.truth.outliers = {int(k): str(v) for k, v in saved["outliers"].items()}
         fe._seen = set(saved["seen"])
         fe.pending = None if saved["pending"] is None else _pending_from(saved["pending"])
         for estimator in self.estimators:

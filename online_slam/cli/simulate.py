@@ -9,7 +9,7 @@ import numpy as np
 
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.stream import write_stream
-from online_slam.sources.worlds import WORLDS, GridConfig, grid_world, square_world
+from online_slam.sources.worlds import WORLDS, Contamination, GridConfig, contaminate, grid_world, square_world
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -40,6 +40,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--odometry-sigma", type=float, nargs=3, default=g.odometry_sigma, metavar=("SX", "SY", "STH"),
         help="grid: odometry noise (m, m, rad)",
     )  # fmt: skip
+    p.add_argument("--wrong-ids", type=float, default=0.0, metavar="F", help="fraction of sightings given a wrong id")
+    p.add_argument(
+        "--range-spikes", type=float, default=0.0, metavar="F", help="fraction of sightings with a range spike"
+    )
+    p.add_argument(
+        "--clutter", type=float, default=0.0, metavar="F", help="sightings of non-existent landmarks, per real sighting"
+    )
+    p.add_argument("--outlier-seed", type=int, default=0, help="seed of the outlier draws (default 0)")
     p.add_argument(
         "--sensor-sigma", type=float, nargs=2, default=g.sensor_sigma, metavar=("SR", "SB"),
         help="grid: range (m) and bearing (rad) noise",
@@ -66,6 +74,12 @@ def run(args: argparse.Namespace) -> int:
         if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
             raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")
         events = grid_world(config)
+    try:
+        contamination = Contamination(args.wrong_ids, args.range_spikes, args.clutter, args.outlier_seed)
+    except ValueError as exc:
+        raise OnlineSlamError(f"simulate: {exc}") from None
+    if contamination.any:
+        events = contaminate(events, contamination)
     try:
         lines = write_stream(args.output, events)
     except ValueError as exc:

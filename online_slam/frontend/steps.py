@@ -94,6 +94,8 @@ class GroundTruth:
     """True pose ``[x, y, theta]`` of a step, where the stream has one at the step's time."""
     landmarks: dict[LandmarkId, Array] = field(default_factory=dict)
     """True landmark positions ``[x, y]``."""
+    outliers: dict[int, str] = field(default_factory=dict)
+    """Sightings a simulator corrupted, by sighting number (0-based, in step order over the whole stream)."""
 
 
 @dataclass
@@ -174,6 +176,8 @@ class FrontEnd:
         self.truth = GroundTruth()
         self.counts: dict[str, int] = {}
         self.pending: PendingStep | None = None
+        self.sightings = 0
+        """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
         self._seen: set[LandmarkId] = set()
 
     def _count(self, key: str) -> None:
@@ -226,6 +230,9 @@ class FrontEnd:
                     self._count("dropped_repeat_observation")
                     return None
                 self._seen.add(event.landmark)
+            if event.truth_outlier is not None:
+                self.truth.outliers[self.sightings] = event.truth_outlier
+            self.sightings += 1
             pending.landmarks.append(event.landmark)
             pending.z.append((event.range, event.bearing))
             pending.z_noise.append(event.sigma if event.cov is None else event.cov)
@@ -237,6 +244,7 @@ class FrontEnd:
                 keep = [i for i, lid in enumerate(event.landmarks) if lid not in self._seen and not self._seen.add(lid)]
                 dropped = len(event.landmarks) - len(keep)
                 self.counts["dropped_repeat_observation"] = self.counts.get("dropped_repeat_observation", 0) + dropped
+            self.sightings += len(keep)
             pending.landmarks.extend(event.landmarks[i] for i in keep)
             pending.z.extend((event.ranges[i], event.bearings[i]) for i in keep)
             pending.z_noise.extend(event.noise[i] for i in keep)

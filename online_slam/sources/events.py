@@ -13,6 +13,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+OUTLIER_KINDS = ("wrong_id", "spike", "clutter")
+"""Marks a simulator may put on a corrupted sighting (``Observation.truth_outlier``), for evaluation only."""
+
 LandmarkId = int | str
 """Landmark identifiers: integers or strings (``3`` and ``"3"`` are different landmarks)."""
 
@@ -128,6 +131,9 @@ class Observation:
     """Standard deviations ``[s_range, s_bearing]``, or None when ``cov`` is given."""
     cov: Matrix | None = None
     """Full 2x2 covariance of ``[range, bearing]``, or None when ``sigma`` is given."""
+    truth_outlier: str | None = None
+    """Evaluation only: how a simulator corrupted this sighting (``wrong_id``, ``spike``, ``clutter``), or None.
+    The front-end keeps it with the truth; no estimator sees it."""
 
     @property
     def covariance(self) -> NDArray[np.float64]:
@@ -136,7 +142,7 @@ class Observation:
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""
-        return {
+        record = {
             "type": "observation",
             "t": self.t,
             "landmark": self.landmark,
@@ -144,6 +150,9 @@ class Observation:
             "bearing": self.bearing,
             **_noise_record(self.sigma, self.cov),
         }
+        if self.truth_outlier is not None:
+            record["truth_outlier"] = self.truth_outlier
+        return record
 
 
 @dataclass(frozen=True)

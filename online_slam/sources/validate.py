@@ -18,6 +18,7 @@ import numpy as np
 
 from online_slam.errors import InputError
 from online_slam.sources.events import (
+    OUTLIER_KINDS,
     Event,
     Header,
     LandmarkId,
@@ -64,7 +65,7 @@ FIELDS: dict[str, set[str]] = {
     "header": {"type"},  # free-form: every other field is metadata
     "start": {"type", "t", "pose", "sigma", "cov"},
     "odometry": {"type", "t", "delta", "sigma", "cov"},
-    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov"},
+    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier"},
     "truth": {"type", "t", "pose"},
     "landmark_truth": {"type", "landmark", "position"},
 }
@@ -362,7 +363,10 @@ class EventValidator:
             raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")
         bearing = self.number(record, "bearing", line)
         sigma, cov = self.noise(record, 2, line)
-        return Observation(t=t, landmark=landmark, range=rng, bearing=bearing, sigma=sigma, cov=cov)
+        mark = record.get("truth_outlier")
+        if mark is not None and mark not in OUTLIER_KINDS:
+            raise self.fail(line, "truth_outlier", f"expected one of {', '.join(OUTLIER_KINDS)}, got {_show(mark)}")
+        return Observation(t=t, landmark=landmark, range=rng, bearing=bearing, sigma=sigma, cov=cov, truth_outlier=mark)
 
     def _truth(self, record: dict[str, Any], line: int) -> Truth:
         t = self.time(record, line)

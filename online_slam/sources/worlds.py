@@ -7,8 +7,8 @@ same draws in the same order, the same landmark selection, so its numbers match 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,6 +19,7 @@ from online_slam.models.range_bearing import range_bearing
 from online_slam.sources.events import (
     Event,
     Header,
+    LandmarkId,
     LandmarkTruth,
     Observation,
     Odometry,
@@ -181,6 +182,72 @@ def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
         "grid", meta, truth, landmarks, odometry, odometry_sigma,
         observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
     )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Contamination:
+    """Outliers to add to a simulated stream, each sighting marked for evaluation (``truth_outlier``)."""
+
+    wrong_ids: float = 0.0
+    """Fraction of sightings given a random other existing landmark's id (a data-association mistake)."""
+    range_spikes: float = 0.0
+    """Fraction of sightings whose range is scaled by a random factor in [1.5, 3] or [1/3, 1/1.5]."""
+    clutter: float = 0.0
+    """Extra sightings of landmarks that do not exist, as a fraction of the real ones; random range within the
+    observed ranges, random bearing; their ids come from a pool of phantom ids (``clutter-k``) a quarter the
+    size of the map, so the same phantom is "seen" in unrelated places."""
+    seed: int = 0
+    """Seed of the contamination draws (separate from the world's: the clean part stays the same)."""
+
+    def __post_init__(self) -> None:
+        for name in ("wrong_ids", "range_spikes", "clutter"):
+            value = getattr(self, name)
+            if not (0.0 <= value <= 1.0 if name != "clutter" else 0.0 <= value <= 10.0):
+                raise ValueError(f"{name} must be a fraction in [0, 1] (clutter: [0, 10]), not {value}")
+
+    @property
+    def any(self) -> bool:
+        """True when some contamination is asked for."""
+        return bool(self.wrong_ids or self.range_spikes or self.clutter)
+
+
+def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
+    """The same stream with outliers: wrong ids, range spikes, clutter (marked ``truth_outlier``).
+
+    Each real sighting is corrupted with probability ``wrong_ids`` (else ``range_spikes``); clutter sightings
+    follow the real ones of a pose. The header records the contamination.
+    """
+    rng = np.random.default_rng(c.seed)
+    ids: list[LandmarkId] = []
+    ranges: list[float] = []
+    phantoms = 1
+    for event in events:
+        if isinstance(event, Header):
+            yield replace(event, meta={**event.meta, "contamination": asdict(c)})
+            continue
+        if isinstance(event, LandmarkTruth):
+            ids.append(event.landmark)
+            phantoms = max(1, len(ids) // 4)
+        if not isinstance(event, Observation):
+            yield event
+            continue
+        ranges.append(event.range)
+        u = rng.uniform()
+        if u < c.wrong_ids and len(ids) > 1:
+            others = [lid for lid in ids if lid != event.landmark]
+            event = replace(event, landmark=others[int(rng.integers(len(others)))], truth_outlier="wrong_id")
+        elif u < c.wrong_ids + c.range_spikes:
+            factor = rng.uniform(1.5, 3.0) ** rng.choice([-1.0, 1.0])
+            event = replace(event, range=event.range * float(factor), truth_outlier="spike")
+        yield event
+        for _ in range(rng.poisson(c.clutter) if c.clutter else 0):
+            yield replace(
+                event,
+                landmark=f"clutter-{int(rng.integers(phantoms))}",
+                range=float(rng.uniform(0.5, max(ranges))),
+                bearing=float(rng.uniform(-np.pi, np.pi)),
+                truth_outlier="clutter",
+            )
 
 
 WORLDS: dict[str, Callable[[], Iterator[Event]]] = {"square": square_world, "grid": grid_world}
