@@ -27,7 +27,7 @@ from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
-from online_slam.evaluation.scoring import evaluate, online_figures, truth_array
+from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, truth_array
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.importers.resolve import open_source
 from online_slam.sinks.protocol import ReplaySink
@@ -288,6 +288,7 @@ def replay(
     if steps == 0:
         raise InputError(label, 0, "", "the stream holds no pose")
     truth = engine.frontend.truth
+    header_meta = engine.frontend.header.meta if engine.frontend.header is not None else {}
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
     ordered = sorted(
         tracks.values(), key=lambda tr: isinstance(tr.estimator, BatchEstimator)
@@ -303,6 +304,12 @@ def replay(
         estimate = estimator.finish(initial) if initial is not None else estimator.finish()
         final_s = time.perf_counter() - started
         estimates[estimator.name] = estimate
+        details = dict(estimate.info)
+        rejected = details.pop("rejected", None)
+        outliers = None
+        if rejected is not None:
+            marked = bool(truth.outliers) or bool(header_meta.get("contamination"))
+            outliers = outlier_report(rejected, truth, marked)
         errors = evaluate(estimate, truth, cfg.alignment)
         online = None
         if estimator.online:
@@ -325,7 +332,8 @@ def replay(
             online_rmse_m=None if online is None else online.rmse_m,
             nees_mean=None if online is None else online.nees_mean,
             step_ms=None if online is None else online.latency,
-            details=dict(estimate.info),
+            details=details,
+            outliers=outliers,
         )
     odo = evaluate(estimates["odometry"], truth, cfg.alignment)
     results = Results(

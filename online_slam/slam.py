@@ -24,7 +24,9 @@ from numpy.typing import NDArray
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine
 from online_slam.errors import ConfigError, InputError
+from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
@@ -39,7 +41,7 @@ ESTIMATORS = ("ekf", "smoother")
 OPTIONS: dict[str, tuple[type, str]] = {
     "window": (int, "smoother: poses kept in the window (W, >= 1)"),
     "relinearize_every": (int, "smoother: relinearize and solve every K steps (>= 1)"),
-    "robust": (str, "smoother: robust loss on observations, 'none', 'huber' or 'cauchy'"),
+    "robust": (str, "smoother: outliers 'auto' (default), 'none', 'huber' or 'cauchy'"),
     "robust_scale": (float, "smoother: robust loss threshold in sigmas (> 0)"),
     "gate_probability": (float, "ekf: chi-square gate on each observation's NIS, in (0, 1]"),
     "gate_persistence": (int, "ekf: use a landmark again after this many gated sightings in a row (>= 0)"),
@@ -159,14 +161,14 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
                 update=options.get("ekf_update", EkfConfig.update),
             )
         else:
-            robust = options.get("robust", "none")
-            if robust not in ("none", "huber", "cauchy"):
-                raise ValueError(f"robust must be 'none', 'huber' or 'cauchy', not {robust!r}")
-            loss = None if robust == "none" else RobustLoss(robust, options.get("robust_scale", RobustLoss.scale))
-            config = SmootherConfig(
-                window=options.get("window", SmootherConfig.window),
-                relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
-                loss=loss,
+            config, _ = robust_settings(
+                options.get("robust", "auto"),
+                options.get("robust_scale", RobustLoss.scale),
+                SmootherConfig(
+                    window=options.get("window", SmootherConfig.window),
+                    relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
+                ),
+                BatchConfig(),
             )
         keyframing = None
         limits = ("keyframe_distance", "keyframe_angle", "keyframe_time")

@@ -131,19 +131,37 @@ def test_gross_outlier_is_gated_reported_and_harmless() -> None:
     assert ekf.finish().info["gated_observations"] == 1
 
 
-def test_a_landmark_failing_the_gate_persistently_is_used_again() -> None:
-    # A landmark that moved (or a filter that drifted) fails the gate every time; after gate_persistence - 1
-    # rejections in a row its next sighting is used, and the streak of another landmark is its own.
-    persistence = EkfConfig().gate_persistence
+def test_a_moved_landmark_is_reanchored_and_a_drifted_filter_uses_persistent_sightings() -> None:
+    from online_slam.estimators.ekf import REANCHOR_AFTER
+
+    # "a" moved while "b" still agrees with the filter: the landmark, not the robot, is off. After
+    # REANCHOR_AFTER - 1 rejections of mutually consistent sightings, "a" restarts where they put it.
     ekf = EkfSlam()
     ekf.step(step_with(0, ("a", "b"), [[3.0, 0.5], [4.0, -0.5]]))
+    ekf.step(step_with(1, ("a", "b"), [[3.0, 0.5], [4.0, -0.5]], odometry=np.zeros(3)))  # both confirmed
     moved = [[3.0, 0.5 + 1.0], [4.0, -0.5]]
-    for index in range(1, persistence):
-        snap = ekf.step(step_with(index, ("a", "b"), moved, odometry=np.zeros(3)))
-        assert snap.info["gated"] == ("a",)
-    snap = ekf.step(step_with(persistence, ("a", "b"), moved, odometry=np.zeros(3)))
-    assert snap.info["gated"] == () and snap.info["nis"][0] > chi2.ppf(EkfConfig().gate_probability, 2)
-    assert ekf.finish().info["gated_observations"] == persistence - 1
+    for index in range(2, 2 + REANCHOR_AFTER - 1):
+        assert ekf.step(step_with(index, ("a", "b"), moved, odometry=np.zeros(3))).info["gated"] == ("a",)
+    snap = ekf.step(step_with(2 + REANCHOR_AFTER - 1, ("a", "b"), moved, odometry=np.zeros(3)))
+    assert snap.info["gated"] == () and ekf.reanchored == 1
+    expected = 3.0 * np.array([np.cos(1.5), np.sin(1.5)])
+    assert np.allclose(snap.landmarks[0], expected, atol=1e-6) and np.allclose(snap.pose, 0.0, atol=1e-6)
+    # Every confirmed landmark fails by one robot offset: the filter drifted. After gate_persistence - 1
+    # rejections in a row the sightings are used and pull the robot.
+    persistence = EkfConfig().gate_persistence
+    ekf = EkfSlam()
+    first = [[3.0, 0.5], [4.0, -0.5], [5.0, 1.2]]
+    ekf.step(step_with(0, ("a", "b", "c"), first))
+    ekf.step(step_with(1, ("a", "b", "c"), first, odometry=np.zeros(3)))
+    shifted = [[r, b + 1.0] for r, b in first]  # the robot turned 1 rad without knowing it
+    for index in range(2, 2 + persistence - 1):
+        assert ekf.step(step_with(index, ("a", "b", "c"), shifted, odometry=np.zeros(3))).info["gated"] == (
+            "a",
+            "b",
+            "c",
+        )
+    snap = ekf.step(step_with(1 + persistence, ("a", "b", "c"), shifted, odometry=np.zeros(3)))
+    assert snap.info["gated"] == () and snap.pose[2] < -0.5 and ekf.reanchored == 0
     strict = EkfSlam(EkfConfig(gate_persistence=0))
     strict.step(step_with(0, ("a", "b"), [[3.0, 0.5], [4.0, -0.5]]))
     for index in range(1, persistence + 3):

@@ -126,16 +126,20 @@ def first_reobservation_at(events: list, t: float) -> int:
     raise AssertionError("no re-observation at that time")
 
 
-def test_cauchy_loss_rejects_a_gross_outlier() -> None:
+def test_robust_losses_and_the_default_reject_a_gross_outlier() -> None:
     events = list(square_world())
     k = first_reobservation_at(events, 12.0)
     bad = events[k]
     events[k] = Observation(bad.t, bad.landmark, bad.range, float(wrap(bad.bearing + 2.5)), sigma=bad.sigma)
-    fe, _, plain, _, _, _ = run(iter(events), SmootherConfig(window=10))
-    _, _, robust, _, _, _ = run(iter(events), SmootherConfig(window=10, loss=RobustLoss("cauchy")))
-    clean = rmse(run(square_world(), SmootherConfig(window=10))[2].poses, fe)
+    least_squares = SmootherConfig(window=10, loss=None, reject_false_alarm=0.0, consensus=False)
+    fe, _, plain, _, _, _ = run(iter(events), least_squares)
+    _, _, cauchy, _, _, _ = run(iter(events), SmootherConfig(window=10, loss=RobustLoss("cauchy")))
+    _, smoother, default, _, _, _ = run(iter(events), SmootherConfig(window=10))
+    clean = rmse(run(square_world(), least_squares)[2].poses, fe)
     assert rmse(plain.poses, fe) > 1.5 * clean
-    assert rmse(robust.poses, fe) < 1.05 * clean
+    assert rmse(cauchy.poses, fe) < 1.05 * clean
+    assert rmse(default.poses, fe) < 1.05 * clean
+    assert default.info["rejected"].sum() == 1  # the bad sighting, and only it, judged an outlier
 
 
 @pytest.mark.parametrize("kind", ["huber", "cauchy"])

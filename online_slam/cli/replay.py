@@ -11,6 +11,7 @@ from pathlib import Path
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig
+from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
@@ -100,12 +101,15 @@ def add_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--robust",
-        choices=("none", "huber", "cauchy"),
-        default="none",
-        help="robust loss on observations for the smoother and the batch solver (default none)",
+        choices=("auto", "none", "huber", "cauchy"),
+        default="auto",
+        help="outliers: auto (default: smoother least squares with a Cauchy tail beyond 5.3 sigmas, outliers judged at "
+        "marginalization; batch plain "
+        "least squares unless its residuals show outliers, then a robust pass); none (plain least squares); "
+        "huber/cauchy (that loss, --robust-scale, for the smoother and the batch)",
     )
     p.add_argument(
-        "--robust-scale", type=float, default=RobustLoss.scale, help="robust loss threshold in sigmas (default 1.345)"
+        "--robust-scale", type=float, default=RobustLoss.scale, help="huber/cauchy threshold in sigmas (default 1.345)"
     )
     p.add_argument(
         "--ekf-update",
@@ -178,10 +182,14 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         ekf = EkfConfig(
             gate_probability=args.gate_probability, gate_persistence=args.gate_persistence, update=args.ekf_update
         )
-        loss = None if args.robust == "none" else RobustLoss(args.robust, args.robust_scale)
         window = getattr(args, "window", SmootherConfig.window)  # compare sets W and K lists of its own
         every = getattr(args, "relinearize_every", SmootherConfig.relinearize_every)
-        smoother = SmootherConfig(window=window, relinearize_every=every, loss=loss)
+        smoother, batch = robust_settings(
+            args.robust,
+            args.robust_scale,
+            SmootherConfig(window=window, relinearize_every=every),
+            BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), initial=args.batch_init),
+        )
     except ValueError as exc:
         raise OnlineSlamError(f"replay: {exc}") from None
     return ReplayConfig(
@@ -189,7 +197,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         frontend=FrontEndConfig(keyframing=keyframing, first_observation_only=args.first_observation_only),
         ekf=ekf,
         smoother=smoother,
-        batch=BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), loss=loss, initial=args.batch_init),
+        batch=batch,
         dataset={
             "format": args.format,
             "robot": args.robot,

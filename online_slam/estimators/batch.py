@@ -11,8 +11,10 @@ from numpy.typing import NDArray
 
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
-from online_slam.factors.robust import RobustLoss
+from online_slam.factors.graph import FactorGraph, observation_chi2, without_observations
+from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.frontend.steps import Step
+from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.solvers.least_squares import SolverConfig, solve
 
 
@@ -24,10 +26,34 @@ class BatchConfig:
     """Settings of the sparse Levenberg-Marquardt solver."""
     loss: RobustLoss | None = None
     """Robust loss on observations (Huber or Cauchy), or None for plain least squares."""
+    outliers: str = "auto"
+    """``auto``: solve plain least squares, then test every observation's residual at the solution against a
+    chi-square bound at a whole-stream false-alarm rate of ``outlier_false_alarm``; only if one exceeds it
+    (a contaminated stream) solve again with a Cauchy loss (``outlier_loss``) from the same initial values, drop
+    the observations whose residual there exceeds the per-observation bound ``reject_false_alarm``, and finish
+    with plain least squares on the rest. A clean stream keeps the exact least-squares solution. ``off``:
+    plain least squares (or ``loss``) only."""
+    outlier_false_alarm: float = 1e-3
+    """Probability that a clean stream triggers the robust pass (split over its observations)."""
+    reject_false_alarm: float = 1e-3
+    """Probability that an inlier is dropped once the robust pass has run."""
+    outlier_loss: RobustLoss = field(default_factory=lambda: RobustLoss("cauchy", 3.0))
+    """Loss of the robust pass."""
     initial: str = "odometry"
     """Initial values: ``odometry`` (composed odometry, landmarks from first sight) or the final estimate of
     another estimator of the same replay (``ekf``, ``smoother``); from composed odometry LM can end in a poor
     local minimum on long real runs."""
+
+
+def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
+    """Each landmark at the coordinate-wise median of where its sightings put it from the given poses."""
+    points = landmark_from_observation(poses[graph.obs_pose], graph.obs_z)
+    out = landmarks.copy()
+    order = np.argsort(graph.obs_landmark, kind="stable")
+    ids, starts = np.unique(graph.obs_landmark[order], return_index=True)
+    for j, group in zip(ids, np.split(order, starts[1:])):
+        out[j] = np.median(points[group], axis=0)
+    return out
 
 
 class BatchEstimator:
@@ -84,7 +110,22 @@ class BatchEstimator:
             for k, lid in enumerate(self.log.landmark_ids):
                 if lid in where:
                     landmarks[k] = initial.landmarks[where[lid]]
-        result = solve(graph, poses, landmarks, self.config.solver, loss=self.config.loss)
+        cfg = self.config
+        result = solve(graph, poses, landmarks, cfg.solver, loss=cfg.loss)
+        rejected = np.zeros(len(graph.obs_pose), dtype=bool)
+        robust_pass = False
+        if cfg.outliers == "auto" and cfg.loss is None and len(rejected):
+            chi2_values = observation_chi2(graph, result.poses, result.landmarks)
+            bound = outlier_threshold(cfg.outlier_false_alarm / len(chi2_values))
+            if chi2_values.max() > bound:  # contaminated: robust pass, drop the outliers, least squares on the rest
+                robust_pass = True
+                start = _median_landmarks(graph, poses, landmarks)  # a first sight may be a wrong one
+                robust = solve(graph, poses, start, cfg.solver, loss=cfg.outlier_loss)
+                rejected = observation_chi2(graph, robust.poses, robust.landmarks) > outlier_threshold(
+                    cfg.reject_false_alarm
+                )
+                kept = without_observations(graph, rejected)
+                result = solve(kept, robust.poses, robust.landmarks, cfg.solver)
         info = {
             "iterations": result.iterations,
             "converged": result.converged,
@@ -93,5 +134,13 @@ class BatchEstimator:
             "message": result.message,
             "solve_s": time.perf_counter() - started,
             "initial": "odometry" if initial is None else initial.estimator,
+            "robust_pass": robust_pass,
+            "rejected": rejected,
         }
-        return Estimate(self.name, result.poses, self.log.landmark_ids, result.landmarks, info)
+        ids, positions = self.log.landmark_ids, result.landmarks
+        if rejected.any():  # a landmark whose every sighting is an outlier is no landmark: leave it out of the map
+            supported = np.zeros(len(ids), dtype=bool)
+            supported[graph.obs_landmark[~rejected]] = True
+            ids, positions = tuple(lid for lid, ok in zip(ids, supported) if ok), positions[supported]
+            info["landmarks_dropped"] = int((~supported).sum())
+        return Estimate(self.name, result.poses, ids, positions, info)

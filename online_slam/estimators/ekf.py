@@ -42,6 +42,7 @@ from threadpoolctl import ThreadpoolController
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.protocol import Estimate, Snapshot
+from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import compose_with_jacobians
@@ -62,6 +63,12 @@ class EkfConfig:
     """A landmark whose sightings fail the gate this many times in a row is used anyway: a one-off misreading
     fails once, but repeated failures of one landmark mean the filter has drifted, and rejecting them would
     starve it. 0 turns this off (every gated sighting rejected)."""
+    reanchor: bool = True
+    """When a landmark has failed the gate ``gate_persistence`` times in a row while the rest of each scan
+    agreed with the filter, and those gated sightings agree with each other, the landmark's estimate is the
+    stale one (e.g. it was placed by a wrong association): restart it from the newest sighting instead of
+    letting that sighting pull the robot. When most of a scan fails the gate, the filter itself has drifted
+    and persistent sightings are used (False: always the latter)."""
     update: str = "joint"
     """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
     relinearized after each."""
@@ -73,6 +80,12 @@ class EkfConfig:
             raise ValueError("gate_persistence must be >= 0")
         if self.update not in ("joint", "sequential"):
             raise ValueError("update must be 'joint' or 'sequential'")
+
+
+AGREEMENT_UPDATES = 5
+"""Updates (before the current one) whose confirmed sightings count when deciding whether the filter drifted."""
+REANCHOR_AFTER = 3
+"""Gated sightings in a row (mutually consistent, while the scan agrees with the filter) that restart a landmark."""
 
 
 def _landmark_columns(indices: NDArray[np.int64]) -> NDArray[np.int64]:
@@ -97,11 +110,16 @@ class EkfSlam(ExtendedKalmanFilter):
             math.inf if self.config.gate_probability >= 1.0 else float(chi2.ppf(self.config.gate_probability, 2))
         )
         self.gated_total = 0
+        self.reanchored = 0
+        self._recent: dict[int, list[tuple[Array, Array]]] = {}  # recent gated sightings as (position, cov)
         self._streak = np.zeros(0, dtype=np.int64)  # consecutive gated sightings per landmark
+        self._confirmed = np.zeros(0, dtype=bool)  # has passed the gate since it was (re)initialised
+        self._agreement: list[tuple[int, int]] = []  # (failing, passing) confirmed sightings of recent updates
         self._history = PoseHistory()  # every pose before the newest, as it was when newest
         self._step_nis: list[Array] = []  # what the newest step's observations did (for its snapshot)
         self._step_gated: list[LandmarkId] = []
         self._step_new: list[LandmarkId] = []
+        self._rejected: list[NDArray[np.bool_]] = []  # gated sightings, per update call, in step order
         self._blas = ThreadpoolController()
 
     @classmethod
@@ -125,6 +143,7 @@ class EkfSlam(ExtendedKalmanFilter):
         ekf.landmark_ids = list(landmark_ids)
         ekf._index = {lid: j for j, lid in enumerate(landmark_ids)}
         ekf._streak = np.zeros(len(landmark_ids), dtype=np.int64)
+        ekf._confirmed = np.ones(len(landmark_ids), dtype=bool)
         return ekf
 
     def single_threaded(self) -> object:
@@ -178,6 +197,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self._index[landmark] = len(self.landmark_ids)
         self.landmark_ids.append(landmark)
         self._streak = np.append(self._streak, 0)
+        self._confirmed = np.append(self._confirmed, False)
         self._grow(position, cross, 0.5 * (block + block.T))
 
     # -- update ----------------------------------------------------------------------------------
@@ -209,17 +229,121 @@ class EkfSlam(ExtendedKalmanFilter):
         diagonal = np.arange(k)
         S.reshape(k, 2, k, 2)[diagonal, :, diagonal, :] += R  # + block_diag(R)
         blocks = S.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :]  # (k, 2, 2) marginal S of each
-        nis = np.einsum("ki,ki->k", y, np.linalg.solve(blocks, y[..., None])[..., 0])
-        accepted = nis <= self._gate
-        if self.config.gate_persistence:
-            accepted |= self._streak[indices] >= self.config.gate_persistence - 1
-        self._streak[indices] = np.where(accepted, 0, self._streak[indices] + 1)
+        try:
+            nis = np.einsum("ki,ki->k", y, np.linalg.solve(blocks, y[..., None])[..., 0])
+        except np.linalg.LinAlgError:  # numerically singular (absurd noise settings): use none of them
+            return np.full(k, np.inf), np.zeros(k, dtype=bool)
+        nis = np.where(np.isfinite(nis), nis, np.inf)
+        passed = nis <= self._gate
+        accepted = passed.copy()
+        reanchor = np.zeros(k, dtype=bool)
+        streak = self._streak[indices]
+        confirmed = self._confirmed[indices]
+        if self.config.gate_persistence and not passed.all():
+            # Drift: sightings of confirmed landmarks (ones that passed the gate since they were placed) fail,
+            # and few of them pass. Unconfirmed landmarks are no evidence either way.
+            failing, agreeing = int((confirmed & ~passed).sum()), int((confirmed & passed).sum())
+            # over the last few updates: a lone failing sighting is no drift while others nearby in time agree
+            recent_fail = failing + sum(f for f, _ in self._agreement)
+            recent_agree = agreeing + sum(a for _, a in self._agreement)
+            drifted = failing > 0 and recent_agree < max(2.0, 0.25 * (recent_fail + recent_agree))
+            if drifted and failing >= 2:  # several: drift moves them all by one robot correction
+                f = confirmed & ~passed
+                drifted = self._one_robot_correction_explains(indices[f], z[f], R[f])
+            if drifted:  # the filter drifted: let the persistent sightings of confirmed landmarks in
+                accepted |= ~passed & confirmed & (streak >= self.config.gate_persistence - 1)
+            elif self.config.reanchor:  # the scan agrees with the filter: the landmark, not the robot, is off
+                due = ~passed & (streak >= REANCHOR_AFTER - 1)
+                if due.any():
+                    reanchor = due & self._recent_agree(indices, z, R)
+        self._agreement.append((int((confirmed & ~passed).sum()), int((confirmed & passed).sum())))
+        del self._agreement[:-AGREEMENT_UPDATES]
+        self._confirmed[indices[passed]] = True
+        if not passed.all():
+            self._remember(indices[~passed], z[~passed], R[~passed])
+        self._streak[indices] = np.where(accepted | reanchor, 0, self._streak[indices] + 1)
         if not accepted.all():
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
         if len(y):
-            self._apply(PHt, S, y.reshape(-1))
-        return nis, accepted
+            try:
+                self._apply(PHt, S, y.reshape(-1))
+            except np.linalg.LinAlgError:  # S not positive definite in floating point: the update is not made
+                accepted[:] = False
+        for i in np.flatnonzero(reanchor):
+            self.reanchor_landmark(int(indices[i]), z[i], R[i])
+        return nis, accepted | reanchor
+
+    def _one_robot_correction_explains(self, indices: NDArray[np.int64], z: Array, R: Array) -> bool:
+        """Can one robot pose, the landmarks held where they are, explain these sightings (chi-square)?
+
+        Gauss-Newton on the robot pose alone, each sighting weighted by its noise plus its landmark's
+        uncertainty; the test is on the remaining residual (2k - 3 dof) at a 1e-3 false-alarm rate.
+        """
+        pose = self.x[:3, 0].copy()
+        landmarks = self.x[3:, 0].reshape(-1, 2)[indices]
+        cols = _landmark_columns(indices).reshape(-1, 2)
+        P_ll = self.P[cols[:, :, None], cols[:, None, :]]
+        chi2_value = np.inf
+        for _ in range(6):
+            z_hat, J_p, J_l = range_bearing_with_jacobians(pose, landmarks)
+            y = z - z_hat
+            y[:, 1] = wrap(y[:, 1])
+            C_inv = np.linalg.inv(R + J_l @ P_ll @ J_l.transpose(0, 2, 1))
+            chi2_value = float(np.einsum("ki,kij,kj->", y, C_inv, y))
+            A = np.einsum("kai,kab,kbj->ij", J_p, C_inv, J_p)
+            b = np.einsum("kai,kab,kb->i", J_p, C_inv, y)
+            try:
+                step = np.linalg.solve(A, b)
+            except np.linalg.LinAlgError:
+                return False
+            pose = pose + step
+            pose[2] = wrap(pose[2])
+        dof = 2 * len(indices) - 3
+        return chi2_value <= outlier_threshold(1e-3, dof) if dof > 0 else True
+
+    def _remember(self, indices: NDArray[np.int64], z: Array, R: Array) -> None:
+        """Keep where each gated sighting puts its landmark (with that position's covariance)."""
+        points, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        covs = G_r @ self.P[:3, :3] @ G_r.transpose(0, 2, 1) + G_z @ R @ G_z.transpose(0, 2, 1)
+        for j, point, cov in zip(indices.tolist(), points, covs):
+            recent = self._recent.setdefault(j, [])
+            recent.append((point, cov))
+            del recent[: -max(1, self.config.gate_persistence)]
+
+    def _recent_agree(self, indices: NDArray[np.int64], z: Array, R: Array) -> NDArray[np.bool_]:
+        """For each sighting: do two thirds of its landmark's recent gated sightings agree with it (chi-square)?"""
+        out = np.zeros(len(indices), dtype=bool)
+        bound = outlier_threshold(1e-3)
+        for i, j in enumerate(indices.tolist()):
+            recent = self._recent.get(j, [])
+            if len(recent) < 2:
+                continue
+            points = np.array([r[0] for r in recent])
+            covs = np.array([r[1] for r in recent])
+            d = points - points[-1]
+            total = covs + covs[-1]
+            chi2_values = np.einsum("ki,ki->k", d[:-1], np.linalg.solve(total[:-1], d[:-1, :, None])[..., 0])
+            agree = int(np.sum(chi2_values <= bound))
+            out[i] = agree >= max(1.0, 2.0 * len(chi2_values) / 3.0)
+        return out
+
+    def reanchor_landmark(self, index: int, z: Array, R: Array) -> None:
+        """Restart a landmark from one sighting, as if it were new (its old estimate and correlations dropped).
+
+        ``l = g(x_r, z)``; ``P_ll = G_r P_rr G_r^T + G_z R G_z^T``; ``P_lx = G_r P_rx`` for every other entry.
+        """
+        position, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        cols = 3 + 2 * index + np.arange(2)
+        cross = G_r @ self.P[:3, :]
+        block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
+        self.P[cols, :] = cross
+        self.P[:, cols] = cross.T
+        self.P[np.ix_(cols, cols)] = 0.5 * (block + block.T)
+        self.x[cols, 0] = position
+        self._recent.pop(index, None)
+        self._confirmed[index] = False
+        self.reanchored += 1
 
     def _apply(self, PHt: Array, S: Array, y: Array) -> None:
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
@@ -260,6 +384,7 @@ class EkfSlam(ExtendedKalmanFilter):
         ids, z_all, R_all = step.landmarks[start:], step.z[start:], step.z_cov[start:]
         k = len(ids)
         nis = np.full(k, np.nan)
+        rejected = np.zeros(k, dtype=bool)
         gated: list[LandmarkId] = []
         known = np.array([lid in self._index for lid in ids], dtype=bool)
         if known.any():
@@ -274,6 +399,7 @@ class EkfSlam(ExtendedKalmanFilter):
                         indices[j : j + 1], z_all[i : i + 1], R_all[i : i + 1]
                     )
             gated = [ids[i] for i in where[~accepted]]
+            rejected[where[~accepted]] = True
         new: list[LandmarkId] = []
         for i in np.flatnonzero(~known):
             lid = ids[i]
@@ -283,10 +409,12 @@ class EkfSlam(ExtendedKalmanFilter):
                 )
                 if not ok[0]:
                     gated.append(lid)
+                    rejected[i] = True
                 continue
             self.add_landmark(lid, z_all[i], R_all[i])
             new.append(lid)
         self.gated_total += len(gated)
+        self._rejected.append(rejected)
         self._step_nis.append(nis)
         self._step_gated += gated
         self._step_new += new
@@ -307,11 +435,16 @@ class EkfSlam(ExtendedKalmanFilter):
             "Q": self.Q[:3, :3].copy(),
             "landmark_ids": list(self.landmark_ids),
             "streak": self._streak.copy(),
+            "confirmed": self._confirmed.copy(),
+            "agreement": np.array(self._agreement, dtype=np.int64).reshape(-1, 2),
             "gated_total": self.gated_total,
+            "reanchored": self.reanchored,
+            "recent": [[j, np.array([r[0] for r in v]), np.array([r[1] for r in v])] for j, v in self._recent.items()],
             "poses": self.trajectory(),
             "step_nis": list(self._step_nis),
             "step_gated": list(self._step_gated),
             "step_new": list(self._step_new),
+            "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -329,11 +462,19 @@ class EkfSlam(ExtendedKalmanFilter):
         self.landmark_ids = landmark_ids
         self._index = {lid: j for j, lid in enumerate(landmark_ids)}
         self._streak = np.array(state["streak"], dtype=np.int64).reshape(len(landmark_ids))
+        self._confirmed = np.array(state["confirmed"], dtype=bool).reshape(len(landmark_ids))
+        self._agreement = [(int(f), int(a)) for f, a in np.array(state["agreement"], dtype=np.int64).reshape(-1, 2)]
         self.gated_total = int(state["gated_total"])
+        self.reanchored = int(state["reanchored"])
+        self._recent = {
+            int(j): [(p.copy(), c.copy()) for p, c in zip(np.array(pts).reshape(-1, 2), np.array(cs).reshape(-1, 2, 2))]
+            for j, pts, cs in state["recent"]
+        }
         self._history = PoseHistory(np.array(state["poses"], dtype=float).reshape(-1, 3)[:-1])
         self._step_nis = [np.array(a, dtype=float) for a in state["step_nis"]]
         self._step_gated = list(state["step_gated"])
         self._step_new = list(state["step_new"])
+        self._rejected = [np.array(state["rejected"], dtype=bool)]
 
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
@@ -369,6 +510,11 @@ class EkfSlam(ExtendedKalmanFilter):
             self.trajectory(),
             tuple(self.landmark_ids),
             self.x[3:, 0].reshape(-1, 2).copy(),
-            {"gated_observations": self.gated_total, "state_size": self.dim_x},
+            {
+                "gated_observations": self.gated_total,
+                "landmarks_reanchored": self.reanchored,
+                "state_size": self.dim_x,
+                "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
+            },
             landmark_covs=self.landmark_marginals(),
         )

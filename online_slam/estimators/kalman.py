@@ -40,7 +40,7 @@ def apply_update(cov: Array, PHt: Array, S: Array, y: Array) -> tuple[Array, Arr
     Returns:
         (state correction K y (n,), W = P H^T L^-T (n, m), L^-1 (m, m)) with ``S = L L^T``.
     """
-    L_inv = np.linalg.inv(np.linalg.cholesky(S))  # S is small (m x m)
+    L_inv = np.linalg.inv(np.linalg.cholesky(S))  # S is small (m x m); raises LinAlgError, cov untouched
     W = PHt @ L_inv.T
     cov -= W @ W.T  # numpy computes W W^T with syrk: exactly symmetric, so cov stays symmetric bit for bit
     return W @ (L_inv @ y), W, L_inv

@@ -48,6 +48,26 @@ class Latency:
 
 
 @dataclass(frozen=True)
+class OutlierReport:
+    """What an estimator judged an outlier, scored against the stream's marks where it has them."""
+
+    rejected: int
+    """Sightings the estimator rejected (gated, or dropped as outliers), in its final judgement."""
+    sightings: int
+    """Sightings it was given."""
+    true_outliers: int | None = None
+    """Sightings the stream marks as corrupted (None when the stream carries no marks)."""
+    caught: int | None = None
+    """Marked outliers it rejected."""
+    inliers_lost: int | None = None
+    """Unmarked sightings it rejected."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``"outliers"`` object of an estimator's results."""
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
 class EstimatorResult:
     """One estimator's figures over the whole stream."""
 
@@ -68,6 +88,8 @@ class EstimatorResult:
     """Per-step wall time; None for estimators whose work is all at the end."""
     details: dict[str, Any] = field(default_factory=dict)
     """Estimator-specific report (iterations, convergence, gated observations, ...)."""
+    outliers: OutlierReport | None = None
+    """Sightings judged outliers (and, on marked streams, how many were true outliers), where it judges."""
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of this result."""
@@ -82,6 +104,8 @@ class EstimatorResult:
             out["nees_mean"] = _finite_or_none(self.nees_mean)
             out["step_ms"] = self.step_ms.to_json()
         out.update(self.details)
+        if self.outliers is not None:
+            out["outliers"] = self.outliers.to_json()
         return out
 
 

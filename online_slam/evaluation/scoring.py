@@ -23,7 +23,7 @@ from online_slam.evaluation.metrics import (
     position_rmse,
     transform_pose_covariance,
 )
-from online_slam.evaluation.results import Latency, Series
+from online_slam.evaluation.results import Latency, OutlierReport, Series
 from online_slam.frontend.steps import GroundTruth
 
 Array = NDArray[np.float64]
@@ -160,3 +160,26 @@ def share_in_bounds(nees: Array, runs: int = 1) -> float | None:
         return None
     low, high = nees_bounds(runs)
     return float(np.mean((finite >= low) & (finite <= high)))
+
+
+def outlier_report(rejected: NDArray[np.bool_], truth: GroundTruth, marked: bool) -> OutlierReport:
+    """Score an estimator's outlier decisions (one per sighting, in step order) against the stream's marks.
+
+    Args:
+        rejected: True where the estimator rejected the sighting, shape (n_sightings,).
+        truth: Ground truth, with the marks of corrupted sightings by sighting number.
+        marked: True when the stream marks its outliers (a contaminated simulation), so counts are meaningful.
+    """
+    rejected = np.asarray(rejected, dtype=bool)
+    if not marked:
+        return OutlierReport(int(rejected.sum()), len(rejected))
+    truly = np.zeros(len(rejected), dtype=bool)
+    marks = np.array([k for k in truth.outliers if k < len(rejected)], dtype=np.int64)
+    truly[marks] = True
+    return OutlierReport(
+        rejected=int(rejected.sum()),
+        sightings=len(rejected),
+        true_outliers=int(truly.sum()),
+        caught=int((rejected & truly).sum()),
+        inliers_lost=int((rejected & ~truly).sum()),
+    )

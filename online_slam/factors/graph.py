@@ -11,6 +11,7 @@ The state vector holds the free poses then the landmarks; fixed poses have no co
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -230,6 +231,20 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
             _whiten(graph.obs_sqrt_info, e_obs).reshape(-1),
         ]
     )
+
+
+def observation_chi2(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
+    """Squared whitened norm of each observation's residual, shape (n_obs,) (chi-square, 2 dof, when right)."""
+    e_prior, e_odo, _, _, e_obs, _, _ = _errors(graph, poses, landmarks)
+    w = _whiten(graph.obs_sqrt_info, e_obs)
+    return np.sum(w * w, axis=1)
+
+
+def without_observations(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
+    """The same graph with the observations flagged in ``drop`` (n_obs,) switched off (zero information)."""
+    W = graph.obs_sqrt_info.copy()
+    W[drop] = 0.0
+    return dataclasses.replace(graph, obs_sqrt_info=W)
 
 
 def cost(graph: FactorGraph, r: Array, loss: RobustLoss | None = None) -> float:

@@ -61,8 +61,14 @@ def format_results(results: Results) -> str:
                 f"{name}: {state} in {d['iterations']} iterations "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
-        if "gated_observations" in d:
-            notes.append(f"{name}: {d['gated_observations']} observations rejected by the chi-square gate")
+        o = result.outliers
+        if o is not None and (o.rejected or o.true_outliers):
+            scored = (
+                f"; of {o.true_outliers} marked outliers {o.caught} caught, {o.inliers_lost} inliers lost"
+                if o.true_outliers is not None
+                else ""
+            )
+            notes.append(f"{name}: {o.rejected} of {o.sightings} sightings rejected as outliers{scored}")
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
         notes.append(f"input: {results.input.skipped_lines} bad lines skipped ({reasons})")
