@@ -178,7 +178,9 @@ class PeerOnline:
     """Wall time of each step's update plus reading the latest pose, shape (N,)."""
 
 
-def isam2_online(steps: list, relinearize_threshold: float = 0.01, relinearize_skip: int = 1) -> PeerOnline:
+def isam2_online(
+    steps: list, relinearize_threshold: float = 0.01, relinearize_skip: int = 1, cauchy: float | None = None
+) -> PeerOnline:
     """Run GTSAM's iSAM2 step by step (one update per step, reading the latest pose), native factors.
 
     New poses start from the latest estimate composed with the odometry; new landmarks from their first
@@ -188,6 +190,7 @@ def isam2_online(steps: list, relinearize_threshold: float = 0.01, relinearize_s
         steps: Front-end steps in order.
         relinearize_threshold: iSAM2's relinearization threshold.
         relinearize_skip: Relinearize every this many updates.
+        cauchy: Put a Cauchy kernel of this width (sigmas) on the observation factors (None: Gaussian).
 
     Returns:
         Online poses, final poses and per-step times.
@@ -231,6 +234,8 @@ def isam2_online(steps: list, relinearize_threshold: float = 0.01, relinearize_s
                 a = latest[2] + z[1]
                 values.insert(key, gtsam.Point2(latest[0] + z[0] * np.cos(a), latest[1] + z[0] * np.sin(a)))
             noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(np.asarray(cov)[::-1, ::-1]))
+            if cauchy is not None:
+                noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy), noise)
             graph.add(gtsam.BearingRangeFactor2D(X(i), key, gtsam.Rot2(z[1]), z[0], noise))
         isam.update(graph, values)
         latest = _vec(isam.calculateEstimatePose2(X(i)))

@@ -10,7 +10,7 @@ from online_slam.bench.ekf import time_smoother, time_steps, time_updates
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
-SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "fuzz", "soak")
+SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "fuzz", "robust", "soak")
 DEFAULT_SECTIONS = SECTIONS[:-1]
 """The soak (100,000 poses, several minutes) runs only when asked for: ``--only soak``."""
 
@@ -149,6 +149,28 @@ def _soak(args: argparse.Namespace) -> None:
     print("step times are median/p95; memory is the whole process (trajectory, truth and per-step figures kept)")
 
 
+def _robust(args: argparse.Namespace, world: GridConfig) -> None:
+    from online_slam.bench.robustness import run_robustness
+
+    rows = run_robustness(world)
+    print(f"robustness: grid world, {world.poses} poses, a fraction of sightings given a wrong landmark id; default")
+    print("flags; GTSAM iSAM2 with a Cauchy(3) kernel on the observations, same streams (position RMSE, m)")
+    head = f"{'wrong ids':>10}{'EKF online':>12}{'smoother online':>17}{'smoother final':>16}{'batch final':>13}"
+    print(f"{head}{'iSAM2 online':>14}{'iSAM2 final':>13}")
+    for r in rows:
+        peer = "".join(f"{v:>14.3f}" if v is not None else f"{'-':>14}" for v in (r.isam2_online,))
+        peer += f"{r.isam2_final:>13.3f}" if r.isam2_final is not None else f"{'-':>13}"
+        print(f"{r.wrong_ids:>10.0%}{r.ekf_online:>12.3f}{r.smoother_online:>17.3f}{r.smoother_final:>16.3f}"
+              f"{r.batch_final:>13.3f}{peer}")  # fmt: skip
+    clean = rows[0].batch_final
+    for r in rows[1:]:
+        worst_online = max(r.ekf_online, r.smoother_online) / clean
+        worst_final = max(r.smoother_final, r.batch_final) / clean
+        print(
+            f"{r.wrong_ids:.0%} wrong ids: online <= {worst_online:.2f}x, final <= {worst_final:.2f}x the clean batch"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the selected benchmarks and print their tables."""
     chosen = [s.strip() for s in args.only.split(",") if s.strip()]
@@ -169,6 +191,8 @@ def run(args: argparse.Namespace) -> int:
             _checkpoint(args, world)
         elif section == "fuzz":
             _fuzz(args)
+        elif section == "robust":
+            _robust(args, world)
         elif section == "soak":
             _soak(args)
         else:
