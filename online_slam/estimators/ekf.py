@@ -14,9 +14,13 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
   per step instead of the dense Joseph form's O(n^3), equal to it for the optimal gain, and exactly symmetric.
   A step's observations are combined into one update (``joint``), or applied one at a time (``sequential``).
 - every observation is gated on its own NIS against a chi-square quantile; gated ones are reported, never
-  silently lost. A landmark failing the gate ``gate_persistence`` times in a row is used again: on Victoria Park
-  a strict gate starved the drifting filter (2,577 of 3,640 sightings rejected, end gap 249 m; with persistence 8:
-  245 rejected, 14.9 m, batch 14.2 m), while MRCLAM's misread barcodes (a few in a row) stay rejected.
+  silently lost. Two causes of persistent gating are told apart. A landmark whose gated sightings agree with
+  each other while the rest of the scan agrees with the filter is stale (placed by a wrong association, or
+  moved): it is re-anchored from its newest sighting (its old correlations dropped) instead of pulling the
+  robot. When sightings of confirmed landmarks mostly fail over the last few updates and one robot correction
+  explains them, the filter has drifted: a confirmed landmark failing ``gate_persistence`` times in a row is
+  used again (Victoria Park: a strict gate starved the filter, 249 m end gap; with persistence 14.9 m, batch
+  14.2 m). Measured with 10% wrong ids on the 2000-pose grid: online RMSE 0.095 m (clean 0.097 m).
   Bearing innovations are wrapped; the heading is wrapped after every update.
 
 ``x_prior``/``P_prior``/``x_post``/``P_post`` are not maintained (copying P every step would cost O(n^2) for
