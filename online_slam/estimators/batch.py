@@ -4,16 +4,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.estimators.problem import ProblemLog
-from online_slam.estimators.protocol import Estimate, Snapshot
+from online_slam.estimators.problem import LoggedEstimator, ProblemLog
+from online_slam.estimators.protocol import Estimate
 from online_slam.factors.graph import FactorGraph, observation_chi2, without_observations
 from online_slam.factors.robust import RobustLoss, outlier_threshold
-from online_slam.frontend.steps import Step
 from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.solvers.least_squares import SolverConfig, solve
 
@@ -56,7 +54,7 @@ def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks:
     return out
 
 
-class BatchEstimator:
+class BatchEstimator(LoggedEstimator):
     """Collects every step; solves the full problem once, at the end of the stream.
 
     Until then its snapshots report the initial values it will start from (composed odometry, landmarks from
@@ -69,33 +67,6 @@ class BatchEstimator:
     def __init__(self, config: BatchConfig | None = None) -> None:
         self.config = config or BatchConfig()
         self.log = ProblemLog()
-
-    def step(self, step: Step) -> Snapshot:
-        """Record the step; report its initial value."""
-        pose = self.log.add(step)
-        return Snapshot(self.name, step.index, step.t, pose, None, self.log.landmark_ids, self.log.landmarks)
-
-    def extend(self, step: Step, start: int) -> Snapshot:
-        """More sightings of the newest pose: record them."""
-        self.log.extend(step, start)
-        return self.snapshot(step)
-
-    def snapshot(self, step: Step) -> Snapshot:
-        """The newest pose's value and the landmarks placed so far."""
-        pose = self.log.poses[-1]
-        return Snapshot(self.name, step.index, step.t, pose, None, self.log.landmark_ids, self.log.landmarks)
-
-    def trajectory(self) -> NDArray[np.float64]:
-        """The initial values it will start from (composed odometry), shape (N, 3)."""
-        return np.array(self.log.poses).reshape(-1, 3)
-
-    def state_dict(self) -> dict[str, Any]:
-        """Everything recorded (numbers and arrays only)."""
-        return self.log.state_dict()
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Restore a :meth:`state_dict`."""
-        self.log.load_state(state)
 
     def finish(self, initial: Estimate | None = None) -> Estimate:
         """Solve the full problem, from composed odometry or from another estimate (same poses, same ids)."""

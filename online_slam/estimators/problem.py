@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.estimators.protocol import Snapshot
 from online_slam.factors.graph import FactorGraph
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
@@ -162,3 +163,40 @@ class ProblemLog:
             obs_z=cat(self._obs_z) if self._obs_z else np.zeros((0, 2)),
             obs_cov=cat(self._obs_cov) if self._obs_cov else np.zeros((0, 2, 2)),
         )
+
+
+class LoggedEstimator:
+    """Protocol plumbing of an estimator whose state is a :class:`ProblemLog` (dead reckoning, batch).
+
+    Its snapshots report the log's initial values: the newest composed pose, landmarks from their first sight.
+    """
+
+    name = "logged"
+    log: ProblemLog
+
+    def step(self, step: Step) -> Snapshot:
+        """Record the step; report the newest pose's initial value."""
+        self.log.add(step)
+        return self.snapshot(step)
+
+    def extend(self, step: Step, start: int) -> Snapshot:
+        """More sightings of the newest pose: record them (new landmarks placed); the pose does not move."""
+        self.log.extend(step, start)
+        return self.snapshot(step)
+
+    def snapshot(self, step: Step) -> Snapshot:
+        """The newest pose's value and the landmarks placed so far."""
+        pose = self.log.poses[-1]
+        return Snapshot(self.name, step.index, step.t, pose, None, self.log.landmark_ids, self.log.landmarks)
+
+    def trajectory(self) -> Array:
+        """The composed trajectory so far (the initial values), shape (N, 3)."""
+        return np.array(self.log.poses).reshape(-1, 3)
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything recorded (numbers and arrays only)."""
+        return self.log.state_dict()
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict`."""
+        self.log.load_state(state)

@@ -314,14 +314,7 @@ class SlidingWindowSmoother:
         active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
         if self.config.consensus and observed:
             self._consensus(active)
-        graph, local = self._graph(active)
-        sparse = layout(graph, entries=False)
-        quadratic, recover = None, None
-        if self.prior is not None:
-            quadratic, recover = self._reduced_prior(
-                active, sparse.pose_column[local[self.prior.pose]], sparse.landmark_column
-            )
-        poses = np.array([self.poses[g] for g in self.window])
+        graph, sparse, quadratic, recover, poses = self._window_system(active)
         result = solve(
             graph,
             poses,
@@ -410,6 +403,17 @@ class SlidingWindowSmoother:
         buffer[:m, :m] = p.Sigma[np.ix_(keep, keep)]
         self.prior = _Prior(p.pose, np.delete(p.landmarks, slots), p.x_lin[keep], p.mu[keep], buffer[:m, :m])
         return True
+
+    def _window_system(self, active: Index) -> tuple:
+        """The window's factor graph, its layout, the reduced prior (and passive recovery), the window poses."""
+        graph, local = self._graph(active)
+        sparse = layout(graph, entries=False)
+        quadratic, recover = None, None
+        if self.prior is not None:
+            quadratic, recover = self._reduced_prior(
+                active, sparse.pose_column[local[self.prior.pose]], sparse.landmark_column
+            )
+        return graph, sparse, quadratic, recover, np.array([self.poses[g] for g in self.window])
 
     def _prior_split(self, active: Index) -> tuple[Index, Index, NDArray[np.bool_], Array]:
         """The prior's state split into the part the window solve sees and the passive landmarks.
@@ -504,14 +508,7 @@ class SlidingWindowSmoother:
         with self._blas.limit(limits=1, user_api="blas"):
             observed = [self._observations[i][0] for i in self.window if i in self._observations]
             active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
-            graph, local = self._graph(active)
-            sparse = layout(graph, entries=False)
-            quadratic = None
-            if self.prior is not None:
-                quadratic, _ = self._reduced_prior(
-                    active, sparse.pose_column[local[self.prior.pose]], sparse.landmark_column
-                )
-            poses = np.array([self.poses[g] for g in self.window])
+            graph, sparse, quadratic, _, poses = self._window_system(active)
             linearized = solve(
                 graph,
                 poses,
