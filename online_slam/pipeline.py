@@ -223,6 +223,7 @@ def replay(
     odometry = DeadReckoning()
     engine = Engine([odometry, *estimators], cfg.frontend)
     tracks = {e.name: _Track(e) for e in estimators}
+    step_times: list[float] = []
     settings = repr(cfg)
     expected_fingerprint = None
     if resume is not None:
@@ -237,6 +238,7 @@ def replay(
                 raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
             engine.load_state(state["engine"])
             _load_tracks(tracks, state["tracks"])
+            step_times.extend(float(t) for t in state["step_times"])
             skipped.update({str(k): int(v) for k, v in state["skipped"].items()})
             catching_up, expected_fingerprint = int(state["consumed"]), str(state["fingerprint"])
         except (KeyError, TypeError, ValueError, IndexError) as exc:
@@ -252,12 +254,14 @@ def replay(
             "skipped": dict(skipped),
             "engine": engine.state_dict(),
             "tracks": _tracks_state(tracks),
+            "step_times": np.array(step_times, dtype=float),
         }
         write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
 
     def take(record: StepRecord | None) -> None:
         if record is None:
             return
+        step_times.append(record.step.t)
         for estimator_name, track in tracks.items():
             track.record(record.snapshots[estimator_name], record.seconds[estimator_name])
         if sinks:
@@ -350,6 +354,7 @@ def replay(
         truth_landmarks=dict(truth.landmarks),
         error=error,
         input=InputReport(sum(skipped.values()), skipped),
+        step_times=np.array(step_times, dtype=float),
     )
     for sink in sinks:
         sink.on_finish(results, truth)

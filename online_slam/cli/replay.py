@@ -47,6 +47,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="stream to a running Rerun viewer (default address, or a rerun+http:// URL)",
     )
     p.add_argument(
+        "--tum",
+        metavar="DIR",
+        help="write TUM trajectory files for evo (truth, odometry, each estimator final and _online) in the "
+        "table's frame",
+    )
+    p.add_argument(
         "--checkpoint",
         metavar="DIR",
         help="save the whole replay state to DIR/replay.ckpt every --checkpoint-every steps (atomically)",
@@ -243,6 +249,10 @@ def run(args: argparse.Namespace) -> int:
         print(format_results(results))
     if args.json:
         write_json(args.json, results.to_json())
+    if args.tum:
+        from online_slam.sinks.tum import write_tum
+
+        write_tum(args.tum, results)
     failures = [results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):
         print(f"online-slam: error: {failure}", file=sys.stderr)

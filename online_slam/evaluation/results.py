@@ -173,6 +173,8 @@ class Results:
     """The input error that ended the stream early, or None; the figures cover what came before it."""
     input: InputReport = field(default_factory=InputReport)
     """Lines skipped by the reader (``--on-error skip``)."""
+    step_times: Array | None = field(default=None, repr=False)
+    """Time of every step, seconds, shape (N,)."""
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON schema of ``online-slam replay --json``."""

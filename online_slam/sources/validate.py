@@ -174,40 +174,42 @@ class EventValidator:
         if per_sighting and (not isinstance(noise, list) or len(noise) != k):
             raise self.fail(0, noise_key, f"expected one {noise_key} shared by all sightings or one per sighting")
         saved = self.state
+        fast = None if per_sighting else self._scan_fast(landmarks, ranges, bearings)
+        if fast is not None:  # the common case, checked at once
+            self._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
+            t_value = self.time({"t": t}, 0)
+            shared = self.noise({noise_key: noise}, 2, 0)
+            one = shared[0] if shared[0] is not None else shared[1]
+            self.state = self._pending
+            return Scan(t_value, tuple(landmarks), fast[0], fast[1], (one,) * k)
+        # one sighting at a time on a trial validator: the exact error of the first bad one, or all of them
         trial = EventValidator(self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content))
         trial._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
         t_value = trial.time({"t": t}, 0)
-        fast = self._scan_fast(landmarks, ranges, bearings) if not per_sighting else None
-        if fast is not None:
-            shared = trial.noise({noise_key: noise}, 2, 0)
-            one = shared[0] if shared[0] is not None else shared[1]
-            scan = Scan(t_value, tuple(landmarks), fast[0], fast[1], (one,) * k)
-        else:  # one sighting at a time: the exact error of the first bad one
-            events = []
-            for i in range(k):
-                record = {"type": "observation", "t": t, "landmark": landmarks[i], "range": ranges[i]}
-                record["bearing"] = bearings[i]
-                record[noise_key] = noise[i] if per_sighting else noise
-                try:
-                    events.append(trial.parse_record(record))
-                except InputError as exc:
-                    head, bracket, rest = exc.field.partition("[")
-                    if head in ("landmark", "range", "bearing") or per_sighting:
-                        field = f"{head}[{i}]{bracket}{rest}"
-                    else:
-                        field = exc.field
-                    raise self.fail(0, field, exc.message) from None
-            noises = tuple(e.sigma if e.cov is None else e.cov for e in events)
-            scan = Scan(
-                t_value,
-                tuple(landmarks),
-                tuple(e.range for e in events),
-                tuple(e.bearing for e in events),
-                noises,
-            )
-        trial._pending.seen_content = True
-        self.state = trial._pending
-        return scan
+        events = []
+        for i in range(k):
+            record = {"type": "observation", "t": t, "landmark": landmarks[i], "range": ranges[i]}
+            record["bearing"] = bearings[i]
+            record[noise_key] = noise[i] if per_sighting else noise
+            try:
+                events.append(trial.parse_record(record))
+            except InputError as exc:
+                head, bracket, rest = exc.field.partition("[")
+                field = (
+                    f"{head}[{i}]{bracket}{rest}"
+                    if head in ("landmark", "range", "bearing") or per_sighting
+                    else exc.field
+                )
+                raise self.fail(0, field, exc.message) from None
+        self.state = trial.state if events else trial._pending  # no sighting: the time check alone
+        self.state.seen_content = True
+        return Scan(
+            t_value,
+            tuple(landmarks),
+            tuple(e.range for e in events),
+            tuple(e.bearing for e in events),
+            tuple(e.sigma if e.cov is None else e.cov for e in events),
+        )
 
     @staticmethod
     def _scan_fast(landmarks: Any, ranges: Any, bearings: Any) -> tuple[tuple, tuple] | None:
@@ -215,18 +217,14 @@ class EventValidator:
         for lid in landmarks:
             if type(lid) is not int and (type(lid) is not str or lid == ""):
                 return None
-        try:
-            r = np.asarray(ranges)
-            b = np.asarray(bearings)
-        except (ValueError, TypeError, OverflowError):
-            return None
-        if r.dtype.kind not in "fi" or b.dtype.kind not in "fi" or r.ndim != 1 or b.ndim != 1:
-            return None
-        r, b = r.astype(float), b.astype(float)
-        limit = MAX_MAGNITUDE
-        if not (np.all(r >= MIN_RANGE) and np.all(r <= limit) and np.all(np.abs(b) <= limit)):  # NaN fails too
-            return None
-        return tuple(r.tolist()), tuple(b.tolist())
+        low, high = MIN_RANGE, MAX_MAGNITUDE
+        for r in ranges:  # NaN fails the comparisons
+            if type(r) is not float or not low <= r <= high:
+                return None
+        for b in bearings:
+            if type(b) is not float or not -high <= b <= high:
+                return None
+        return tuple(ranges), tuple(bearings)
 
     # -- field helpers -------------------------------------------------------------------------
     def number(self, record: dict[str, Any], key: str, line: int) -> float:
