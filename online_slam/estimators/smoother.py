@@ -78,8 +78,8 @@ class SmootherConfig:
     an inlier exceeds with probability 1e-6), a Cauchy tail beyond it, so a clean window solves exactly as
     least squares (measured: grid and a sparser world, 0/5/10/20% wrong ids; see the README)."""
     consensus: bool = True
-    """Before each solve, move a landmark only the window knows to the consensus of its sightings when its
-    estimate disagrees with most of them (a first sighting that was a wrong association)."""
+    """After each solve, move a landmark to the consensus of its window sightings when they agree with each
+    other but not with it (placed by a wrong association), releasing it from the prior if the prior holds it."""
     reject_false_alarm: float = 1e-3
     """Marginalization never folds into the prior a sighting whose squared whitened residual at the current
     estimate exceeds the chi-square bound this inlier would exceed with this probability (13.8 for 1e-3):
@@ -212,7 +212,7 @@ class SlidingWindowSmoother:
         self._unsolved: set[int] = set()
         self.solves = self.marginalized = 0
         self.released = 0
-        """Landmarks let go from the prior because the window's sightings contradicted it (see _release_stale)."""
+        """Landmarks let go from the prior because the window's sightings contradicted it (see _revisit)."""
         self._step_report: dict[str, float] = {}  # the newest step's last solve and marginalizations
         self._step_marginalized: list[int] = []
         self._decisions: list[tuple[int, NDArray[np.bool_]]] = []  # (pose, outlier mask) when it left the window
@@ -302,7 +302,7 @@ class SlidingWindowSmoother:
         return graph, local
 
     # -- solving ---------------------------------------------------------------------------------
-    def _solve(self, final: bool = False) -> dict[str, float]:
+    def _solve(self, final: bool = False, depth: int = 0) -> dict[str, float]:
         """Relinearize the window and solve.
 
         Landmarks that no window pose observes (passive) appear only in the marginal prior, a quadratic: they
@@ -312,8 +312,6 @@ class SlidingWindowSmoother:
         """
         observed = [self._observations[i][0] for i in self.window if i in self._observations]
         active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
-        if self.config.consensus and observed:
-            self._consensus(active)
         graph, sparse, quadratic, recover, poses = self._window_system(active)
         result = solve(
             graph,
@@ -345,64 +343,9 @@ class SlidingWindowSmoother:
         self._unsolved.clear()
         self.solves += 1
         report = {"iterations": result.iterations, "cost_before": result.initial_cost, "cost_after": result.final_cost}
-        if self.config.consensus and self._release_stale():
-            self.released += 1
-            return self._solve(final)
+        if self.config.consensus and np.isfinite(self._reject_bound) and self._revisit(graph, active, depth):
+            return self._solve(final, depth + 1)
         return report
-
-    def _release_stale(self) -> bool:
-        """Let go of prior landmarks that the window's own, mutually consistent sightings all contradict.
-
-        When three or more window sightings of a landmark the prior holds are outliers at the solved estimate
-        (two thirds of them beyond the rejection bound) yet agree with each other, the prior's value is the
-        wrong one (typically placed by a wrong association long ago): the landmark is marginalized out of the
-        prior (in covariance form: its rows are dropped) and restarts at the consensus of those sightings.
-        """
-        p = self.prior
-        if p is None or not len(p.landmarks) or not np.isfinite(self._reject_bound):
-            return False
-        rows = [i for i in self.window if i in self._observations]
-        if not rows:
-            return False
-        ids = np.concatenate([self._observations[i][0] for i in rows])
-        held = np.isin(ids, p.landmarks)
-        if not held.any():
-            return False
-        pose_of = np.concatenate([np.full(len(self._observations[i][0]), i) for i in rows])[held]
-        z = np.concatenate([self._observations[i][1] for i in rows])[held]
-        W = np.concatenate([self._observations[i][3] for i in rows])[held]
-        ids = ids[held]
-        poses = np.array([self.poses[g] for g in pose_of])
-        e = range_bearing(poses, self._landmarks[ids]) - z
-        e[:, 1] = wrap(e[:, 1])
-        r = np.einsum("kij,kj->ki", W, e)
-        outlying = np.sum(r * r, axis=1) > self._reject_bound
-        if not outlying.any():
-            return False
-        points = landmark_from_observation(poses, z)
-        stale: list[int] = []
-        for j in np.unique(ids[outlying]):
-            mine = ids == j
-            if mine.sum() < 3 or outlying[mine].mean() < 2.0 / 3.0:
-                continue
-            q = points[mine]
-            median = np.median(q, axis=0)
-            spread = np.median(np.linalg.norm(q - median, axis=1))
-            if np.linalg.norm(self._landmarks[j] - median) > 3.0 * spread + 1e-9:
-                stale.append(int(j))
-                self._landmarks[j] = median
-        if not stale:
-            return False
-        slots = np.flatnonzero(np.isin(p.landmarks, stale))
-        n = len(p.mu)
-        drop = (2 * slots[:, None] + np.arange(2)).reshape(-1)
-        keep = np.setdiff1d(np.arange(n), drop)
-        m = len(keep)
-        base = p.Sigma.base if p.Sigma.base is not None else p.Sigma
-        buffer = np.empty((max(base.shape[0], m), max(base.shape[0], m)))
-        buffer[:m, :m] = p.Sigma[np.ix_(keep, keep)]
-        self.prior = _Prior(p.pose, np.delete(p.landmarks, slots), p.x_lin[keep], p.mu[keep], buffer[:m, :m])
-        return True
 
     def _window_system(self, active: Index) -> tuple:
         """The window's factor graph, its layout, the reduced prior (and passive recovery), the window poses."""
@@ -435,40 +378,61 @@ class SlidingWindowSmoother:
             A = np.linalg.pinv(S_aa, hermitian=True)
         return order, passive, is_active, 0.5 * (A + A.T)
 
-    def _consensus(self, active: Index) -> None:
-        """Move a landmark that only the window knows to where most of its sightings put it.
+    def _revisit(self, graph: FactorGraph, active: Index, depth: int) -> bool:
+        """After a solve: move landmarks whose window sightings agree with each other but not with them.
 
-        A landmark starts where its first sighting puts it; when that sighting was a wrong association, the
-        later, right ones all disagree with it, and a robust loss would discount them instead of moving it.
-        For each landmark outside the marginal prior with three or more sightings in the window, the
-        coordinate-wise median of the positions its sightings give (from the current poses) replaces the
-        estimate when the estimate lies further from it than three times the sightings' median spread.
+        Only landmarks with a sighting beyond the rejection bound are examined (none, usually). A landmark
+        with three or more window sightings whose positions (from the solved poses) cluster away from its
+        estimate — further than three times their median spread from their coordinate-wise median — was
+        placed by a wrong association (its first sighting, or one folded into the prior long ago): a landmark
+        only the window knows moves to that median; one the marginal prior holds is released from the prior
+        (dropping its rows marginalizes it out, exactly) when two thirds of its sightings are outliers, then
+        moves. Returns True when something moved (the caller solves again; at most twice in a row).
         """
+        if depth >= 2 or len(graph.obs_pose) == 0:
+            return False
+        poses = np.array([self.poses[g] for g in self.window])
+        landmarks = self._landmarks[active]
+        e = range_bearing(poses[graph.obs_pose], landmarks[graph.obs_landmark]) - graph.obs_z
+        e[:, 1] = wrap(e[:, 1])
+        r = np.einsum("kij,kj->ki", graph.obs_sqrt_info, e)
+        outlying = np.sum(r * r, axis=1) > self._reject_bound
+        if not outlying.any():
+            return False
+        ids = active[graph.obs_landmark]
         held = self.prior.landmarks if self.prior is not None else np.zeros(0, dtype=np.int64)
-        free = active[~np.isin(active, held)]
-        if len(free) == 0:
-            return
-        pose_of = np.concatenate(
-            [np.full(len(self._observations[i][0]), i) for i in self.window if i in self._observations]
-        )
-        ids = np.concatenate([self._observations[i][0] for i in self.window if i in self._observations])
-        z = np.concatenate([self._observations[i][1] for i in self.window if i in self._observations])
-        use = np.isin(ids, free)
-        if not use.any():
-            return
-        poses = np.array([self.poses[g] for g in pose_of[use]])
-        points = landmark_from_observation(poses, z[use])
-        ids = ids[use]
-        order = np.argsort(ids, kind="stable")
-        groups, starts, counts = np.unique(ids[order], return_index=True, return_counts=True)
-        for j, start, count in zip(groups, starts, counts):
-            if count < 3:
+        moved, stale = False, []
+        for j in np.unique(ids[outlying]):
+            mine = ids == j
+            in_prior = bool(np.isin(j, held))
+            if mine.sum() < 3 or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
                 continue
-            p = points[order[start : start + count]]
-            median = np.median(p, axis=0)
-            spread = np.median(np.linalg.norm(p - median, axis=1))
+            points = landmark_from_observation(poses[graph.obs_pose[mine]], graph.obs_z[mine])
+            median = np.median(points, axis=0)
+            spread = np.median(np.linalg.norm(points - median, axis=1))
             if np.linalg.norm(self._landmarks[j] - median) > 3.0 * spread + 1e-9:
                 self._landmarks[j] = median
+                moved = True
+                if in_prior:
+                    stale.append(int(j))
+        if stale:
+            self._release(stale)
+        return moved
+
+    def _release(self, stale: list[int]) -> None:
+        """Marginalize landmarks out of the prior (in covariance form: drop their rows and columns)."""
+        p = self.prior
+        assert p is not None
+        slots = np.flatnonzero(np.isin(p.landmarks, stale))
+        drop = (2 * slots[:, None] + np.arange(2)).reshape(-1)
+        keep = np.setdiff1d(np.arange(len(p.mu)), drop)
+        m = len(keep)
+        base = p.Sigma.base if p.Sigma.base is not None else p.Sigma
+        size = max(base.shape[0], m)
+        buffer = np.empty((size, size))
+        buffer[:m, :m] = p.Sigma[np.ix_(keep, keep)]
+        self.prior = _Prior(p.pose, np.delete(p.landmarks, slots), p.x_lin[keep], p.mu[keep], buffer[:m, :m])
+        self.released += len(slots)
 
     def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
         """The prior's marginal on its pose and the active landmarks, and a function recovering the others."""

@@ -259,6 +259,8 @@ def cost(graph: FactorGraph, r: Array, loss: RobustLoss | None = None) -> float:
         return 0.5 * float(r @ r)
     split = 3 * len(graph.prior_pose) + 3 * len(graph.odo_from)
     s = np.sum(r[split:].reshape(-1, 2) ** 2, axis=1)
+    if not len(s) or s.max() <= loss.quadratic_within:
+        return 0.5 * float(r @ r)
     return 0.5 * float(r[:split] @ r[:split]) + 0.5 * float(np.sum(loss.rho(s)))
 
 
@@ -356,13 +358,13 @@ class DenseAssembler:
         W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
         r_prior, r_odo, r_obs = _whiten(graph.prior_sqrt_info, e_prior), _whiten(W_odo, e_odo), _whiten(W_obs, e_obs)
         total = 0.5 * float(np.sum(r_prior**2) + np.sum(r_odo**2))
-        if loss is not None and len(e_obs):
-            s = np.sum(r_obs**2, axis=1)
+        s = np.sum(r_obs**2, axis=1)
+        if loss is not None and len(e_obs) and s.max() > loss.quadratic_within:
             total += 0.5 * float(np.sum(loss.rho(s)))
             sqrt_w = np.sqrt(loss.weight(s))
             W_obs, r_obs = W_obs * sqrt_w[:, None, None], r_obs * sqrt_w[:, None]
-        else:
-            total += 0.5 * float(np.sum(r_obs**2))
+        else:  # least squares (or a loss that is exactly least squares at every residual here)
+            total += 0.5 * float(np.sum(s))
         factors = {
             "prior": (r_prior, graph.prior_sqrt_info),
             "odometry": (r_odo, W_odo @ np.concatenate([J_a, J_b], axis=2)),

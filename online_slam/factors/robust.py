@@ -33,6 +33,11 @@ class RobustLoss:
         if not self.scale > 0:
             raise ValueError("robust loss scale must be > 0")
 
+    @property
+    def quadratic_within(self) -> float:
+        """Squared norm up to which the loss is exactly least squares (rho(s) = s, weight 1); 0 for Cauchy."""
+        return 0.0 if self.kind == "cauchy" else self.scale * self.scale
+
     def rho(self, s: ArrayLike) -> Array:
         """Loss of squared whitened norms s (any shape); ``rho(s) ~ s`` for small s."""
         s = np.asarray(s, dtype=float)
