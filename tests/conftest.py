@@ -56,8 +56,11 @@ def _marked_processes() -> list[psutil.Process]:
         try:
             if process.pid == me or process.info["create_time"] < _SESSION_START - 1:
                 continue
-            if process.environ().get(SESSION_MARK) == mark and process.status() != psutil.STATUS_ZOMBIE:
-                found.append(process)
+            if process.environ().get(SESSION_MARK) != mark or process.status() == psutil.STATUS_ZOMBIE:
+                continue
+            if process.ppid() == me and "multiprocessing" in " ".join(process.cmdline()):
+                continue  # multiprocessing's resource tracker / forkserver: lives as long as this process, by design
+            found.append(process)
         except (psutil.NoSuchProcess, psutil.AccessDenied, psutil.ZombieProcess):
             continue
     return found

@@ -10,9 +10,9 @@ from online_slam.bench.ekf import time_smoother, time_steps, time_updates
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
-SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "fuzz", "robust", "soak")
-DEFAULT_SECTIONS = SECTIONS[:-1]
-"""The soak (100,000 poses, several minutes) runs only when asked for: ``--only soak``."""
+SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "fuzz", "robust", "sweep", "soak")
+DEFAULT_SECTIONS = SECTIONS[:-2]
+"""The sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for (``--only``)."""
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -38,6 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
+    p.add_argument("--mrclam", default="../shared/data/MRCLAM_Dataset6", help="sweep: the MRCLAM Dataset 6 folder")
 
 
 def _batch(args: argparse.Namespace, world: GridConfig) -> None:
@@ -171,6 +172,31 @@ def _robust(args: argparse.Namespace, world: GridConfig) -> None:
         )
 
 
+def _sweep(args: argparse.Namespace) -> None:
+    from pathlib import Path
+
+    from online_slam.sweep import make_cells, run_cell, sweep
+
+    folder = Path(args.mrclam)
+    if not (folder / "Barcodes.dat").is_file():
+        raise OnlineSlamError(f"bench sweep: no MRCLAM folder at {folder} (give --mrclam PATH)")
+    cells = make_cells([str(folder)], windows=(20, 50, 100), robots=(1, 2, 3, 4, 5))
+    started = time.perf_counter()
+    for cell in cells:
+        run_cell(cell)
+    serial = time.perf_counter() - started
+    started = time.perf_counter()
+    report = sweep(cells, workers=2)
+    parallel = time.perf_counter() - started
+    n = len(cells)
+    print(f"sweep: MRCLAM Dataset 6, 5 robots x 3 windows (20, 50, 100) = {n} replays, EKF + smoother + batch")
+    print(f"one after the other: {serial:.1f} s; Dask LocalCluster with 2 workers: {parallel:.1f} s "
+          f"(cluster start and stop included); speed-up {serial / parallel:.2f}x")  # fmt: skip
+    overhead = (2 * parallel - serial) / n
+    print(f"Dask overhead per task (time beyond a perfect 2x split, per replay): {overhead:.2f} s; "
+          f"{report.failed} failed")  # fmt: skip
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the selected benchmarks and print their tables."""
     chosen = [s.strip() for s in args.only.split(",") if s.strip()]
@@ -193,6 +219,8 @@ def run(args: argparse.Namespace) -> int:
             _fuzz(args)
         elif section == "robust":
             _robust(args, world)
+        elif section == "sweep":
+            _sweep(args)
         elif section == "soak":
             _soak(args)
         else:

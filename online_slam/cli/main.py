@@ -7,7 +7,7 @@ import sys
 from collections.abc import Sequence
 
 from online_slam import __version__
-from online_slam.cli import bench, compare, convert, inspect, replay, simulate
+from online_slam.cli import bench, compare, convert, inspect, replay, simulate, sweep
 from online_slam.errors import OnlineSlamError
 
 COMMANDS = {
@@ -17,6 +17,7 @@ COMMANDS = {
     "convert": convert,
     "inspect": inspect,
     "bench": bench,
+    "sweep": sweep,
 }
 
 

@@ -1,0 +1,274 @@
+"""Sweeps: the cartesian product of sources, settings and noise seeds, one replay per cell, on Dask.
+
+A cell is one replay (a source, a smoother window, an outlier setting and, for simulated worlds, a seed); it gives
+one tidy row per estimator. Cells run as tasks of a ``dask.distributed`` cluster: a ``LocalCluster`` on this
+machine's cores by default, or an existing scheduler (``tcp://host:port``) whose workers run this package. Rows
+are written to the output file as each cell finishes, so a sweep that is stopped and started again with the same
+output skips the cells already there. A cell that fails is a row with its error, not a dead sweep. Replays are
+deterministic: the same cell gives the same figures (timings aside) wherever it runs.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from online_slam.errors import OnlineSlamError
+
+SIMULATED = ("square", "grid")
+"""Sources whose noise seed a sweep varies (``--runs``)."""
+BASE_SEED = {"square": 1616, "grid": 7}
+"""First seed of each simulated world (its default)."""
+FIGURES = (
+    "online_rmse_m",
+    "final_rmse_m",
+    "landmark_rmse_m",
+    "endpoint_gap_m",
+    "nees_mean",
+    "step_median_ms",
+    "step_p95_ms",
+    "total_s",
+)
+"""Figures of a row (floats; empty where an estimator has none)."""
+COLUMNS = ("cell", "source", "robot", "window", "robust", "seed", "estimator", *FIGURES, "error")
+"""Columns of the tidy output, in order."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One replay of a sweep."""
+
+    source: str
+    """A built-in world, a stream file, or a dataset path."""
+    window: int
+    """Smoother window W."""
+    robust: str
+    """Outlier setting (``auto``, ``none``, ``huber``, ``cauchy``)."""
+    estimators: tuple[str, ...]
+    """Estimators to run."""
+    seed: int | None = None
+    """Noise seed of a simulated world (None for files and datasets)."""
+    robot: int | None = None
+    """MRCLAM robot (None otherwise)."""
+
+    @property
+    def key(self) -> str:
+        """A stable identifier of the cell (same settings, same key, on any machine)."""
+        text = json.dumps(asdict(self), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def make_cells(
+    sources: Sequence[str],
+    windows: Sequence[int] = (20,),
+    robust: Sequence[str] = ("auto",),
+    estimators: Sequence[str] = ("ekf", "smoother", "batch"),
+    runs: int = 1,
+    robots: Sequence[int] = (),
+) -> list[Cell]:
+    """The cartesian product of sources (x robots for MRCLAM folders, x seeds for simulated worlds), windows and
+    outlier settings."""
+    if runs < 1 or any(w < 1 for w in windows):
+        raise OnlineSlamError("sweep: --runs and every --window must be >= 1")
+    cells = []
+    for source in sources:
+        is_world = source in SIMULATED and not Path(source).exists()
+        seeds: list[int | None] = [BASE_SEED[source] + k for k in range(runs)] if is_world else [None]
+        is_mrclam = Path(source).is_dir() and (Path(source) / "Barcodes.dat").is_file()
+        robot_list: list[int | None] = list(robots) if is_mrclam else [None]
+        if is_mrclam and not robots:
+            raise OnlineSlamError(f"sweep: {source} is an MRCLAM folder; give --robot 1,2,...")
+        for robot in robot_list:
+            for seed in seeds:
+                for window in windows:
+                    for setting in robust:
+                        cells.append(Cell(source, int(window), setting, tuple(estimators), seed, robot))
+    return cells
+
+
+def run_cell(cell: Cell) -> list[dict[str, Any]]:
+    """Replay one cell; one row per estimator (or one row holding the error)."""
+    from online_slam.estimators.presets import robust_settings
+    from online_slam.pipeline import ReplayConfig, replay
+    from online_slam.sources.worlds import GridConfig, grid_world, square_world
+
+    head = {"cell": cell.key, "source": cell.source, "robot": cell.robot, "window": cell.window}
+    head.update({"robust": cell.robust, "seed": cell.seed})
+    try:
+        base = ReplayConfig(estimators=cell.estimators)
+        smoother, batch = robust_settings(cell.robust, 3.0, replace(base.smoother, window=cell.window), base.batch)
+        config = replace(base, smoother=smoother, batch=batch, dataset={"robot": cell.robot})
+        if cell.seed is not None:
+            events = square_world(cell.seed) if cell.source == "square" else grid_world(GridConfig(seed=cell.seed))
+            results = replay(events, config, name=cell.source)
+        else:
+            results = replay(cell.source, config)
+    except Exception as exc:  # noqa: BLE001 - a failing cell is a row with its error, whatever it raised
+        return [{**head, "estimator": "", **{f: None for f in FIGURES}, "error": f"{type(exc).__name__}: {exc}"}]
+    rows = []
+    for name, r in results.estimators.items():
+        rows.append(
+            {
+                **head,
+                "estimator": name,
+                "online_rmse_m": r.online_rmse_m,
+                "final_rmse_m": r.final_rmse_m,
+                "landmark_rmse_m": r.landmark_rmse_m,
+                "endpoint_gap_m": r.endpoint_gap_m,
+                "nees_mean": r.nees_mean,
+                "step_median_ms": r.step_ms.median if r.step_ms is not None else None,
+                "step_p95_ms": r.step_ms.p95 if r.step_ms is not None else None,
+                "total_s": r.total_s,
+                "error": "",
+            }
+        )
+    return rows
+
+
+# -- output -----------------------------------------------------------------------------------------------
+def _value(text: str, column: str) -> Any:
+    if text == "":
+        return None if column != "error" else ""
+    if column in FIGURES:
+        return float(text)
+    if column in ("robot", "window", "seed"):
+        return int(text)
+    return text
+
+
+def read_rows(path: str | Path) -> list[dict[str, Any]]:
+    """Rows already in an output file (CSV or Parquet); [] when it does not exist."""
+    p = Path(path)
+    if not p.exists():
+        return []
+    try:
+        if p.suffix == ".parquet":
+            import pandas as pd
+
+            frame = pd.read_parquet(p)
+            return [{c: (None if isinstance(v, float) and math.isnan(v) and c != "error" else v)
+                     for c, v in row.items()} for row in frame.to_dict("records")]  # fmt: skip
+        with p.open(newline="", encoding="utf-8") as handle:
+            return [{c: _value(row.get(c, ""), c) for c in COLUMNS} for row in csv.DictReader(handle)]
+    except (OSError, ValueError, KeyError) as exc:
+        raise OnlineSlamError(f"{p}: cannot read the sweep's rows ({exc})") from None
+
+
+def _append(path: Path, rows: list[dict[str, Any]], every_row: list[dict[str, Any]]) -> None:
+    """Add one cell's rows to the output as soon as they exist (CSV: appended; Parquet: rewritten)."""
+    if path.suffix == ".parquet":
+        import pandas as pd
+
+        pd.DataFrame(every_row, columns=list(COLUMNS)).to_parquet(path.with_suffix(".tmp"), index=False)
+        os.replace(path.with_suffix(".tmp"), path)
+        return
+    new = not path.exists() or path.stat().st_size == 0
+    with path.open("a", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(COLUMNS))
+        if new:
+            writer.writeheader()
+        for row in rows:
+            writer.writerow({c: ("" if row.get(c) is None else row.get(c)) for c in COLUMNS})
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+@dataclass(frozen=True)
+class SweepReport:
+    """What a sweep did."""
+
+    rows: list[dict[str, Any]]
+    """Every row of the output (earlier runs' included), in cell order."""
+    computed: int
+    """Cells computed by this run."""
+    skipped: int
+    """Cells found already done in the output."""
+    failed: int
+    """Cells whose row holds an error."""
+
+
+def sweep(
+    cells: Sequence[Cell],
+    out: str | Path | None = None,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> SweepReport:
+    """Run the cells on Dask; write rows to ``out`` as cells finish; skip cells ``out`` already holds.
+
+    Args:
+        cells: The cells.
+        out: Output file (``.csv`` or ``.parquet``), or None to keep the rows in memory only.
+        scheduler: Address of a running Dask scheduler; None starts a ``LocalCluster`` (one process per worker).
+        workers: Workers of the local cluster (default: the machine's cores).
+        progress: Called with (cells done, cells in all) after each cell.
+    """
+    from distributed import Client, LocalCluster, as_completed
+
+    path = Path(out) if out is not None else None
+    if path is not None and path.suffix not in (".csv", ".parquet"):
+        raise OnlineSlamError(f"--out: expected a .csv or .parquet file, got {path.name}")
+    earlier = read_rows(path) if path is not None else []
+    done = {row["cell"] for row in earlier}
+    todo = [c for c in cells if c.key not in done]
+    rows = list(earlier)
+    total, finished = len(cells), len(cells) - len(todo)
+    if progress is not None:
+        progress(finished, total)
+    if todo:
+        cluster = None
+        try:
+            if scheduler is None:
+                n = workers or os.cpu_count() or 1
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+                client = Client(cluster)
+            else:
+                client = Client(scheduler, timeout="10s")
+        except OSError as exc:
+            raise OnlineSlamError(f"sweep: cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+        try:
+            futures = [client.submit(run_cell, cell, key=f"cell-{cell.key}", pure=False) for cell in todo]
+            for _, cell_rows in as_completed(futures, with_results=True):
+                rows.extend(cell_rows)
+                if path is not None:
+                    _append(path, cell_rows, rows)
+                finished += 1
+                if progress is not None:
+                    progress(finished, total)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    order = {c.key: k for k, c in enumerate(cells)}
+    rows.sort(key=lambda r: (order.get(r["cell"], len(order)), r["estimator"]))
+    failed = len({r["cell"] for r in rows if r["error"]})
+    return SweepReport(rows, len(todo), total - len(todo), failed)
+
+
+def summary(rows: Iterable[dict[str, Any]]) -> list[tuple[tuple, dict[str, tuple[float, float, int]]]]:
+    """Mean and standard deviation of each figure per (source, robot, window, robust, estimator), over seeds."""
+    groups: dict[tuple, list[dict[str, Any]]] = {}
+    for row in rows:
+        if row["error"]:
+            continue
+        key = (row["source"], row["robot"], row["window"], row["robust"], row["estimator"])
+        groups.setdefault(key, []).append(row)
+    out = []
+    for key, members in groups.items():
+        figures = {}
+        for f in FIGURES:
+            values = np.array([m[f] for m in members if m[f] is not None], dtype=float)
+            if len(values):
+                std = float(values.std(ddof=1)) if len(values) > 1 else 0.0
+                figures[f] = (float(values.mean()), std, len(values))
+        out.append((key, figures))
+    return out

@@ -1,0 +1,140 @@
+"""Sweeps on Dask: rows equal replay's, on a local cluster and on a real scheduler with two workers; resume."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed", reason="dask[distributed] is not installed")
+
+from conftest import stop_process_tree  # noqa: E402
+
+import online_slam  # noqa: E402
+from online_slam.estimators.presets import robust_settings  # noqa: E402
+from online_slam.pipeline import ReplayConfig  # noqa: E402
+from online_slam.sources.worlds import square_world  # noqa: E402
+from online_slam.sweep import FIGURES, make_cells, sweep  # noqa: E402
+
+EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
+DETERMINISTIC = [f for f in FIGURES if f not in ("step_median_ms", "step_p95_ms", "total_s")]
+
+
+def by_key(rows: list[dict]) -> dict:
+    return {(r["cell"], r["estimator"]): r for r in rows}
+
+
+def assert_same(a: list[dict], b: list[dict]) -> None:
+    a, b = by_key(a), by_key(b)
+    assert a.keys() == b.keys()
+    for key in a:
+        for f in DETERMINISTIC:
+            x, y = a[key][f], b[key][f]
+            assert (x is None and y is None) or abs(x - y) <= 1e-9, (key, f, x, y)
+
+
+@pytest.fixture(scope="module")
+def cells() -> list:
+    return make_cells(["square"], windows=(5, 10), robust=("auto", "none"), runs=2)
+
+
+@pytest.fixture(scope="module")
+def local_rows(cells) -> list[dict]:
+    return sweep(cells, workers=2).rows
+
+
+def test_local_sweep_rows_equal_replay(cells, local_rows) -> None:
+    assert len(cells) == 8 and len(local_rows) == 8 * 3
+    for cell in cells[:3]:
+        base = ReplayConfig()
+        smoother, batch = robust_settings(cell.robust, 3.0, replace(base.smoother, window=cell.window), base.batch)
+        results = online_slam.replay(square_world(cell.seed), replace(base, smoother=smoother, batch=batch))
+        for name, r in results.estimators.items():
+            row = by_key(local_rows)[(cell.key, name)]
+            assert row["final_rmse_m"] == pytest.approx(r.final_rmse_m, abs=1e-9)
+            if r.online_rmse_m is not None:
+                assert row["online_rmse_m"] == pytest.approx(r.online_rmse_m, abs=1e-9)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_real_scheduler_with_two_workers_gives_the_local_rows(cells, local_rows, processes, tmp_path) -> None:
+    dask = shutil.which("dask")
+    if dask is None:
+        pytest.skip("the dask command is not installed")
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    processes([dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], **quiet)
+    processes(
+        [dask, "worker", address, "--nworkers", "2", "--nthreads", "1", "--no-dashboard", "--local-directory",
+         str(tmp_path)], **quiet,
+    )  # fmt: skip
+    from distributed import Client
+
+    deadline = time.monotonic() + 60
+    while True:  # wait for both workers
+        try:
+            with Client(address, timeout="2s") as client:
+                if len(client.scheduler_info()["workers"]) >= 2:
+                    break
+        except OSError:
+            pass
+        assert time.monotonic() < deadline, "the Dask workers did not come up"
+        time.sleep(0.5)
+    out = tmp_path / "cluster.csv"
+    done = subprocess.run(
+        [*EXE, "sweep", "square", "--window", "5,10", "--robust", "auto,none", "--runs", "2", "--scheduler", address,
+         "--out", str(out)], capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "8 replays: 8 computed" in done.stdout
+    from online_slam.sweep import read_rows
+
+    assert_same(read_rows(out), local_rows)
+
+
+def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows, processes, tmp_path) -> None:
+    out = tmp_path / "sweep.csv"
+    command = [*EXE, "sweep", "square", "--window", "5,10", "--robust", "auto,none", "--runs", "2", "--workers", "1",
+               "--out", str(out), "--quiet"]  # fmt: skip
+    first = processes(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    done_cells = 0
+    while done_cells < 3 and time.monotonic() < deadline:
+        time.sleep(0.1)
+        if out.exists():
+            with out.open() as handle:
+                done_cells = len({row["cell"] for row in csv.DictReader(handle)})
+    assert first.poll() is None, "the sweep finished before it could be killed"
+    stop_process_tree(first)  # the sweep and its Dask worker processes
+    with out.open() as handle:
+        kept = {row["cell"] for row in csv.DictReader(handle)}
+    assert 3 <= len(kept) < 8
+    again = subprocess.run([c for c in command if c != "--quiet"], capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert f"8 replays: {8 - len(kept)} computed, {len(kept)} already in the output" in again.stdout
+    from online_slam.sweep import read_rows
+
+    rows = read_rows(out)
+    assert len(rows) == len(by_key(rows)) == 24  # no cell twice
+    assert_same(rows, local_rows)
+
+
+def test_a_failing_cell_is_a_row_not_a_dead_sweep(tmp_path: Path) -> None:
+    missing = str(tmp_path / "missing.jsonl")
+    report = sweep(make_cells(["square", missing], windows=(5,), estimators=("ekf",)), workers=1)
+    errors = [r for r in report.rows if r["error"]]
+    assert report.failed == 1 and len(errors) == 1 and "no such file" in errors[0]["error"]
+    assert any(r["estimator"] == "ekf" and r["final_rmse_m"] is not None for r in report.rows)
