@@ -138,3 +138,15 @@ def test_a_failing_cell_is_a_row_not_a_dead_sweep(tmp_path: Path) -> None:
     errors = [r for r in report.rows if r["error"]]
     assert report.failed == 1 and len(errors) == 1 and "no such file" in errors[0]["error"]
     assert any(r["estimator"] == "ekf" and r["final_rmse_m"] is not None for r in report.rows)
+
+
+def test_parquet_output_round_trips_and_resumes(cells, local_rows, tmp_path: Path) -> None:
+    from online_slam.sweep import read_rows
+
+    out = tmp_path / "rows.parquet"
+    first = sweep(cells[:2], out=out, workers=1)
+    again = sweep(cells[:3], out=out, workers=1)
+    assert first.computed == 2 and again.computed == 1 and again.skipped == 2
+    rows = read_rows(out)
+    assert len(rows) == 9
+    assert_same(rows, [r for r in local_rows if r["cell"] in {c.key for c in cells[:3]}])
