@@ -18,10 +18,9 @@ unchanged maps not at all, and landmark covariance ellipses every ``map_every`` 
 
 from __future__ import annotations
 
+import functools
 import json
 import math
-import re
-import subprocess
 import time
 import uuid
 from collections.abc import Mapping
@@ -108,13 +107,19 @@ class RerunConfig:
     streaming to a viewer)."""
 
 
+@functools.cache
+def _strip_datatype() -> pa.DataType:
+    """The Arrow type of ``LineStrip2D``, read off a one-strip batch built through the public API."""
+    return rr.components.LineStrip2DBatch([np.zeros((2, 2), dtype=np.float32)]).as_arrow_array().type
+
+
 def _strips_array(strips: list[Array]) -> pa.Array:
     """Polylines as one Arrow ``LineStrip2D`` array, built in one go (rerun converts a list strip by strip)."""
     sizes = np.fromiter((len(strip) for strip in strips), dtype=np.int32, count=len(strips))
     offsets = np.zeros(len(strips) + 1, dtype=np.int32)
     np.cumsum(sizes, out=offsets[1:])
     flat = np.concatenate(strips).astype(np.float32).reshape(-1) if strips else np.zeros(0, dtype=np.float32)
-    datatype = rr.components.LineStrip2DBatch._ARROW_DATATYPE
+    datatype = _strip_datatype()
     points = pa.FixedSizeListArray.from_arrays(pa.array(flat, type=pa.float32()), type=datatype.value_type)
     return pa.ListArray.from_arrays(pa.array(offsets), points, type=datatype)
 
@@ -517,10 +522,30 @@ class Recording:
 
 
 def blueprint_views(path: str | Path) -> list[tuple[str, str, str]]:
-    """The (view class, name, origin) of each view in the recording's blueprint, read back by ``rerun rrd print``."""
+    """The (view class, name, origin) of each view in the recording's blueprint, read through the SDK.
+
+    ``rerun.chunk.RrdReader`` (rerun-sdk 0.41) lists the blueprint stores of an .rrd and streams their chunks; each
+    view's ``ViewBlueprint`` components name its class, display name and space origin.
+    """
+    from rerun.chunk import RrdReader
+
     p = check_rrd(path)
-    done = subprocess.run(["rerun", "rrd", "print", "-vvv", str(p)], capture_output=True, text=True, timeout=120)
-    if done.returncode != 0:
-        raise OnlineSlamError(f"{p}: rerun rrd print failed")
-    pattern = re.compile(r"┆ \[(\w+)\]\s*┆ \[([^\]]*)\]\s*┆ \[(/[^\]]*)\]")
-    return sorted(set(pattern.findall(done.stdout)))
+    views = set()
+    try:
+        reader = RrdReader(str(p))
+        for store in reader.blueprints():
+            for chunk in reader.stream(store=store):
+                batch = chunk.to_record_batch()
+                names = batch.schema.names
+                if "ViewBlueprint:class_identifier" not in names:
+                    continue
+                value = {
+                    n.split(":")[1]: batch.column(n).to_pylist()[0] for n in names if n.startswith("ViewBlueprint:")
+                }
+                first = {k: (v[0] if isinstance(v, list) and v else v) for k, v in value.items()}
+                views.add(
+                    (str(first.get("class_identifier")), str(first.get("display_name")), str(first.get("space_origin")))
+                )
+    except Exception as exc:  # noqa: BLE001 - one line for the user whatever rerun raised
+        raise OnlineSlamError(f"{p}: cannot read the blueprint ({exc})") from None
+    return sorted(views)
