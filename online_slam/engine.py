@@ -189,5 +189,6 @@ def _pending_from(s: dict[str, Any]) -> PendingStep:
         landmarks=list(s["landmarks"]),
         z=[(float(r), float(b)) for r, b in np.array(s["z"], dtype=float).reshape(-1, 2)],
         z_noise=[c.copy() for c in np.array(s["z_cov"], dtype=float).reshape(-1, 2, 2)],
+        full_covariance=True,
         sealed=bool(s["sealed"]),
     )

@@ -120,8 +120,8 @@ def _plain(value: Any) -> Any:
     kind = type(value)
     if kind in _SCALARS:
         return value
-    if (kind is tuple or kind is list) and all(type(v) in _SCALARS for v in value):
-        return list(value)
+    if (kind is tuple or kind is list) and (not value or type(value[0]) in _SCALARS):
+        return value if kind is list else list(value)  # flat: the validator checks every element
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):

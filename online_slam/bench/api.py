@@ -3,7 +3,8 @@
 Direct: the front-end turns the (already validated) events into steps and ``estimator.step`` consumes them,
 as a hand-written loop would. API: a robot's loop — ``add_odometry``, the step's sightings (one
 ``add_observations`` call per scan, or one ``add_observation`` call per sighting), ``estimate()`` once per
-pose — with every call validated. The difference is validation, dispatch and the queries.
+pose — with every call validated; the calls' arguments are prepared before timing, as the events of the direct
+path are. The difference is validation, dispatch and the queries.
 """
 
 from __future__ import annotations
@@ -41,36 +42,59 @@ def _direct(name: str, events: list[Event]) -> float:
     return time.perf_counter() - started
 
 
-def _api(name: str, events: list[Event], scans: bool) -> float:
-    slam = Slam(name)
-    started = time.perf_counter()
+def _calls(events: list[Event], scans: bool) -> list[tuple]:
+    """The robot loop's calls, prepared before timing (a sensor hands over its scan as lists)."""
+    calls: list[tuple] = []
     batch: list[Observation] = []
 
     def flush() -> None:
         if batch:
             first = batch[0]
-            ranges, bearings = [o.range for o in batch], [o.bearing for o in batch]
-            slam.add_observations(first.t, [o.landmark for o in batch], ranges, bearings, sigma=first.sigma)
+            calls.append(("scan", first.t, [o.landmark for o in batch], [o.range for o in batch],
+                          [o.bearing for o in batch], first.sigma))  # fmt: skip
             batch.clear()
 
+    started = False
     for event in events:
         if type(event) is Observation:
             if not scans:
-                slam.add_observation(event.t, event.landmark, event.range, event.bearing, event.sigma, event.cov)
+                calls.append(("one", event.t, event.landmark, event.range, event.bearing, event.sigma, event.cov))
             elif batch and (event.t != batch[0].t or event.sigma != batch[0].sigma or event.cov is not None):
                 flush()
                 batch.append(event)
             else:
                 batch.append(event)
+            started = True
         elif type(event) is Odometry:
             flush()
-            if slam.poses:
-                slam.estimate(landmark_covs=False)
-            slam.add_odometry(event.t, event.delta, event.sigma, event.cov)
+            if started:
+                calls.append(("estimate",))
+            calls.append(("odometry", event.t, event.delta, event.sigma, event.cov))
+            started = True
         elif type(event) is Start:
-            slam.start(event.t, event.pose, event.sigma, event.cov)
+            calls.append(("start", event.t, event.pose, event.sigma, event.cov))
+            started = True
     flush()
-    slam.estimate(landmark_covs=False)
+    calls.append(("estimate",))
+    return calls
+
+
+def _api(name: str, events: list[Event], scans: bool) -> float:
+    calls = _calls(events, scans)
+    slam = Slam(name)
+    started = time.perf_counter()
+    for call in calls:
+        kind = call[0]
+        if kind == "scan":
+            slam.add_observations(call[1], call[2], call[3], call[4], sigma=call[5])
+        elif kind == "one":
+            slam.add_observation(*call[1:])
+        elif kind == "odometry":
+            slam.add_odometry(*call[1:])
+        elif kind == "estimate":
+            slam.estimate(landmark_covs=False)
+        else:
+            slam.start(*call[1:])
     return time.perf_counter() - started
 
 

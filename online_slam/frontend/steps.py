@@ -114,6 +114,7 @@ class PendingStep:
     z: list[tuple[float, float]] = field(default_factory=list)
     z_noise: list = field(default_factory=list)  # per observation: its sigma (2,) or its full covariance (2, 2)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
+    full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
     _frozen: tuple | None = field(default=None, repr=False, compare=False)
 
     def z_covariances(self) -> Array:
@@ -122,11 +123,11 @@ class PendingStep:
         out = np.zeros((k, 2, 2))
         if k == 0:
             return out
-        diagonal = [len(n) == 2 and not isinstance(n[0], (tuple, list, np.ndarray)) for n in self.z_noise]
-        if all(diagonal):
+        if not self.full_covariance:  # every sighting gave sigma: one vectorized diag(sigma^2)
             sigma = np.array(self.z_noise, dtype=float)
             out[:, 0, 0], out[:, 1, 1] = np.square(sigma[:, 0]), np.square(sigma[:, 1])
             return out
+        diagonal = [len(n) == 2 and not isinstance(n[0], (tuple, list, np.ndarray)) for n in self.z_noise]
         for i, (noise, is_sigma) in enumerate(zip(self.z_noise, diagonal)):
             out[i] = np.diag(np.square(np.array(noise, dtype=float))) if is_sigma else np.array(noise, dtype=float)
         return out
@@ -236,6 +237,8 @@ class FrontEnd:
             pending.landmarks.append(event.landmark)
             pending.z.append((event.range, event.bearing))
             pending.z_noise.append(event.sigma if event.cov is None else event.cov)
+            if event.cov is not None:
+                pending.full_covariance = True
         elif isinstance(event, Scan):
             self.counts["observation"] = self.counts.get("observation", 0) + len(event.landmarks)
             pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
@@ -245,9 +248,16 @@ class FrontEnd:
                 dropped = len(event.landmarks) - len(keep)
                 self.counts["dropped_repeat_observation"] = self.counts.get("dropped_repeat_observation", 0) + dropped
             self.sightings += len(keep)
-            pending.landmarks.extend(event.landmarks[i] for i in keep)
-            pending.z.extend((event.ranges[i], event.bearings[i]) for i in keep)
-            pending.z_noise.extend(event.noise[i] for i in keep)
+            if len(keep) == len(event.landmarks):
+                pending.landmarks.extend(event.landmarks)
+                pending.z.extend(zip(event.ranges, event.bearings))
+                pending.z_noise.extend(event.noise)
+            else:
+                pending.landmarks.extend(event.landmarks[i] for i in keep)
+                pending.z.extend((event.ranges[i], event.bearings[i]) for i in keep)
+                pending.z_noise.extend(event.noise[i] for i in keep)
+            if event.noise and isinstance(event.noise[0][0], tuple):
+                pending.full_covariance = True
         elif isinstance(event, Truth):
             self._count("truth")
             pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
