@@ -30,7 +30,7 @@ from online_slam.version import __version__
 FORMAT_VERSION = 1
 """Version of the checkpoint layout; files of another version are refused."""
 
-_ARRAY, _TUPLE, _PAIRS, _SET = "__array__", "__tuple__", "__pairs__", "__set__"
+_ARRAY, _TUPLE, _PAIRS = "__array__", "__tuple__", "__pairs__"
 
 
 def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
@@ -50,8 +50,6 @@ def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
         return {_TUPLE: [_pack(v, arrays) for v in value]}
     if isinstance(value, list):
         return [_pack(v, arrays) for v in value]
-    if isinstance(value, (set, frozenset)):
-        return {_SET: [_pack(v, arrays) for v in sorted(value, key=repr)]}
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     raise TypeError(f"cannot checkpoint a {type(value).__name__}")
@@ -65,8 +63,6 @@ def _unpack(value: Any, arrays: dict[int, np.ndarray]) -> Any:
             return arrays[int(value[_ARRAY])].copy()
         if set(value) == {_TUPLE}:
             return tuple(_unpack(v, arrays) for v in value[_TUPLE])
-        if set(value) == {_SET}:
-            return {_hashable(_unpack(v, arrays)) for v in value[_SET]}
         if set(value) == {_PAIRS}:
             return {_hashable(_unpack(k, arrays)): _unpack(v, arrays) for k, v in value[_PAIRS]}
         return {k: _unpack(v, arrays) for k, v in value.items()}
@@ -83,7 +79,7 @@ def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:
     Args:
         path: The checkpoint file.
         kind: What the state is (e.g. ``slam``, ``replay``); :func:`read_checkpoint` checks it.
-        state: Nested dicts, lists, tuples, sets, numbers, strings, None and numpy arrays (no object dtype).
+        state: Nested dicts, lists, tuples, numbers, strings, None and numpy arrays (no object dtype).
     """
     arrays: list[np.ndarray] = []
     tree = _pack(state, arrays)

@@ -16,16 +16,14 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.evaluation.results import Results
+from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.worlds import GridConfig, grid_world, square_world
 
 Array = NDArray[np.float64]
-NEES_DOF = 3
-"""Pose NEES has 3 degrees of freedom."""
 
 
 @dataclass(frozen=True)
@@ -128,20 +126,12 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
-def nees_bounds(runs: int, probability: float = 0.95) -> tuple[float, float]:
-    """Two-sided bounds on a 3-dof NEES averaged over ``runs`` independent runs."""
-    tail = (1.0 - probability) / 2.0
-    low, high = chi2.ppf([tail, 1.0 - tail], NEES_DOF * runs) / runs
-    return float(low), float(high)
-
-
 def _finite_mean(values: Array) -> float | None:
     return float(np.nanmean(values)) if np.isfinite(values).any() else None
 
 
 def rows_of(results: Results) -> dict[str, Row]:
     """The table lines of a replay's results."""
-    low, high = nees_bounds(1)
     rows = {
         "odometry": Row(
             results.odometry.rmse_m,
@@ -157,10 +147,7 @@ def rows_of(results: Results) -> dict[str, Row]:
     }
     for name, r in results.estimators.items():
         s = results.series.get(name)
-        in_bounds = None
-        if s is not None and np.isfinite(s.nees).any():
-            finite = s.nees[np.isfinite(s.nees)]
-            in_bounds = float(np.mean((finite >= low) & (finite <= high)))
+        in_bounds = share_in_bounds(s.nees) if s is not None else None
         rows[name] = Row(
             online_rmse_m=r.online_rmse_m,
             final_rmse_m=r.final_rmse_m,
@@ -258,7 +245,7 @@ def _summarise(outcomes: list[tuple[dict[str, Row], dict[str, Array]]], seeds: t
             continue
         average = stack[:, usable].mean(axis=0)
         anees[name] = float(average.mean())
-        in_bounds[name] = float(np.mean((average >= low) & (average <= high)))
+        in_bounds[name] = share_in_bounds(average, runs)
         per_step[name] = [
             float(v) if ok else float("nan") for v, ok in zip(np.where(usable, stack.mean(axis=0), np.nan), usable)
         ]

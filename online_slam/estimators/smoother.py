@@ -42,13 +42,13 @@ from threadpoolctl import ThreadpoolController
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.protocol import Estimate, Snapshot
-from online_slam.factors.graph import FactorGraph, layout, sqrt_information
+from online_slam.factors.graph import FactorGraph, layout, observation_chi2, range_bearing_chi2, sqrt_information
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import compose_with_jacobians
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.range_bearing import landmark_from_observation, range_bearing, range_bearing_with_jacobians
+from online_slam.models.range_bearing import landmark_from_observation, range_bearing_with_jacobians
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, solve
 from online_slam.sources.events import LandmarkId
 
@@ -393,10 +393,7 @@ class SlidingWindowSmoother:
             return False
         poses = np.array([self.poses[g] for g in self.window])
         landmarks = self._landmarks[active]
-        e = range_bearing(poses[graph.obs_pose], landmarks[graph.obs_landmark]) - graph.obs_z
-        e[:, 1] = wrap(e[:, 1])
-        r = np.einsum("kij,kj->ki", graph.obs_sqrt_info, e)
-        outlying = np.sum(r * r, axis=1) > self._reject_bound
+        outlying = observation_chi2(graph, poses, landmarks) > self._reject_bound
         if not outlying.any():
             return False
         ids = active[graph.obs_landmark]
@@ -518,10 +515,7 @@ class SlidingWindowSmoother:
         indices, z, _, W = self._observations[pose]
         if self.config.reject_false_alarm <= 0.0:
             return np.zeros(len(indices), dtype=bool)
-        e = range_bearing(self.poses[pose][None, :], self._landmarks[indices]) - z
-        e[:, 1] = wrap(e[:, 1])
-        r = np.einsum("kij,kj->ki", W, e)
-        return np.sum(r * r, axis=1) > self._reject_bound
+        return range_bearing_chi2(self.poses[pose][None, :], self._landmarks[indices], z, W) > self._reject_bound
 
     def _initial_prior(self) -> _Prior:
         """The prior before any marginalization: the start pose, fixed (Sigma = 0) or with its prior."""

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.range_bearing import range_bearing_with_jacobians
+from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -233,11 +233,25 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     )
 
 
-def observation_chi2(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
-    """Squared whitened norm of each observation's residual, shape (n_obs,) (chi-square, 2 dof, when right)."""
-    e_prior, e_odo, _, _, e_obs, _, _ = _errors(graph, poses, landmarks)
-    w = _whiten(graph.obs_sqrt_info, e_obs)
+def range_bearing_chi2(poses: Array, landmarks: Array, z: Array, sqrt_info: Array) -> Array:
+    """Squared whitened norm of k range-bearing residuals (chi-square, 2 dof, when the model is right).
+
+    Args:
+        poses: Observing poses, shape (k, 3). landmarks: Observed landmarks, shape (k, 2).
+        z: Observations ``[range, bearing]``, shape (k, 2). sqrt_info: Their square-root information, (k, 2, 2).
+
+    Returns:
+        Shape (k,).
+    """
+    e = range_bearing(poses, landmarks) - z
+    e[:, 1] = wrap(e[:, 1])
+    w = _whiten(sqrt_info, e)
     return np.sum(w * w, axis=1)
+
+
+def observation_chi2(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
+    """Squared whitened norm of each observation's residual in a graph, shape (n_obs,)."""
+    return range_bearing_chi2(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_z, graph.obs_sqrt_info)
 
 
 def without_observations(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:

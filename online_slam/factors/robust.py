@@ -20,16 +20,15 @@ class RobustLoss:
     """A robust loss on observation residuals."""
 
     kind: str = "huber"
-    """``huber`` (quadratic within ``scale`` sigmas, linear beyond), ``cauchy``, ``gate`` (quadratic within
-    ``scale`` sigmas, constant beyond: a sighting further out has no weight at that linearization), or
-    ``tail`` (quadratic within ``scale`` sigmas — exactly least squares while every residual is inside — and
+    """``huber`` (quadratic within ``scale`` sigmas, linear beyond), ``cauchy``, or ``tail`` (quadratic within
+    ``scale`` sigmas — exactly least squares while every residual is inside — and
     a Cauchy tail beyond, weight ``k^2 / s`` at ``s >= k^2``)."""
     scale: float = 1.345
     """Threshold in whitened units (sigmas); 1.345 gives Huber 95% efficiency on Gaussian data."""
 
     def __post_init__(self) -> None:
-        if self.kind not in ("huber", "cauchy", "gate", "tail"):
-            raise ValueError(f"unknown robust loss {self.kind!r}; expected huber, cauchy, gate or tail")
+        if self.kind not in ("huber", "cauchy", "tail"):
+            raise ValueError(f"unknown robust loss {self.kind!r}; expected huber, cauchy or tail")
         if not self.scale > 0:
             raise ValueError("robust loss scale must be > 0")
 
@@ -45,8 +44,6 @@ class RobustLoss:
         if self.kind == "huber":
             r = np.sqrt(s)
             return np.where(r <= k, s, 2.0 * k * r - k * k)
-        if self.kind == "gate":
-            return np.minimum(s, k * k)
         if self.kind == "tail":
             return np.where(s <= k * k, s, k * k + k * k * np.log1p(np.maximum(s - k * k, 0.0) / (k * k)))
         return k * k * np.log1p(s / (k * k))
@@ -58,8 +55,6 @@ class RobustLoss:
         if self.kind == "huber":
             r = np.sqrt(s)
             return np.where(r <= k, 1.0, k / np.maximum(r, 1e-300))
-        if self.kind == "gate":
-            return np.where(s <= k * k, 1.0, 0.0)
         if self.kind == "tail":
             return np.where(s <= k * k, 1.0, k * k / np.maximum(s, k * k))
         return 1.0 / (1.0 + s / (k * k))

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
-from online_slam.compare import NEES_DOF, Comparison
+from online_slam.compare import Comparison
+from online_slam.evaluation.scoring import NEES_DOF
 from online_slam.reports.palette import palette
 from online_slam.sinks.geometry import ellipses
 

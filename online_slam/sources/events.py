@@ -198,17 +198,9 @@ class Scan:
     noise: tuple
     """Per observation, its sigma ``(s_range, s_bearing)`` or its 2x2 covariance (nested tuples), length k."""
 
-    def observations(self) -> list[Observation]:
-        """The same sightings as stream-v1 observation events."""
-        out = []
-        for lid, r, b, n in zip(self.landmarks, self.ranges, self.bearings, self.noise):
-            full = isinstance(n[0], tuple)
-            out.append(Observation(self.t, lid, r, b, sigma=None if full else n, cov=n if full else None))
-        return out
-
     def to_record(self) -> dict[str, Any]:
-        """Not a stream-v1 line: scans are written as their observations."""
-        raise TypeError("a scan is written as one observation line per sighting (see observations())")
+        """Not a stream-v1 line: a scan exists only between the engine API and the front-end."""
+        raise TypeError("a scan is not a stream-v1 line; write its sightings as observation lines")
 
 
 Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth
