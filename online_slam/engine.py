@@ -13,7 +13,7 @@ complete steps, gives the same numbers whether or not anyone queries it that way
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,9 +42,13 @@ class Engine:
     Args:
         estimators: Estimators with distinct names; each sees every step in the same calls.
         frontend: How events become steps (keyframing, first-observation-only).
+        records: Time the estimators and return a :class:`StepRecord` for each complete step; False for a
+            caller that only queries (:meth:`push` and :meth:`close` then return None).
     """
 
-    def __init__(self, estimators: Sequence[Estimator], frontend: FrontEndConfig | None = None) -> None:
+    def __init__(
+        self, estimators: Sequence[Estimator], frontend: FrontEndConfig | None = None, records: bool = True
+    ) -> None:
         names = [e.name for e in estimators]
         if len(set(names)) != len(names):
             raise ValueError(f"estimator names repeat: {', '.join(names)}")
@@ -54,6 +58,7 @@ class Engine:
         """Complete steps so far."""
         self.observations = 0
         """Observations in complete steps so far."""
+        self.records = records
         self._given = -1  # observations of the pending step the estimators have (-1: not even its pose)
         self._latest: dict[str, Snapshot] = {}
         self._seconds: dict[str, float] = {}
@@ -68,14 +73,23 @@ class Engine:
         completed = self.frontend.push(event)
         return None if completed is None else self._complete(completed)
 
-    def sync(self) -> dict[str, Snapshot]:
-        """Bring every estimator up to the newest event; their current snapshots by name ({} before any pose)."""
+    def sync(self) -> Mapping[str, Snapshot]:
+        """Bring every estimator up to the newest event; their current snapshots by name ({} before any pose).
+
+        The mapping is the engine's own until the step completes: read it, do not change it.
+        """
         pending = self.frontend.pending
         if pending is None:
             return {}
         pending.sealed = True
-        self._deliver(pending.freeze())
-        return dict(self._latest)
+        step = pending.freeze()
+        self._deliver(step)
+        latest = self._latest
+        if len(latest) != len(self.estimators):  # loaded from a checkpoint taken after this very query
+            for estimator in self.estimators:
+                if estimator.name not in latest:
+                    latest[estimator.name] = estimator.snapshot(step)
+        return latest
 
     def close(self) -> StepRecord | None:
         """End of stream: complete the newest step (None if there was no pose)."""
@@ -87,23 +101,29 @@ class Engine:
         k = len(step.landmarks)
         if self._given >= 0 and k == self._given:
             return
+        given, latest = self._given, self._latest
         for estimator in self.estimators:
+            if not self.records:
+                latest[estimator.name] = estimator.step(step) if given < 0 else estimator.extend(step, given)
+                continue
             started = time.perf_counter()
-            snapshot = estimator.step(step) if self._given < 0 else estimator.extend(step, self._given)
+            latest[estimator.name] = estimator.step(step) if given < 0 else estimator.extend(step, given)
             elapsed = time.perf_counter() - started
-            self._latest[estimator.name] = snapshot
             self._seconds[estimator.name] = self._seconds.get(estimator.name, 0.0) + elapsed
         self._given = k
 
-    def _complete(self, step: Step) -> StepRecord:
+    def _complete(self, step: Step) -> StepRecord | None:
         self._deliver(step)
+        self.steps += 1
+        self.observations += len(step.landmarks)
+        if not self.records:
+            self._given, self._latest = -1, {}
+            return None
         for estimator in self.estimators:  # after a checkpoint was loaded mid-step, nothing new to deliver
             if estimator.name not in self._latest:
                 self._latest[estimator.name] = estimator.snapshot(step)
                 self._seconds.setdefault(estimator.name, 0.0)
         record = StepRecord(step, self._latest, self._seconds)
-        self.steps += 1
-        self.observations += len(step.landmarks)
         self._given, self._latest, self._seconds = -1, {}, {}
         return record
 

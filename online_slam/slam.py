@@ -27,6 +27,7 @@ from online_slam.errors import ConfigError, InputError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.presets import robust_settings
+from online_slam.estimators.protocol import Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
@@ -62,25 +63,46 @@ _CHECKPOINT_KIND = "slam"
 
 @dataclass(frozen=True)
 class SlamEstimate:
-    """The estimate after every event added so far. Arrays are read-only; ``trajectory``, ``landmarks`` and
-    ``landmark_covs`` are assembled on first access (from data captured at query time)."""
+    """The estimate after every event added so far. Arrays are read-only; everything is read from data captured
+    at query time, and ``trajectory``, ``landmarks`` and ``landmark_covs`` are assembled on first access."""
 
-    t: float
-    """Time of the newest pose, seconds."""
-    index: int
-    """Index of the newest pose (0 is the start)."""
-    pose: Array
-    """Newest pose ``[x, y, theta]``, shape (3,)."""
-    pose_cov: Array
-    """Its covariance, shape (3, 3)."""
-    landmark_ids: tuple[LandmarkId, ...]
-    """Landmark ids in the order of ``landmark_array``, length M."""
-    landmark_array: Array
-    """Landmark positions, shape (M, 2)."""
+    snapshot: Snapshot
+    """The estimator's snapshot after the newest event (its arrays belong to this estimate alone)."""
     landmark_cov_array: Array | None
     """Landmark 2x2 marginal covariances, shape (M, 2, 2), or None when not asked for."""
     trajectory_parts: tuple[Array, Array]
     """Poses that no longer change (a read-only view) and the poses that still may, as of the query."""
+
+    @property
+    def t(self) -> float:
+        """Time of the newest pose, seconds."""
+        return self.snapshot.t
+
+    @property
+    def index(self) -> int:
+        """Index of the newest pose (0 is the start)."""
+        return self.snapshot.index
+
+    @cached_property
+    def pose(self) -> Array:
+        """Newest pose ``[x, y, theta]``, shape (3,)."""
+        return _locked(self.snapshot.pose)
+
+    @cached_property
+    def pose_cov(self) -> Array:
+        """Its covariance, shape (3, 3) (NaN where the estimator has none)."""
+        cov = self.snapshot.pose_cov
+        return _locked(cov) if cov is not None else _read_only(np.full((3, 3), np.nan))
+
+    @property
+    def landmark_ids(self) -> tuple[LandmarkId, ...]:
+        """Landmark ids in the order of ``landmark_array``, length M."""
+        return self.snapshot.landmark_ids
+
+    @cached_property
+    def landmark_array(self) -> Array:
+        """Landmark positions, shape (M, 2)."""
+        return _locked(self.snapshot.landmarks)
 
     @cached_property
     def trajectory(self) -> Array:
@@ -209,7 +231,7 @@ class Slam:
         self.estimator_name = estimator
         self.options: dict[str, Any] = dict(options)
         self._estimator = EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
-        self._engine = Engine([self._estimator], frontend)
+        self._engine = Engine([self._estimator], frontend, records=False)
         self._validator = EventValidator("Slam")
 
     # -- events --------------------------------------------------------------------------------------
@@ -233,7 +255,8 @@ class Slam:
             sigma: Standard deviations ``[sx, sy, stheta]``, or None when ``cov`` is given.
             cov: Full 3x3 covariance, or None when ``sigma`` is given.
         """
-        self._push("add_odometry", {"type": "odometry", "t": t, "delta": delta}, sigma, cov)
+        self._validator.name = "Slam.add_odometry"
+        self._engine.push(self._validator.parse_odometry(_plain(t), _plain(delta), _plain(sigma), _plain(cov)))
 
     def add_observation(
         self, t: float, landmark: LandmarkId, range: float, bearing: float, sigma: Any = None, cov: Any = None
@@ -311,22 +334,10 @@ class Slam:
         snapshot = self._engine.sync().get(self._estimator.name)
         if snapshot is None:
             raise InputError("Slam.estimate", 0, "", "no pose yet: add an event first")
-        covs = None
-        if landmark_covs:
-            covs = _read_only(self._estimator.landmark_marginals())
-        pose_cov = snapshot.pose_cov if snapshot.pose_cov is not None else np.full((3, 3), np.nan)
+        covs = _read_only(self._estimator.landmark_marginals()) if landmark_covs else None
         frozen, tail = self._estimator.trajectory_parts()
         tail.flags.writeable = False
-        return SlamEstimate(
-            t=snapshot.t,
-            index=snapshot.index,
-            pose=_locked(snapshot.pose),
-            pose_cov=_locked(pose_cov),
-            landmark_ids=snapshot.landmark_ids,
-            landmark_array=_locked(snapshot.landmarks),
-            landmark_cov_array=covs,
-            trajectory_parts=(frozen, tail),
-        )
+        return SlamEstimate(snapshot, covs, (frozen, tail))
 
     @property
     def poses(self) -> int:

@@ -197,6 +197,21 @@ def test_checkpoint_mid_step_keeps_pending_sightings(tmp_path: Path) -> None:
     np.testing.assert_array_equal(again.estimate().trajectory, part.estimate().trajectory)
 
 
+@pytest.mark.parametrize("estimator", ["ekf", "smoother"])
+def test_estimate_right_after_loading_a_checkpoint_taken_after_a_query(tmp_path: Path, estimator: str) -> None:
+    """The loaded engine has nothing new to deliver: the estimate comes from the restored estimator."""
+    slam = Slam(estimator)
+    slam.add_odometry(0.1, [1.0, 0.0, 0.0], sigma=[0.1, 0.1, 0.01])
+    slam.add_observations(0.1, [1, 2], [1.0, 2.0], [0.1, -0.2], sigma=[0.1, 0.01])
+    before = slam.estimate()
+    slam.save(tmp_path / "queried.ckpt")
+    after = Slam.load(tmp_path / "queried.ckpt").estimate()
+    np.testing.assert_array_equal(after.pose, before.pose)
+    np.testing.assert_allclose(after.pose_cov, before.pose_cov, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(after.trajectory, before.trajectory)
+    assert after.landmark_ids == before.landmark_ids
+
+
 def test_damaged_checkpoints_raise_input_error(tmp_path: Path) -> None:
     slam = Slam("ekf")
     for event in square_world():

@@ -92,8 +92,9 @@ def _online_steps(args: argparse.Namespace, world: GridConfig) -> None:
 def _api(args: argparse.Namespace, world: GridConfig) -> None:
     from online_slam.bench.api import measure_api_overhead
 
-    rows = measure_api_overhead(world, repeats=max(1, args.repeats))
-    print(f"library API overhead: grid world, {world.poses} poses (best of {max(1, args.repeats)}, interleaved)")
+    repeats = max(5, args.repeats)  # a few per cent between runs of a 1 s loop: the best of 5 is stable
+    rows = measure_api_overhead(world, repeats=repeats)
+    print(f"library API overhead: grid world, {world.poses} poses (best of {repeats}, interleaved)")
     print(
         f"{'estimator':<10}{'direct s':>10}{'Slam scans s':>14}{'overhead':>10}{'Slam sightings s':>18}{'overhead':>10}"
     )
@@ -102,9 +103,9 @@ def _api(args: argparse.Namespace, world: GridConfig) -> None:
         print(
             f"{r.estimator:<10}{r.direct_s:>10.3f}{r.scans_s:>14.3f}{scans:>10.1%}{r.sightings_s:>18.3f}{single:>10.1%}"
         )
-    default = rows[0]
-    verdict = "met" if default.scans_s <= 1.05 * default.direct_s else "NOT met"
-    print(f"target: default estimator (smoother) through the API with scans <= 1.05x direct: {verdict}")
+    for r in rows:
+        verdict = "met" if r.scans_s <= 1.05 * r.direct_s else "NOT met"
+        print(f"target: {r.estimator} through the API with scans <= 1.05x direct: {verdict}")
 
 
 def _checkpoint(args: argparse.Namespace, world: GridConfig) -> None:

@@ -124,8 +124,9 @@ class PendingStep:
         if k == 0:
             return out
         if not self.full_covariance:  # every sighting gave sigma: one vectorized diag(sigma^2)
-            sigma = np.array(self.z_noise, dtype=float)
-            out[:, 0, 0], out[:, 1, 1] = np.square(sigma[:, 0]), np.square(sigma[:, 1])
+            variances = np.array(self.z_noise, dtype=float)
+            variances *= variances
+            out.reshape(k, 4)[:, ::3] = variances  # the diagonal of each 2x2 block
             return out
         diagonal = [len(n) == 2 and not isinstance(n[0], (tuple, list, np.ndarray)) for n in self.z_noise]
         for i, (noise, is_sigma) in enumerate(zip(self.z_noise, diagonal)):
@@ -180,6 +181,7 @@ class FrontEnd:
         self.sightings = 0
         """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
         self._seen: set[LandmarkId] = set()
+        self._sigma_covariance: tuple[tuple[float, ...], Array] | None = None
 
     def _count(self, key: str) -> None:
         self.counts[key] = self.counts.get(key, 0) + 1
@@ -221,7 +223,7 @@ class FrontEnd:
                     t=event.t,
                     t_begin=pending.t,
                     odometry=np.array(event.delta),
-                    odometry_cov=event.covariance,
+                    odometry_cov=self._odometry_covariance(event),
                 )
         elif isinstance(event, Observation):
             self._count("observation")
@@ -271,6 +273,17 @@ class FrontEnd:
         elif isinstance(event, Header):
             self.header = event
         return completed
+
+    def _odometry_covariance(self, event: Odometry) -> Array:
+        """The event's covariance; one shared read-only matrix while the odometry's sigma stays the same."""
+        if event.cov is not None:
+            return event.covariance
+        cached = self._sigma_covariance
+        if cached is None or cached[0] != event.sigma:
+            matrix = event.covariance
+            matrix.flags.writeable = False
+            cached = self._sigma_covariance = (event.sigma, matrix)
+        return cached[1]
 
     def close(self) -> Step | None:
         """End of stream: the newest pose, complete (None if there was none)."""

@@ -79,6 +79,21 @@ SIGMA_RANGE = (1e-8, 1e8)
 """Allowed standard deviations (and square roots of covariance eigenvalues)."""
 
 
+def _plain_floats(delta: Any, sigma: Any) -> bool:
+    """True when ``delta`` and ``sigma`` are 3 floats each that plainly pass (NaN fails the comparisons)."""
+    if type(delta) not in (list, tuple) or type(sigma) not in (list, tuple) or len(delta) != 3 or len(sigma) != 3:
+        return False
+    big, (low, high) = MAX_MAGNITUDE, SIGMA_RANGE
+    a, b, c = delta
+    u, v, w = sigma
+    return (
+        type(a) is float and type(b) is float and type(c) is float
+        and type(u) is float and type(v) is float and type(w) is float
+        and -big <= a <= big and -big <= b <= big and -big <= c <= big
+        and low <= u <= high and low <= v <= high and low <= w <= high
+    )  # fmt: skip
+
+
 @dataclass(slots=True)
 class ValidatorState:
     """What the cross-line rules remember (saved in checkpoints)."""
@@ -175,6 +190,23 @@ class EventValidator:
             raise self.fail(0, noise_key, f"expected one {noise_key} shared by all sightings or one per sighting")
         saved = self.state
         fast = None if per_sighting else self._scan_fast(landmarks, ranges, bearings)
+        if (  # the commonest case: float time moving on, one plain sigma for all
+            fast is not None
+            and type(t) is float
+            and saved.last_t <= t < math.inf
+            and saved.first_pose_t is not None
+            and t >= saved.first_pose_t
+            and noise_key == "sigma"
+            and type(noise) in (list, tuple)
+            and len(noise) == 2
+            and type(noise[0]) is float
+            and type(noise[1]) is float
+            and SIGMA_RANGE[0] <= noise[0] <= SIGMA_RANGE[1]
+            and SIGMA_RANGE[0] <= noise[1] <= SIGMA_RANGE[1]
+        ):
+            self.state = ValidatorState(t, saved.first_pose_t, True)
+            one = tuple(noise)
+            return Scan(t, tuple(landmarks), fast[0], fast[1], (one,) * k)
         if fast is not None:  # the common case, checked at once
             self._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
             t_value = self.time({"t": t}, 0)
@@ -210,6 +242,25 @@ class EventValidator:
             tuple(e.bearing for e in events),
             tuple(e.sigma if e.cov is None else e.cov for e in events),
         )
+
+    def parse_odometry(self, t: Any, delta: Any, sigma: Any = None, cov: Any = None) -> Odometry:
+        """Validate one odometry reading given as arguments (the library API's path; same rules as a line).
+
+        Raises:
+            InputError: The first rule it breaks; the validator's state is unchanged.
+        """
+        state = self.state
+        if cov is None and type(t) is float and state.last_t <= t < math.inf and _plain_floats(delta, sigma):
+            first = state.first_pose_t
+            if first is None or t >= first:  # the common case, checked at once
+                self.state = ValidatorState(t, t if first is None else first, True)
+                return Odometry(t=t, delta=tuple(delta), sigma=tuple(sigma), cov=None)
+        record: dict[str, Any] = {"type": "odometry", "t": t, "delta": delta}
+        if sigma is not None:
+            record["sigma"] = sigma
+        if cov is not None:
+            record["cov"] = cov
+        return self.parse_record(record)
 
     @staticmethod
     def _scan_fast(landmarks: Any, ranges: Any, bearings: Any) -> tuple[tuple, tuple] | None:
