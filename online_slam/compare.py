@@ -8,7 +8,7 @@ average NEES across runs against its chi-square bounds.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,6 +21,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
 from online_slam.pipeline import ReplayConfig, replay
+from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.worlds import GridConfig, grid_world, square_world
 
 Array = NDArray[np.float64]
@@ -162,7 +163,8 @@ def rows_of(results: Results) -> dict[str, Row]:
     return rows
 
 
-def _replay_config(config: CompareConfig) -> ReplayConfig:
+def replay_config(config: CompareConfig) -> ReplayConfig:
+    """The one replay a comparison runs: EKF and batch settings as given, one smoother per (W, K)."""
     base = config.replay
     smoothers = tuple(
         replace(base.smoother, window=w, relinearize_every=k) for w in config.windows for k in config.relinearize_every
@@ -186,7 +188,10 @@ def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict
 
 
 def compare(
-    source: str | Path, config: CompareConfig | None = None, on_skip: Callable[[InputError], None] | None = None
+    source: str | Path,
+    config: CompareConfig | None = None,
+    on_skip: Callable[[InputError], None] | None = None,
+    sinks: Sequence[ReplaySink] = (),
 ) -> Comparison:
     """Run EKF, smoother configurations and batch on the same stream; optionally Monte Carlo over seeds.
 
@@ -194,6 +199,8 @@ def compare(
         source: A stream path, ``-``, or a built-in world (``square``, ``grid``).
         config: Smoother grid, replay settings, Monte Carlo runs.
         on_skip: Told of each bad line skipped (``config.replay.on_error == "skip"``).
+        sinks: Given every step of the (first) run with all configurations' snapshots, then its results (e.g.
+            one Rerun recording of every configuration).
 
     Returns:
         The comparison (table rows, per-step series through ``results``, Monte Carlo figures).
@@ -203,8 +210,8 @@ def compare(
         raise OnlineSlamError("--runs must be >= 1")
     if any(w < 1 for w in cfg.windows) or any(k < 1 for k in cfg.relinearize_every):
         raise OnlineSlamError("smoother windows and relinearization periods must be >= 1")
-    replay_config = _replay_config(cfg)
-    results = replay(source, replay_config, on_skip=on_skip)
+    one_replay = replay_config(cfg)
+    results = replay(source, one_replay, on_skip=on_skip, sinks=sinks)
     rows = rows_of(results)
     monte_carlo = None
     if cfg.runs > 1:
@@ -212,7 +219,7 @@ def compare(
         base_seed = 1616 if name == "square" else GridConfig.seed
         seeds = tuple(base_seed + k for k in range(cfg.runs))
         _world(name, seeds[0])  # fail early on a non-simulated source
-        jobs = [(name, seed, replay_config) for seed in seeds]
+        jobs = [(name, seed, one_replay) for seed in seeds]
         workers = cfg.workers or os.cpu_count() or 1
         if workers > 1:
             with ProcessPoolExecutor(max_workers=workers) as pool:

@@ -79,6 +79,24 @@ def make_estimator(name: str, config: ReplayConfig) -> Estimator:
     raise OnlineSlamError(f"unknown estimator {name!r}; expected one of {', '.join(ESTIMATORS)}")
 
 
+def build_estimators(config: ReplayConfig) -> list[Estimator]:
+    """The estimators a replay with this configuration runs, in table order (extra smoothers after the rest)."""
+    estimators = [make_estimator(n, config) for n in config.estimators]
+    for extra in config.extra_smoothers:
+        estimators.append(SlidingWindowSmoother(extra, name=f"smoother W={extra.window} K={extra.relinearize_every}"))
+    names = [e.name for e in estimators]
+    if len(set(names)) != len(names):
+        raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")
+    return estimators
+
+
+def estimator_names(config: ReplayConfig) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Names of the estimators a replay runs: (online ones, dead reckoning first; those with a final estimate only)."""
+    estimators = build_estimators(config)
+    online = ("odometry", *(e.name for e in estimators if e.online))
+    return online, tuple(e.name for e in estimators if not e.online)
+
+
 @dataclass
 class _Track:
     """What the pipeline records of one estimator while it runs."""
@@ -198,12 +216,7 @@ def replay(
             checkpoint, one of another source, of other settings or of another format version.
     """
     cfg = config or ReplayConfig()
-    estimators = [make_estimator(n, cfg) for n in cfg.estimators]
-    for extra in cfg.extra_smoothers:
-        estimators.append(SlidingWindowSmoother(extra, name=f"smoother W={extra.window} K={extra.relinearize_every}"))
-    names = [e.name for e in estimators]
-    if len(set(names)) != len(names):
-        raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")
+    estimators = build_estimators(cfg)
     skipped: dict[str, int] = {}
     position = _SourcePosition()
     catching_up = 0  # events still to skip when resuming

@@ -16,7 +16,7 @@ pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
 
 from conftest import stop_process_tree  # noqa: E402
 
-from online_slam.sinks.rerun_recording import Recording, blueprint_views  # noqa: E402
+from online_slam.sinks.recording import Recording, blueprint_views  # noqa: E402
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 
@@ -78,9 +78,66 @@ def test_recorded_errors_are_the_tables_even_after_se2_alignment(tmp_path: Path)
 
 def test_default_blueprint_is_in_the_recording(square_recording: tuple[Path, dict]) -> None:
     views = blueprint_views(square_recording[0])
-    kinds = {(kind, origin) for kind, _, origin in views}
+    kinds = {(v.kind, v.origin) for v in views}
     assert ("2D", "/world") in kinds and ("TextLog", "/events") in kinds
-    assert {name for kind, name, _ in views if kind == "TimeSeries"} >= {"position error (m)", "step time (ms)"}
+    series = {v.name: v.contents for v in views if v.kind == "TimeSeries"}
+    assert set(series["position error (m)"]) == {"/metrics/ekf/position_error_m", "/metrics/smoother/position_error_m"}
+    assert set(series["step time (ms)"]) == {"/metrics/ekf/step_ms", "/metrics/smoother/step_ms"}
+
+
+@pytest.fixture(scope="module")
+def compare_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, str]:
+    folder = tmp_path_factory.mktemp("compare")
+    rrd, out = folder / "c.rrd", folder / "c.json"
+    done = cli("compare", "square", "--window", "10,20", "--rrd", str(rrd), "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    return rrd, json.loads(out.read_text()), done.stdout
+
+
+CONFIGS = ("ekf", "smoother W=10 K=1", "smoother W=20 K=1", "batch")
+
+
+def test_compare_recording_holds_every_configuration_with_the_tables_figures(compare_recording) -> None:
+    rrd, table, _ = compare_recording
+    assert tuple(n for n in table["estimators"] if n != "odometry") == CONFIGS
+    with Recording(rrd) as recording:
+        summary = recording.summary()
+        paths = set(recording.entity_paths())
+    assert summary.estimators == CONFIGS
+    entities = summary.layout.entities
+    assert entities["smoother W=10 K=1"] == "smoother_W10_K1" and entities["smoother W=20 K=1"] == "smoother_W20_K1"
+    assert len(set(summary.layout.to_json()["colors"].values())) == len(summary.layout.names)  # one colour each
+    for name in CONFIGS:
+        row, stored = table["estimators"][name], summary.results["estimators"][name]
+        for key in ("final_rmse_m", "online_rmse_m", "landmark_rmse_m", "endpoint_gap_m"):
+            assert stored.get(key) == row[key]
+        root = "/" + summary.layout.world(name)
+        assert f"{root}/path" in paths and f"{root}/landmarks" in paths
+        if name != "batch":  # online configurations: every step, and the table's figures from the logged series
+            assert f"{root}/pose" in paths
+            assert summary.figures[name]["online_rmse_m"] == pytest.approx(row["online_rmse_m"], rel=1e-6)
+            assert summary.figures[name]["nees_mean"] == pytest.approx(row["nees_mean"], rel=1e-5)
+            assert summary.latency_ms[name]["median"] == pytest.approx(row["step_ms"]["median"])
+    views = {v.name: v.contents for v in blueprint_views(rrd) if v.kind == "TimeSeries"}
+    for figure, title in (("position_error_m", "position error (m)"), ("step_ms", "step time (ms)")):
+        expected = {f"/{summary.layout.metrics(n)}/{figure}" for n in CONFIGS if n != "batch"}
+        assert set(views[title]) == expected
+    done = subprocess.run(["rerun", "rrd", "verify", str(rrd)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+
+
+def test_inspect_lists_every_configuration_of_a_comparison(compare_recording) -> None:
+    rrd, table, _ = compare_recording
+    done = cli("inspect", str(rrd))
+    assert done.returncode == 0, done.stderr
+    lines = {line.split("  ")[0]: line for line in done.stdout.splitlines()}
+    for name in CONFIGS:
+        line = lines[name]
+        assert f"{table['estimators'][name]['final_rmse_m']:.4f}" in line
+        if name != "batch":
+            assert f"{table['estimators'][name]['online_rmse_m']:.4f}" in line
+    state = json.loads(cli("inspect", str(rrd), "--step", "24", "--json").stdout)["state"]
+    assert set(state["estimators"]) >= {"odometry", "ekf", "smoother W=10 K=1", "smoother W=20 K=1", "truth"}
 
 
 def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) -> None:

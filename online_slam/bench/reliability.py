@@ -107,7 +107,7 @@ class SoakRun:
 
 def soak(poses: int = 100_000, estimators: tuple[str, ...] = ("ekf", "smoother"), seed: int = 7) -> list[SoakRun]:
     """Replay a long grid stream (bounded map: the grid's landmarks) per estimator, with a Rerun recording."""
-    from online_slam.sinks.rerun_recording import RerunConfig, RerunSink
+    from online_slam.sinks.recording import Layout, RerunConfig, RerunSink
 
     world = GridConfig(poses=poses, seed=seed)
     checkpoints = tuple(sorted({min(poses, p) for p in (10_000, 50_000, poses)}))
@@ -117,7 +117,7 @@ def soak(poses: int = 100_000, estimators: tuple[str, ...] = ("ekf", "smoother")
         for name in estimators:
             probe = _MemoryProbe(checkpoints)
             rrd = folder / f"{name}.rrd"
-            sink = RerunSink(RerunConfig(path=rrd), f"soak {poses}", (name,))
+            sink = RerunSink(RerunConfig(path=rrd), f"soak {poses}", Layout(("odometry", name)))
             started = time.perf_counter()
             results = replay(grid_world(world), replace(ReplayConfig(), estimators=(name,)), sinks=[probe, sink])
             total = time.perf_counter() - started

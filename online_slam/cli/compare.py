@@ -6,8 +6,8 @@ import argparse
 import sys
 from dataclasses import replace
 
-from online_slam.cli.replay import config_from, report_skip, write_json
-from online_slam.compare import CompareConfig, compare
+from online_slam.cli.replay import config_from, report_skip, sinks_from, write_json
+from online_slam.compare import CompareConfig, compare, replay_config
 from online_slam.errors import OnlineSlamError
 from online_slam.reports.compare_table import format_comparison
 
@@ -43,6 +43,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="K[,K...]",
         help="smoother relinearization periods (default 1)",
     )
+    p.add_argument(
+        "--rrd",
+        metavar="PATH",
+        help="log every configuration, step by step, to one Rerun recording (.rrd) laid out for comparison",
+    )
+    p.add_argument(
+        "--connect",
+        nargs="?",
+        const="default",
+        metavar="ADDR",
+        help="stream that recording to a running Rerun viewer (default address, or a rerun+http:// URL)",
+    )
     p.add_argument("--plot", metavar="PATH", help="write the figures (map, error, NEES, latency) to this PNG")
     p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs over noise seeds (simulated worlds only)")
     p.add_argument("--workers", type=int, help="processes for Monte Carlo runs (default: all cores)")
@@ -63,7 +75,10 @@ def run(args: argparse.Namespace) -> int:
         runs=args.runs,
         workers=args.workers,
     )
-    comparison = compare(args.source, config, on_skip=report_skip)
+    if args.rrd and not str(args.rrd).endswith(".rrd"):
+        raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
+    sinks = sinks_from(args, replay_config(config))  # one recording holds every configuration
+    comparison = compare(args.source, config, on_skip=report_skip, sinks=sinks)
     if not args.quiet:
         print(format_comparison(comparison))
     if args.json:
@@ -74,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         if not str(args.plot).endswith(".png"):
             raise OnlineSlamError(f"--plot: expected a path ending in .png, got {args.plot!r}")
         plot_comparison(comparison, args.plot)
-    if comparison.results.error:
-        print(f"online-slam: error: {comparison.results.error}", file=sys.stderr)
-        return 2
-    return 0
+    failures = [comparison.results.error] + [getattr(sink, "error", None) for sink in sinks]
+    for failure in filter(None, failures):
+        print(f"online-slam: error: {failure}", file=sys.stderr)
+    return 2 if any(failures) else 0

@@ -12,10 +12,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     p = sub.add_parser(
         "inspect",
-        help="summarise a Rerun recording written by 'replay --rrd'",
+        help="summarise a Rerun recording written by 'replay --rrd' or 'compare --rrd'",
         description="Read a recording back (no re-running): source, steps, time span, estimators, errors, latency.",
     )
-    p.add_argument("path", help="a .rrd file written by 'online-slam replay --rrd'")
+    p.add_argument("path", help="a .rrd file written by 'online-slam replay --rrd' or 'compare --rrd'")
     p.add_argument("--step", type=int, metavar="N", help="also print the state at step N")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
 
@@ -26,7 +26,7 @@ def _fmt(value: object) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Print the summary (and one step's state)."""
-    from online_slam.sinks.rerun_recording import Recording
+    from online_slam.sinks.recording import Recording
 
     with Recording(args.path) as recording:
         summary = recording.summary()
@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
         if args.step is not None:
             if not 0 <= args.step < summary.steps:
                 raise OnlineSlamError(f"--step: {args.step} is outside the recording's steps 0..{summary.steps - 1}")
-            state = recording.state_at(args.step)
+            state = recording.state_at(args.step, summary.layout)
     if args.json:
         out = {
             "source": summary.source,
@@ -43,6 +43,8 @@ def run(args: argparse.Namespace) -> int:
             "estimators": list(summary.estimators),
             "results": summary.results,
             "latency_ms": summary.latency_ms,
+            "logged": summary.figures,
+            "recording": summary.layout.to_json(),
             "state": state,
         }
         print(json.dumps(out, indent=2))
@@ -54,15 +56,25 @@ def run(args: argparse.Namespace) -> int:
     print(f"estimators: {', '.join(summary.estimators)}")
     if summary.results.get("error"):
         print(f"input stopped early: {summary.results['error']}")
-    header = f"{'estimator':<10}{'final RMSE m':>14}{'online RMSE m':>15}{'landmark RMSE m':>17}"
-    print(header + f"{'step ms median/p95/max':>26}")
+    colors = summary.layout.to_json()["colors"]
+    width = max([len("estimator"), *map(len, summary.estimators)]) + 2
+    entities = {name: "/" + summary.layout.world(name) for name in summary.estimators}
+    room = max([len("entity"), *map(len, entities.values())]) + 2
+    header = f"{'estimator':<{width}}{'entity':<{room}}{'colour':<9}{'final RMSE m':>13}{'online RMSE m':>15}"
+    print(header + f"{'landmark RMSE m':>17}{'step ms median/p95/max':>26}")
     for name, figures in summary.results.get("estimators", {}).items():
         lat = summary.latency_ms.get(name)
         latency = f"{lat['median']:.2f} / {lat['p95']:.2f} / {lat['max']:.2f}" if lat else "-"
+        final = _fmt(figures.get("final_rmse_m"))
         print(
-            f"{name:<10}{_fmt(figures.get('final_rmse_m')):>14}{_fmt(figures.get('online_rmse_m')):>15}"
-            f"{_fmt(figures.get('landmark_rmse_m')):>17}{latency:>26}"
+            f"{name:<{width}}{entities.get(name, '-'):<{room}}{colors.get(name, '-'):<9}{final:>13}"
+            f"{_fmt(figures.get('online_rmse_m')):>15}{_fmt(figures.get('landmark_rmse_m')):>17}{latency:>26}"
         )
+    if summary.figures:
+        logged = ", ".join(
+            f"{name} {f['online_rmse_m']:.4f} m / NEES {f['nees_mean']:.2f}" for name, f in summary.figures.items()
+        )
+        print(f"recomputed from the logged series (online RMSE / mean NEES): {logged}")
     if state is not None:
         print(f"\nstep {state['step']}:")
         for name, est in state["estimators"].items():

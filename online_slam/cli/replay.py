@@ -220,16 +220,18 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
 def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
     """Progress bar, pacing and Rerun logging, as the options ask."""
     sinks: list = []
-    if args.rate is not None:
+    if getattr(args, "rate", None) is not None:
         try:
             sinks.append(Pacer(args.rate))
         except ValueError as exc:
             raise OnlineSlamError(f"--rate: {exc}") from None
     if args.rrd or args.connect:
-        from online_slam.sinks.rerun_recording import RerunConfig, RerunSink
+        from online_slam.pipeline import estimator_names
+        from online_slam.sinks.recording import Layout, RerunConfig, RerunSink
 
         name = "<stdin>" if args.source == "-" else str(args.source)
-        sinks.append(RerunSink(RerunConfig(path=args.rrd, connect=args.connect), name, config.estimators))
+        layout = Layout(*estimator_names(config))
+        sinks.append(RerunSink(RerunConfig(path=args.rrd, connect=args.connect), name, layout))
     if not args.quiet:
         sinks.append(Progress())
     return sinks

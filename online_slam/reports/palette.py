@@ -15,13 +15,17 @@ COLORS: dict[str, tuple[int, int, int]] = {
 _EXTRA = [(0, 150, 150), (200, 50, 120), (120, 120, 0), (110, 70, 30), (70, 70, 170), (230, 90, 50), (0, 90, 60)]
 
 
-def palette(names: list[str]) -> dict[str, tuple[float, float, float]]:
-    """Matplotlib colours for these estimators: the fixed ones above, then distinct colours in order of appearance."""
+def rgb_colors(names: list[str] | tuple[str, ...]) -> dict[str, tuple[int, int, int]]:
+    """0-255 RGB per estimator: the fixed ones above, then distinct colours in order of appearance."""
     out, extra = {}, 0
     for name in names:
         if name in COLORS:
-            rgb = COLORS[name]
+            out[name] = COLORS[name]
         else:
-            rgb, extra = _EXTRA[extra % len(_EXTRA)], extra + 1
-        out[name] = (rgb[0] / 255, rgb[1] / 255, rgb[2] / 255)
+            out[name], extra = _EXTRA[extra % len(_EXTRA)], extra + 1
     return out
+
+
+def palette(names: list[str]) -> dict[str, tuple[float, float, float]]:
+    """Matplotlib colours (0-1 RGB) for these estimators, as :func:`rgb_colors`."""
+    return {name: (r / 255, g / 255, b / 255) for name, (r, g, b) in rgb_colors(names).items()}

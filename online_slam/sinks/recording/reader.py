@@ -1,0 +1,246 @@
+"""Reading a recording back: summary, per-step figures, state at a step, the blueprint's views.
+
+Through Rerun's dataframe API (a local server on the loopback) and ``rerun.chunk.RrdReader``; the estimators and
+their entities come from the layout the writer stored in the summary.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+
+from online_slam.errors import OnlineSlamError
+from online_slam.sinks.recording.layout import TRUTH, Layout
+
+
+@dataclass(frozen=True)
+class RecordingSummary:
+    """What ``online-slam inspect`` reports about a recording."""
+
+    source: str
+    """Name of the replayed source."""
+    steps: int
+    """Number of steps logged."""
+    time_span: tuple[float, float]
+    """First and last stream time, seconds."""
+    estimators: tuple[str, ...]
+    """Estimators present in the recording, in table order."""
+    layout: Layout
+    """Where each estimator lives in the recording (entities, colours)."""
+    results: dict[str, Any]
+    """The results JSON stored in the recording."""
+    latency_ms: dict[str, dict[str, float]]
+    """Per online estimator: median / p95 / max step time computed from the logged ``step_ms`` series."""
+    figures: dict[str, dict[str, float]]
+    """Per online estimator, recomputed from the logged series: online RMSE (sqrt of the mean squared
+    ``position_error_m``) and mean ``nees``, to compare with the stored table."""
+
+
+def check_rrd(path: str | Path, complete: bool = True) -> Path:
+    """Raise an :class:`OnlineSlamError` with one clear line unless path is a complete ``.rrd`` file.
+
+    Args:
+        path: The file.
+        complete: Require the footer a finished recording ends with (``rerun rrd verify`` requires it too);
+            False accepts a stream saved by a viewer, which has none.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise OnlineSlamError(f"{p}: no such file")
+    data = p.read_bytes()
+    if not data.startswith(b"RRF2"):
+        raise OnlineSlamError(f"{p}: not a Rerun recording (no RRF2 header)")
+    if complete and b"RRF2FOOT" not in data[-64:]:
+        raise OnlineSlamError(f"{p}: incomplete Rerun recording: no footer (truncated, or the replay was cut off)")
+    return p
+
+
+def _column(table: Any, suffix: str) -> list[Any]:
+    names = [n for n in table.column_names if n.endswith(suffix)]
+    return table.column(names[0]).to_pylist() if names else []
+
+
+def _seconds(value: Any) -> float:
+    if hasattr(value, "total_seconds"):
+        return float(value.total_seconds())
+    if hasattr(value, "timestamp"):
+        return float(value.timestamp())
+    return float(value) / 1e9
+
+
+class Recording:
+    """A recording opened for queries through Rerun's dataframe API (a local server on the loopback).
+
+    Use as a context manager: ``with Recording(path) as rec: rec.summary(); rec.state_at(10)``.
+    """
+
+    def __init__(self, path: str | Path, complete: bool = True) -> None:
+        self.path = check_rrd(path, complete)
+        self._server: Any = None
+        self._dataset: Any = None
+
+    def __enter__(self) -> Recording:
+        try:
+            self._server = rr.server.Server(host="127.0.0.1", datasets={"run": [str(self.path)]})
+            self._dataset = self._server.client().get_dataset("run")
+        except Exception as exc:  # noqa: BLE001 - one line for the user whatever rerun raised
+            self.__exit__(None, None, None)
+            raise OnlineSlamError(f"{self.path}: cannot read the recording ({exc})") from None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._server is not None:
+            self._server.__exit__(None, None, None)
+            self._server = None
+
+    def _table(self, contents: list[str], index: str | None, **kwargs: Any) -> Any:
+        try:
+            return self._dataset.filter_contents(contents).reader(index=index, **kwargs).to_arrow_table()
+        except Exception as exc:  # noqa: BLE001
+            raise OnlineSlamError(f"{self.path}: not an online-slam recording ({exc})") from None
+
+    def summary(self) -> RecordingSummary:
+        """Source, steps, time span, estimators, stored results, and latency from the logged series."""
+        texts = _column(self._table(["/summary"], None), ":TextDocument:text")
+        if not texts:
+            raise OnlineSlamError(f"{self.path}: not an online-slam recording (no /summary)")
+        results = json.loads(texts[0] if isinstance(texts[0], str) else texts[0][0])
+        world = self._table(["/world/**"], "step")
+        steps = [v for v in world.column("step").to_pylist() if v is not None]
+        seconds = [_seconds(t) for t in world.column("time").to_pylist() if t is not None]
+        estimators = tuple(results.get("estimators", {}))
+        layout = Layout.from_json(results.get("recording"), list(estimators))
+        metrics = self._table(["/metrics/**"], "step")
+        latency, figures = {}, {}
+        for name in layout.online:
+            root = f"/{layout.metrics(name)}"
+            values = [v[0] for v in _column(metrics, f"{root}/step_ms:Scalars:scalars") if v]
+            if values:
+                ms = np.array(values, dtype=float)
+                latency[name] = {
+                    "median": float(np.median(ms)),
+                    "p95": float(np.percentile(ms, 95)),
+                    "max": float(ms.max()),
+                }
+            errors = np.array([v[0] for v in _column(metrics, f"{root}/position_error_m:Scalars:scalars") if v])
+            nees = np.array([v[0] for v in _column(metrics, f"{root}/nees:Scalars:scalars") if v])
+            if errors.size:
+                figures[name] = {
+                    "online_rmse_m": float(np.sqrt(np.mean(np.square(errors)))),
+                    "nees_mean": float(np.mean(nees)) if nees.size else math.nan,
+                }
+        return RecordingSummary(
+            source=results.get("source", "?"),
+            steps=(max(steps) + 1) if steps else 0,
+            time_span=(min(seconds), max(seconds)) if seconds else (math.nan, math.nan),
+            estimators=estimators,
+            layout=layout,
+            results=results,
+            latency_ms=latency,
+            figures=figures,
+        )
+
+    def metric(self, estimator: str, name: str, layout: Layout | None = None) -> tuple[list[int], list[float]]:
+        """One logged per-step figure (e.g. ``position_error_m``, ``nees``): (steps, values) in step order.
+
+        Args:
+            estimator: Its name (as in the table).
+            name: The figure.
+            layout: The recording's layout (default: read from its summary).
+        """
+        layout = layout or self.summary().layout
+        entity = f"/{layout.metrics(estimator)}/{name}"
+        table = self._table([entity], "step")
+        values = _column(table, f"{entity}:Scalars:scalars")
+        steps = table.column("step").to_pylist() if "step" in table.column_names else []
+        pairs = sorted((int(st), float(v[0])) for st, v in zip(steps, values) if st is not None and v)
+        return [p[0] for p in pairs], [p[1] for p in pairs]
+
+    def entity_paths(self) -> list[str]:
+        """Entity paths that hold data on the ``step`` timeline."""
+        names = self._table(["/**"], "step").column_names
+        return sorted({n.split(":")[0] for n in names if n.startswith("/")})
+
+    def state_at(self, step: int, layout: Layout | None = None) -> dict[str, Any]:
+        """Per estimator: pose and landmark count at a step (latest values), and that step's events."""
+        layout = layout or self.summary().layout
+        table = self._table(["/world/**"], "step", fill_latest_at=True, using_index_values=[step])
+        state: dict[str, Any] = {"step": step, "estimators": {}}
+        for name in (*layout.online, TRUTH):
+            root = "/world/truth" if name == TRUTH else f"/{layout.world(name)}"
+            origins = _column(table, f"{root}/pose:Arrows2D:origins")
+            vectors = _column(table, f"{root}/pose:Arrows2D:vectors")
+            if origins and origins[0]:
+                (x, y), (vx, vy) = origins[0][0], vectors[0][0]
+                landmarks = _column(table, f"{root}/landmarks:Points2D:positions")
+                state["estimators"][name] = {
+                    "pose": [x, y, math.atan2(vy, vx)],
+                    "landmarks": len(landmarks[0]) if landmarks and landmarks[0] else 0,
+                }
+        events = self._table(["/events"], "step")
+        texts = _column(events, ":TextLog:text")
+        steps = events.column("step").to_pylist() if "step" in events.column_names else []
+        state["events"] = [t[0] if isinstance(t, list) else t for s, t in zip(steps, texts) if s == step and t]
+        state["gated"] = [e for e in state["events"] if "gated" in e]
+        return state
+
+
+@dataclass(frozen=True)
+class BlueprintView:
+    """One view of a recording's blueprint."""
+
+    kind: str
+    """View class (``2D``, ``TimeSeries``, ``TextLog`` ...)."""
+    name: str
+    """Display name."""
+    origin: str
+    """Space origin."""
+    contents: tuple[str, ...]
+    """Its entity query expressions."""
+
+
+def blueprint_views(path: str | Path) -> list[BlueprintView]:
+    """The views of the recording's blueprint, read through the SDK.
+
+    ``rerun.chunk.RrdReader`` (rerun-sdk 0.41) lists the blueprint stores of an .rrd and streams their chunks; a
+    view's ``ViewBlueprint`` components (at ``/view/<id>``) name its class, display name and space origin, and its
+    ``ViewContents`` (at ``/view/<id>/ViewContents``) hold its entity query.
+    """
+    from rerun.chunk import RrdReader
+
+    p = check_rrd(path)
+    heads: dict[str, dict[str, Any]] = {}
+    queries: dict[str, tuple[str, ...]] = {}
+    try:
+        reader = RrdReader(str(p))
+        for store in reader.blueprints():
+            for chunk in reader.stream(store=store):
+                batch = chunk.to_record_batch()
+                names = batch.schema.names
+                entity = str(chunk.entity_path)
+                if "ViewContents:query" in names:
+                    query = batch.column("ViewContents:query").to_pylist()[0] or []
+                    queries[entity.removesuffix("/ViewContents")] = tuple(map(str, query))
+                if "ViewBlueprint:class_identifier" in names:
+                    value = {
+                        n.split(":")[1]: batch.column(n).to_pylist()[0] for n in names if n.startswith("ViewBlueprint:")
+                    }
+                    heads[entity] = {k: (v[0] if isinstance(v, list) and v else v) for k, v in value.items()}
+    except Exception as exc:  # noqa: BLE001 - one line for the user whatever rerun raised
+        raise OnlineSlamError(f"{p}: cannot read the blueprint ({exc})") from None
+    views = [
+        BlueprintView(
+            str(head.get("class_identifier")),
+            str(head.get("display_name")),
+            str(head.get("space_origin")),
+            queries.get(entity, ()),
+        )
+        for entity, head in heads.items()
+    ]
+    return sorted(views, key=lambda v: (v.kind, v.name))
