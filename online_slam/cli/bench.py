@@ -10,7 +10,7 @@ from online_slam.bench.ekf import time_smoother, time_steps, time_updates
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
-SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "fuzz", "robust", "sweep", "soak")
+SECTIONS = ("batch", "ekf-update", "online", "api", "checkpoint", "recording", "fuzz", "robust", "sweep", "soak")
 DEFAULT_SECTIONS = SECTIONS[:-2]
 """The sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for (``--only``)."""
 
@@ -35,6 +35,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--only",
         default=",".join(DEFAULT_SECTIONS),
         help=f"sections to run (default: {','.join(DEFAULT_SECTIONS)}; 'soak' runs 100,000 poses, minutes)",
+    )
+    p.add_argument(
+        "--recording-source",
+        metavar="SOURCE",
+        help="recording: the stream to compare with and without --rrd (default: the shipped MRCLAM robot 1 stream)",
     )
     p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
@@ -106,6 +111,19 @@ def _api(args: argparse.Namespace, world: GridConfig) -> None:
     for r in rows:
         verdict = "met" if r.scans_s <= 1.05 * r.direct_s else "NOT met"
         print(f"target: {r.estimator} through the API with scans <= 1.05x direct: {verdict}")
+
+
+def _recording(args: argparse.Namespace) -> None:
+    from online_slam.bench.recording import SHIPPED, measure_recording_cost
+
+    source = args.recording_source or SHIPPED
+    if args.recording_source is None and not SHIPPED.exists():
+        raise OnlineSlamError(f"recording: the shipped stream {SHIPPED} is missing; give --recording-source")
+    r = measure_recording_cost(source, repeats=max(1, args.repeats))
+    print(f"compare --rrd: {r.source} ({r.poses} poses; {', '.join(r.configurations)}), best of {args.repeats}")
+    overhead = r.recorded_s / r.plain_s - 1.0
+    print(f"compare {r.plain_s:.3f} s, with --rrd {r.recorded_s:.3f} s: overhead {overhead:.1%} "
+          f"(target <= 30%: {'met' if overhead <= 0.30 else 'NOT met'}); recording {r.size_mib:.2f} MiB")  # fmt: skip
 
 
 def _checkpoint(args: argparse.Namespace, world: GridConfig) -> None:
@@ -216,6 +234,8 @@ def run(args: argparse.Namespace) -> int:
             _api(args, world)
         elif section == "checkpoint":
             _checkpoint(args, world)
+        elif section == "recording":
+            _recording(args)
         elif section == "fuzz":
             _fuzz(args)
         elif section == "robust":

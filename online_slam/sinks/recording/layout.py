@@ -52,11 +52,11 @@ class Layout:
 
     def world(self, name: str) -> str:
         """Entity root of an estimator's map data, e.g. ``world/smoother_W10_K1``."""
-        return f"world/{self.entities.get(name, entity_part(name))}"
+        return f"world/{self.entities[name] if name in self.entities else entity_part(name)}"
 
     def metrics(self, name: str) -> str:
         """Entity root of an estimator's per-step figures, e.g. ``metrics/ekf``."""
-        return f"metrics/{self.entities.get(name, entity_part(name))}"
+        return f"metrics/{self.entities[name] if name in self.entities else entity_part(name)}"
 
     def colors(self) -> dict[str, tuple[int, int, int]]:
         """0-255 RGB per estimator (the plots' colours) and for the truth."""

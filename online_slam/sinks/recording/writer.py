@@ -137,6 +137,10 @@ class _Columns:
             elif kind == "ellipse":  # one (mean, 2x2 covariance) per row, drawn here for all rows at once
                 rings = ellipses(np.array([v[0] for v in values]), np.array([v[1] for v in values]))
                 columns = rr.LineStrips2D.columns(strips=_strips_array(list(rings)))
+            elif kind == "text":  # each row: that step's lines
+                lengths = [len(v) for v in values]
+                lines = [line for v in values for line in v]
+                columns = rr.TextLog.columns(text=lines, level=["INFO"] * len(lines)).partition(lengths)
             elif kind == "points":
                 lengths = [len(v) for v in values]
                 flat = np.concatenate([np.asarray(v, dtype=float).reshape(-1, 2) for v in values])
@@ -188,6 +192,7 @@ class RerunSink:
         self._last_flush = time.perf_counter()
         self._buffered = 0
         self._last_step: Step | None = None
+        self._roots: dict[str, str] = {}
         self.error: str | None = None
         """Set when the recording could not be delivered (the replay itself is not affected)."""
         estimated = [n for n in layout.online if n != "odometry"]
@@ -231,7 +236,10 @@ class RerunSink:
         )
 
     def _root(self, name: str) -> str:
-        return "world/truth" if name == TRUTH else self.layout.world(name)
+        root = self._roots.get(name)
+        if root is None:
+            root = self._roots[name] = "world/truth" if name == TRUTH else self.layout.world(name)
+        return root
 
     # -- per step ----------------------------------------------------------------------------------
     def _time(self, step: Step) -> None:
@@ -284,12 +292,7 @@ class RerunSink:
             self._pose(name, snap.pose, step)
             self._landmarks(name, snap, step)
             if snap.pose_cov is not None and np.all(np.isfinite(snap.pose_cov)):
-                add(
-                    f"{self._root(name)}/pose_cov",
-                    "strips",
-                    step,
-                    list(ellipses(snap.pose[None, :2], snap.pose_cov[None, :2, :2])),
-                )
+                add(f"{self._root(name)}/pose_cov", "ellipse", step, (snap.pose[:2], snap.pose_cov[:2, :2]))
             if snap.wall_s is not None and name != "odometry":
                 add(f"{self.layout.metrics(name)}/step_ms", "scalar", step, 1e3 * snap.wall_s)
             events += self._events(name, snap, step)
@@ -300,9 +303,7 @@ class RerunSink:
             rays = list(np.stack([np.broadcast_to(current.pose[:2], ends.shape), ends], axis=1))
         add("world/observations", "strips", step, rays)
         if events:
-            self._time(step)
-            for text in events:
-                self.rec.log("events", rr.TextLog(f"step {step.index}: {text}", level="INFO"))
+            add("events", "text", step, [f"step {step.index}: {text}" for text in events])
         self._last_step = step
         self._buffered += 1
         now = time.perf_counter()
