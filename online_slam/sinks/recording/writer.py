@@ -227,8 +227,10 @@ class RerunSink:
                 "cost_after": name,
                 "iterations": name,
             }
+            lighter = [tuple((c + 255) // 2 for c in colors[name])]  # the NIS beside its NEES, told apart
             for figure, title in figures.items():
-                log(f"{metrics}/{figure}", rr.SeriesLines(colors=color, names=[title]), static=True)
+                shade = lighter if figure in ("nis", "cost_before") else color
+                log(f"{metrics}/{figure}", rr.SeriesLines(colors=shade, names=[title]), static=True)
         log(
             "world/observations",
             rr.LineStrips2D.from_fields(colors=[COLORS["observations"]], radii=[0.005]),
