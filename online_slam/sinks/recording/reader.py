@@ -186,7 +186,8 @@ class Recording:
         events = self._table(["/events"], "step")
         texts = _column(events, ":TextLog:text")
         steps = events.column("step").to_pylist() if "step" in events.column_names else []
-        state["events"] = [t[0] if isinstance(t, list) else t for s, t in zip(steps, texts) if s == step and t]
+        rows = [t for s, t in zip(steps, texts) if s == step and t]  # a row holds that step's lines
+        state["events"] = [text for row in rows for text in (row if isinstance(row, list) else [row])]
         state["gated"] = [e for e in state["events"] if "gated" in e]
         return state
 
