@@ -315,9 +315,13 @@ def replay(
     for track in ordered:
         estimator = track.estimator
         started = time.perf_counter()
-        initial = estimates.get(cfg.batch.initial) if isinstance(estimator, BatchEstimator) else None
-        if isinstance(estimator, BatchEstimator) and cfg.batch.initial != "odometry" and initial is None:
-            raise OnlineSlamError(f"batch initial values from {cfg.batch.initial!r}, which did not run")
+        source = cfg.batch.initial
+        if source == "auto":  # the (first) smoother's estimate, else the EKF's, else composed odometry
+            smoothers = [n for n in estimates if n.startswith("smoother")]
+            source = smoothers[0] if smoothers else "ekf" if "ekf" in estimates else "odometry"
+        initial = estimates.get(source) if isinstance(estimator, BatchEstimator) and source != "odometry" else None
+        if isinstance(estimator, BatchEstimator) and source != "odometry" and initial is None:
+            raise OnlineSlamError(f"batch initial values from {source!r}, which did not run")
         estimate = estimator.finish(initial) if initial is not None else estimator.finish()
         final_s = time.perf_counter() - started
         estimates[estimator.name] = estimate

@@ -42,6 +42,7 @@ ESTIMATORS = ("ekf", "smoother")
 OPTIONS: dict[str, tuple[type, str]] = {
     "window": (int, "smoother: poses kept in the window (W, >= 1)"),
     "relinearize_every": (int, "smoother: relinearize and solve every K steps (>= 1)"),
+    "global_every": (int, "smoother: re-solve the whole history every N steps (0 = never)"),
     "robust": (str, "smoother: outliers 'auto' (default), 'none', 'huber' or 'cauchy'"),
     "robust_scale": (float, "smoother: robust loss threshold in sigmas (> 0)"),
     "gate_probability": (float, "ekf: chi-square gate on each observation's NIS, in (0, 1]"),
@@ -56,7 +57,7 @@ OPTIONS: dict[str, tuple[type, str]] = {
 
 _ESTIMATOR_OPTIONS = {
     "ekf": {"gate_probability", "gate_persistence", "ekf_update"},
-    "smoother": {"window", "relinearize_every", "robust", "robust_scale"},
+    "smoother": {"window", "relinearize_every", "global_every", "robust", "robust_scale"},
 }
 _CHECKPOINT_KIND = "slam"
 
@@ -189,6 +190,7 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
                 SmootherConfig(
                     window=options.get("window", SmootherConfig.window),
                     relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
+                    global_every=options.get("global_every", SmootherConfig.global_every),
                 ),
                 BatchConfig(),
             )

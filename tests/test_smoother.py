@@ -167,3 +167,33 @@ def test_snapshots_report_the_window_and_solves() -> None:
     # A pose is never marginalized before it has been optimized: with K > W the window forces a solve.
     _, _, _, _, _, snapshots = run(square_world(), SmootherConfig(window=2, relinearize_every=5))
     assert [s.index for s in snapshots if s.info["relinearized"]][:3] == [2, 5, 8]  # K alone: 4, 9, 14
+
+
+def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> None:
+    """After a converged global solve the re-anchored prior balances the window's factors exactly: the window
+    solve stays at the full problem's solution, and every pose (history included) is the batch's."""
+    from online_slam.solvers import SolverConfig
+
+    config = SmootherConfig(window=5, global_every=10**6, global_iterations=100, solver=SolverConfig())
+    fe, smoother, _, _, batch, _ = run(square_world(), config)
+    with smoother._blas.limit(limits=1, user_api="blas"):
+        report = smoother._relinearize_globally()
+        assert "global_rejected" not in report and smoother.global_solves == 1
+        before = smoother.trajectory().copy()
+        smoother._solve(final=True)
+    after = smoother.trajectory()
+    assert np.max(np.abs(after[:, :2] - before[:, :2])) < 1e-6
+    assert np.max(np.linalg.norm(after[:, :2] - batch.poses[:, :2], axis=1)) < 1e-6
+    order = [smoother.landmark_ids.index(lid) for lid in batch.landmark_ids]
+    assert np.max(np.abs(smoother.landmarks[order] - batch.landmarks)) < 1e-6
+
+
+def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
+    events = list(grid_world(GridConfig(poses=600, seed=5)))
+    fe, _, frozen, _, batch, _ = run(events, SmootherConfig(window=10, global_every=0))
+    _, smoother, revised, _, _, _ = run(events, SmootherConfig(window=10, global_every=100))
+    assert smoother.global_solves == 6  # every 100 steps of 600
+    ratio_frozen = rmse(frozen.poses, fe) / rmse(batch.poses, fe)
+    ratio_revised = rmse(revised.poses, fe) / rmse(batch.poses, fe)
+    print(f"final RMSE / batch: window alone {ratio_frozen:.3f}, with global relinearization {ratio_revised:.3f}")
+    assert ratio_revised <= 1.02 and ratio_revised < ratio_frozen

@@ -125,9 +125,18 @@ def add_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--batch-init",
-        choices=("odometry", "ekf", "smoother"),
-        default="odometry",
-        help="start the batch solver from composed odometry (default) or from an online estimator's final estimate",
+        choices=("auto", "odometry", "ekf", "smoother"),
+        default="auto",
+        help="start the batch solver from composed odometry or an online estimator's final estimate (default auto: "
+        "the smoother's if it runs, else the EKF's, else odometry)",
+    )
+    p.add_argument(
+        "--global-every",
+        type=int,
+        default=SmootherConfig.global_every,
+        metavar="N",
+        help="smoother: re-solve the whole history from the current estimate every N steps and re-anchor the "
+        f"marginal prior there (default {SmootherConfig.global_every}; 0 = never)",
     )
     p.add_argument("--format", choices=("mrclam", "gtsam", "g2o"), help="dataset format (default: detected)")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
@@ -193,7 +202,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         smoother, batch = robust_settings(
             args.robust,
             args.robust_scale,
-            SmootherConfig(window=window, relinearize_every=every),
+            SmootherConfig(window=window, relinearize_every=every, global_every=args.global_every),
             BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), initial=args.batch_init),
         )
     except ValueError as exc:

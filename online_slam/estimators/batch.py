@@ -37,10 +37,11 @@ class BatchConfig:
     """Probability that an inlier is dropped once the robust pass has run."""
     outlier_loss: RobustLoss = field(default_factory=lambda: RobustLoss("cauchy", 3.0))
     """Loss of the robust pass."""
-    initial: str = "odometry"
-    """Initial values: ``odometry`` (composed odometry, landmarks from first sight) or the final estimate of
-    another estimator of the same replay (``ekf``, ``smoother``); from composed odometry LM can end in a poor
-    local minimum on long real runs."""
+    initial: str = "auto"
+    """Initial values: ``odometry`` (composed odometry, landmarks from first sight), the final estimate of
+    another estimator of the same replay (``ekf``, ``smoother``), or ``auto`` (default): the (first) smoother's if one
+    ran, else the EKF's, else odometry. From composed odometry LM can end in a poor local minimum on long real runs
+    (MRCLAM; see the README)."""
 
 
 def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:

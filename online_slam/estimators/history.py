@@ -1,4 +1,4 @@
-"""An append-only record of poses that no longer change, readable without copying."""
+"""A record of poses that no longer change in the window, readable without copying."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ Array = NDArray[np.float64]
 
 
 class PoseHistory:
-    """Poses in order, appended once and never rewritten (amortized O(1) per append).
+    """Poses in order, appended once (amortized O(1) per append), rewritten only as a whole (:meth:`replace`).
 
-    :meth:`view` returns a read-only view of the rows so far; later appends never change those rows (a growth
-    moves the buffer, and an old view keeps the old one), so a view is a valid snapshot for as long as it lives.
+    :meth:`view` returns a read-only view of the rows so far; later appends and replacements never change those
+    rows (a growth or a replacement moves to a new buffer, and an old view keeps the old one), so a view is a
+    valid snapshot for as long as it lives.
     """
 
     def __init__(self, rows: Array | None = None) -> None:
@@ -38,3 +39,12 @@ class PoseHistory:
         out = self._buffer[: self._n]
         out.flags.writeable = False
         return out
+
+    def replace(self, rows: Array) -> None:
+        """Rewrite every pose at once (a global relinearization revised them), shape (N, 3), N = len(self)."""
+        rows = np.asarray(rows, dtype=float).reshape(-1, 3)
+        if len(rows) != self._n:
+            raise ValueError(f"expected {self._n} poses, got {len(rows)}")
+        buffer = np.empty_like(self._buffer)  # earlier views keep the old buffer
+        buffer[: self._n] = rows
+        self._buffer = buffer

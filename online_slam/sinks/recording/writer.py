@@ -328,10 +328,15 @@ class RerunSink:
             out.append(f"{name}: observations gated (chi-square) of {', '.join(map(str, info['gated']))}")
         if info.get("window") is not None and info.get("window_poses") is not None:
             self.columns.add(f"{self._root(name)}/window", "points", step, info["window_poses"][:, :2])
-        if info.get("relinearized"):
+        if info.get("relinearized") and "iterations" in info:
             for key in ("cost_before", "cost_after", "iterations"):
                 self.columns.add(f"{metrics}/{key}", "scalar", step, float(info[key]))
             out.append(f"{name}: relinearized, {info['iterations']} iterations")
+        if "global_s" in info:
+            if info.get("global_rejected"):
+                out.append(f"{name}: global relinearization not kept (the history did not reconcile)")
+            else:
+                out.append(f"{name}: relinearized globally, {info['global_iterations']} iterations")
         if info.get("marginalized"):
             out.append(f"{name}: marginalized poses {', '.join(map(str, info['marginalized']))}")
         return out

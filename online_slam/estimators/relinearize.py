@@ -1,0 +1,103 @@
+"""Global relinearization for the sliding-window smoother: re-solve the whole history, re-anchor the prior.
+
+The smoother's marginal prior freezes the linearization of every pose it has eliminated. A global
+relinearization re-solves all factors ever seen (warm-started from the current estimate, a few Gauss-Newton /
+Levenberg-Marquardt iterations), writes the revised poses back into the history, and moves the prior to the new
+estimate: its linearization point becomes the revised values of the variables it holds, and its mean becomes the
+one the history's factors give there,
+
+    mu = -Sigma g',   g' = g_k - H_km H_mm^-1 g_m,
+
+where ``g`` and ``H = J^T J`` are the gradient and Gauss-Newton matrix of the history's factors (odometry up to
+the oldest window pose, the history poses' sightings, the start prior) at the revised values, ``m`` the history
+poses and ``k`` the prior's variables (its landmarks, then the oldest window pose): ``g'`` is the gradient of the
+history's cost with the history poses eliminated (a Schur complement, computed with one sparse solve of the
+history poses' block — odometry chains make it banded). While the prior is small (``exact_limit`` variables) its
+covariance is recomputed there too, ``Sigma = (H_kk - H_km H_mm^-1 H_mk)^-1``; a larger prior (a map of
+hundreds of landmarks) keeps its ``Sigma``, the same information linearized at the earlier estimate (recomputing
+it costs a sparse solve per prior variable and a dense inverse over every landmark).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from online_slam.factors.graph import FactorGraph, layout, linearize
+from online_slam.factors.robust import RobustLoss
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+
+def history_graph(graph: FactorGraph, oldest: int) -> FactorGraph:
+    """The factors of the poses before ``oldest`` (the oldest window pose): odometry up to it, their sightings,
+    priors on them; over poses ``0..oldest`` and every landmark."""
+    odo = graph.odo_to <= oldest
+    obs = graph.obs_pose < oldest
+    prior = graph.prior_pose < oldest
+    return FactorGraph(
+        n_poses=oldest + 1,
+        n_landmarks=graph.n_landmarks,
+        fixed_poses=graph.fixed_poses[graph.fixed_poses <= oldest],
+        prior_pose=graph.prior_pose[prior],
+        prior_mean=graph.prior_mean[prior],
+        prior_sqrt_info=graph.prior_sqrt_info[prior],
+        odo_from=graph.odo_from[odo],
+        odo_to=graph.odo_to[odo],
+        odo_delta=graph.odo_delta[odo],
+        odo_sqrt_info=graph.odo_sqrt_info[odo],
+        obs_pose=graph.obs_pose[obs],
+        obs_landmark=graph.obs_landmark[obs],
+        obs_z=graph.obs_z[obs],
+        obs_sqrt_info=graph.obs_sqrt_info[obs],
+    )
+
+
+def prior_gradient(
+    history: FactorGraph,
+    poses: Array,
+    landmarks: Array,
+    prior_landmarks: Index,
+    loss: RobustLoss | None = None,
+    information: bool = False,
+) -> tuple[Array, Array | None]:
+    """Gradient (and information) of the history's cost with the history poses eliminated, over
+    ``[prior landmarks..., oldest pose]``.
+
+    Args:
+        history: :func:`history_graph` (poses ``0..oldest``; the last one is the oldest window pose).
+        poses: Values of poses ``0..oldest``, shape (oldest + 1, 3).
+        landmarks: Values of every landmark, shape (M, 2).
+        prior_landmarks: Landmark indices the prior holds, in its order, shape (L,).
+        loss: The smoother's robust loss on sightings (IRLS weights at these values).
+        information: Also compute ``H_kk - H_km H_mm^-1 H_mk`` (one sparse solve per prior variable).
+
+    Returns:
+        (g', shape (2 L + 3,); the information, shape (2 L + 3, 2 L + 3), or None).
+    """
+    sparse = layout(history)
+    r, J = linearize(history, sparse, poses, landmarks, loss)
+    g = J.T @ r
+    oldest = history.n_poses - 1
+    pose_cols = sparse.pose_column[:oldest]
+    m = (pose_cols[pose_cols >= 0][:, None] + np.arange(3)).reshape(-1)
+    k = np.r_[
+        (sparse.landmark_column[prior_landmarks][:, None] + np.arange(2)).reshape(-1),
+        sparse.pose_column[oldest] + np.arange(3),
+    ]
+    Jk = J[:, k].tocsc()
+    H_kk = (Jk.T @ Jk).toarray() if information else None
+    if not len(m):
+        return g[k], H_kk
+    Jm = J[:, m].tocsc()
+    H_mm = (Jm.T @ Jm).tocsc() + sp.identity(len(m), format="csc") * 1e-12  # the start fixes the chain
+    lu = spla.splu(H_mm)
+    gradient = g[k] - Jk.T @ (Jm @ lu.solve(g[m]))
+    if not information:
+        return gradient, None
+    H_mk = (Jm.T @ Jk).toarray()
+    schur = H_kk - H_mk.T @ lu.solve(H_mk)
+    return gradient, 0.5 * (schur + schur.T)
