@@ -43,6 +43,7 @@ OPTIONS: dict[str, tuple[type, str]] = {
     "window": (int, "smoother: poses kept in the window (W, >= 1)"),
     "relinearize_every": (int, "smoother: relinearize and solve every K steps (>= 1)"),
     "global_every": (int, "smoother: re-solve the whole history every N steps (0 = never)"),
+    "global_delay": (int, "smoother: hand a background global solve over D steps after it starts (0 = at once)"),
     "robust": (str, "smoother: outliers 'auto' (default), 'none', 'huber' or 'cauchy'"),
     "robust_scale": (float, "smoother: robust loss threshold in sigmas (> 0)"),
     "gate_probability": (float, "ekf: chi-square gate on each observation's NIS, in (0, 1]"),
@@ -57,7 +58,7 @@ OPTIONS: dict[str, tuple[type, str]] = {
 
 _ESTIMATOR_OPTIONS = {
     "ekf": {"gate_probability", "gate_persistence", "ekf_update"},
-    "smoother": {"window", "relinearize_every", "global_every", "robust", "robust_scale"},
+    "smoother": {"window", "relinearize_every", "global_every", "global_delay", "robust", "robust_scale"},
 }
 _CHECKPOINT_KIND = "slam"
 
@@ -191,6 +192,7 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
                     window=options.get("window", SmootherConfig.window),
                     relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
                     global_every=options.get("global_every", SmootherConfig.global_every),
+                    global_delay=options.get("global_delay", SmootherConfig.global_delay),
                 ),
                 BatchConfig(),
             )

@@ -138,6 +138,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
         help="smoother: re-solve the whole history from the current estimate every N steps and re-anchor the "
         f"marginal prior there (default {SmootherConfig.global_every}; 0 = never)",
     )
+    p.add_argument(
+        "--global-delay",
+        type=int,
+        default=SmootherConfig.global_delay,
+        metavar="D",
+        help="smoother: run each global relinearization in a background thread and hand its result over D steps "
+        f"later (deterministic; default {SmootherConfig.global_delay}; 0 = solve at once, inside the step)",
+    )
     p.add_argument("--format", choices=("mrclam", "gtsam", "g2o"), help="dataset format (default: detected)")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
     p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
@@ -202,7 +210,12 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         smoother, batch = robust_settings(
             args.robust,
             args.robust_scale,
-            SmootherConfig(window=window, relinearize_every=every, global_every=args.global_every),
+            SmootherConfig(
+                window=window,
+                relinearize_every=every,
+                global_every=args.global_every,
+                global_delay=args.global_delay,
+            ),
             BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), initial=args.batch_init),
         )
     except ValueError as exc:

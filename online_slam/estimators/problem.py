@@ -93,6 +93,18 @@ class ProblemLog:
         self._obs_z.append(step.z[start:])
         self._obs_cov.append(step.z_cov[start:])
 
+    def frozen(self) -> ProblemLog:
+        """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
+        copy = ProblemLog(self.keep_factors)
+        copy.poses = list(self.poses)
+        copy.landmark_ids = self.landmark_ids
+        copy._landmark_index = dict(self._landmark_index)
+        copy._landmarks = list(self._landmarks)
+        copy.prior = self.prior
+        for name in ("_odo_delta", "_odo_cov", "_obs_pose", "_obs_landmark", "_obs_z", "_obs_cov"):
+            setattr(copy, name, list(getattr(self, name)))
+        return copy
+
     def state_dict(self) -> dict[str, Any]:
         """Every factor and initial value (numbers and arrays only)."""
         return {

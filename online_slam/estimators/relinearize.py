@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from online_slam.factors.graph import FactorGraph, layout, linearize
 from online_slam.factors.robust import RobustLoss
+from online_slam.solvers.least_squares import SolverConfig, solve
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -101,3 +102,56 @@ def prior_gradient(
     H_mk = (Jm.T @ Jk).toarray()
     schur = H_kk - H_mk.T @ lu.solve(H_mk)
     return gradient, 0.5 * (schur + schur.T)
+
+
+def refine_recent(
+    history: FactorGraph,
+    first: int,
+    poses: Array,
+    landmarks: Array,
+    solver: SolverConfig,
+    loss: RobustLoss | None = None,
+) -> tuple[Array, Array]:
+    """Re-solve poses ``first..`` of a history graph with every earlier pose held fixed.
+
+    Only the sightings of the landmarks those poses see take part (from every pose: the earlier ones pin the
+    landmarks), so the problem is small. Used when a global solution handed over from the background is older
+    than the poses that left the window since: they are brought to agree with it.
+
+    Args:
+        history: :func:`history_graph` over poses ``0..oldest``.
+        first: The first pose to re-solve.
+        poses: Values of poses ``0..oldest``, shape (oldest + 1, 3).
+        landmarks: Values of every landmark, shape (M, 2).
+        solver: Levenberg-Marquardt settings.
+        loss: Robust loss on sightings.
+
+    Returns:
+        (poses, landmarks) with the re-solved values written in (copies).
+    """
+    poses, landmarks = poses.copy(), landmarks.copy()
+    seen = np.unique(history.obs_landmark[history.obs_pose >= first])
+    obs = np.isin(history.obs_landmark, seen)
+    odo = history.odo_to >= first
+    local = np.full(history.n_landmarks, -1, dtype=np.int64)
+    local[seen] = np.arange(len(seen))
+    graph = FactorGraph(
+        n_poses=history.n_poses,
+        n_landmarks=len(seen),
+        fixed_poses=np.arange(first, dtype=np.int64),
+        prior_pose=np.zeros(0, dtype=np.int64),
+        prior_mean=np.zeros((0, 3)),
+        prior_sqrt_info=np.zeros((0, 3, 3)),
+        odo_from=history.odo_from[odo],
+        odo_to=history.odo_to[odo],
+        odo_delta=history.odo_delta[odo],
+        odo_sqrt_info=history.odo_sqrt_info[odo],
+        obs_pose=history.obs_pose[obs],
+        obs_landmark=local[history.obs_landmark[obs]],
+        obs_z=history.obs_z[obs],
+        obs_sqrt_info=history.obs_sqrt_info[obs],
+    )
+    result = solve(graph, poses, landmarks[seen], solver, loss=loss)
+    poses[first:] = result.poses[first:]
+    landmarks[seen] = result.landmarks
+    return poses, landmarks

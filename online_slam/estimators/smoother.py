@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -44,7 +45,7 @@ from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
-from online_slam.estimators.relinearize import history_graph, prior_gradient
+from online_slam.estimators.relinearize import history_graph, prior_gradient, refine_recent
 from online_slam.factors.graph import (
     FactorGraph,
     layout,
@@ -56,10 +57,10 @@ from online_slam.factors.graph import (
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
-from online_slam.geometry.se2 import compose_with_jacobians
+from online_slam.geometry.se2 import between, compose, compose_with_jacobians, rotation
 from online_slam.models.motion import odometry_residual_with_jacobians
 from online_slam.models.range_bearing import landmark_from_observation, range_bearing_with_jacobians
-from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, solve
+from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
 from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
@@ -108,17 +109,20 @@ class SmootherConfig:
     estimate (``global_iterations`` Levenberg-Marquardt iterations), write the revised poses into the history
     and move the prior to them (see :mod:`~online_slam.estimators.relinearize`). Keeps every factor. Default 200,
     chosen on the square, the grid, the 5000-pose world, MRCLAM 6 (5 robots), Victoria Park and cityTrees (see
-    the README): it brings the final estimate to the batch's at a cost of one solve of the whole problem per
-    200 steps (the largest step time: ~0.1 s at 2000 poses, ~0.5 s at 5000)."""
+    the README): it brings the final estimate to the batch's."""
     global_iterations: int = 3
     """Levenberg-Marquardt iterations of each global relinearization (warm-started: few are needed)."""
+    global_delay: int = 50
+    """Steps between starting a global relinearization (in a background thread, from a copy of the state) and
+    handing its result over; the hand-over waits for the solve if it is not done, so results never depend on
+    timing. 0 solves at once, inside the step."""
     global_exact_limit: int = 0
     """A global relinearization also recomputes the prior's covariance at the new estimate while the prior has
     at most this many variables (0: never; otherwise the covariance is kept)."""
 
     def __post_init__(self) -> None:
-        if self.global_every < 0 or self.global_iterations < 1:
-            raise ValueError("global_every must be >= 0 and global_iterations >= 1")
+        if self.global_every < 0 or self.global_iterations < 1 or self.global_delay < 0:
+            raise ValueError("global_every and global_delay must be >= 0, global_iterations >= 1")
         if self.window < 1:
             raise ValueError("window must be >= 1")
         if self.relinearize_every < 1:
@@ -216,6 +220,45 @@ def _unpack_observations(state: dict[str, Any]) -> dict[int, tuple[Index, Array,
     }
 
 
+@dataclass
+class _GlobalJob:
+    """A global solve running in the background (or finished, or restored from a checkpoint)."""
+
+    handover: int
+    """Step count at which its result is applied."""
+    n_poses: int
+    """Poses in the state it started from (0 .. n_poses - 1)."""
+    thread: threading.Thread | None = None
+    result: SolveResult | None = None
+    error: str | None = None
+
+
+def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]]) -> NDArray[np.bool_]:
+    """The graph's sightings judged outliers when their pose left the window (graph sightings in pose order)."""
+    drop = np.zeros(len(graph.obs_pose), dtype=bool)
+    for g, mask in decisions:
+        a, b = np.searchsorted(graph.obs_pose, [g, g + 1])
+        if b - a == len(mask):
+            drop[a:b] = mask
+    return drop
+
+
+def solve_all(
+    log: ProblemLog,
+    decisions: list[tuple[int, NDArray[np.bool_]]],
+    poses: Array,
+    landmarks: Array,
+    solver: SolverConfig,
+    loss: RobustLoss | None,
+) -> SolveResult:
+    """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread)."""
+    graph = log.graph()
+    drop = outlier_mask(graph, decisions)
+    if drop.any():
+        graph = without_observations(graph, drop)
+    return solve(graph, poses, landmarks, solver, loss=loss)
+
+
 class SlidingWindowSmoother:
     """Fixed-lag smoother over poses, keeping all landmarks; follows the estimator protocol."""
 
@@ -251,6 +294,8 @@ class SlidingWindowSmoother:
         self._blas = ThreadpoolController()
         self.log = ProblemLog(keep_factors=self.config.global_every > 0)  # every factor, for global solves
         self._since_global = 0
+        self._steps = 0
+        self._global_job: _GlobalJob | None = None
         self.global_solves = 0
         self.global_rejections = 0
         """Global relinearizations not kept (the solve did not reconcile the history)."""
@@ -654,32 +699,95 @@ class SlidingWindowSmoother:
         self.window.pop(0)
         self.marginalized += 1
 
-    def _relinearize_globally(self) -> dict[str, float]:
-        """Re-solve every factor from the current estimate; revise the history; re-anchor the prior there."""
-        started = time.perf_counter()
-        graph = self.log.graph()
+    def _global_inputs(self) -> tuple[ProblemLog, list[tuple[int, NDArray[np.bool_]]], Array, Array] | None:
+        """What a global solve needs, copied (the log's lists, the outlier decisions, the current values)."""
         window = self.window
-        if graph.n_poses != len(self.history) + len(window) or tuple(self.log.landmark_ids) != tuple(self.landmark_ids):
-            return {}
-        drop = np.zeros(len(graph.obs_pose), dtype=bool)  # sightings judged outliers when their pose left
-        for g, mask in self._decisions:
-            a, b = np.searchsorted(graph.obs_pose, [g, g + 1])
-            if b - a == len(mask):
-                drop[a:b] = mask
-        if drop.any():
-            graph = without_observations(graph, drop)
+        if len(self.log.poses) != len(self.history) + len(window) or self.log.landmark_ids != tuple(self.landmark_ids):
+            return None
         poses = np.vstack([self.history.view(), np.array([self.poses[g] for g in window])])
+        return self.log.frozen(), list(self._decisions), poses, self._landmarks.copy()
+
+    def _relinearize_globally(self) -> dict[str, float]:
+        """Re-solve every factor from the current estimate now; revise the history; re-anchor the prior there."""
+        started = time.perf_counter()
+        inputs = self._global_inputs()
+        if inputs is None:
+            return {}
         solver = replace(self.config.solver, max_iterations=self.config.global_iterations)
-        result = solve(graph, poses, self._landmarks, solver, loss=self.config.loss)
-        oldest = window[0]
+        result = solve_all(*inputs, solver, self.config.loss)
+        report = self._apply_global(result, len(inputs[2]), at_once=True)
+        report["global_s"] = time.perf_counter() - started
+        return report
+
+    def _start_global(self) -> None:
+        """Solve every factor in a background thread from a copy of the current state; the result is handed
+        over ``global_delay`` steps later (waiting for it if need be), so the outcome never depends on timing."""
+        inputs = self._global_inputs()
+        self._since_global = 0
+        if inputs is None:
+            return
+        solver = replace(self.config.solver, max_iterations=self.config.global_iterations)
+        job = _GlobalJob(handover=self._steps + self.config.global_delay, n_poses=len(inputs[2]))
+
+        def work() -> None:
+            try:
+                job.result = solve_all(*inputs, solver, self.config.loss)
+            except Exception as exc:  # noqa: BLE001 - handed over as "no result"; the smoother goes on without it
+                job.error = repr(exc)
+
+        job.thread = threading.Thread(target=work, name=f"{self.name} global relinearization", daemon=True)
+        job.thread.start()
+        self._global_job = job
+
+    def _finish_job(self) -> _GlobalJob | None:
+        """The pending background solve, finished (joined); None if there is none."""
+        job = self._global_job
+        if job is not None and job.thread is not None:
+            job.thread.join()
+            job.thread = None
+        return job
+
+    def _apply_global(self, result: SolveResult, n_poses: int, at_once: bool) -> dict[str, float]:
+        """Revise the history with a global solution over poses ``0..n_poses-1`` and re-anchor the prior.
+
+        ``at_once``: the solution is of the current state (window poses and landmarks take its values too);
+        otherwise it is of an earlier one (handed over from the background): window poses and landmark estimates
+        keep their newer values, poses marginalized since keep theirs, and the prior is re-anchored at the
+        revised history and the current oldest window pose.
+        """
+        oldest = self.window[0]
+        history = self.history.view().copy()
+        revised = min(oldest, n_poses)
+        history[:revised] = result.poses[:revised]
+        landmarks = self._landmarks.copy()
+        landmarks[: len(result.landmarks)] = result.landmarks
+        oldest_value = result.poses[oldest] if at_once else self.poses[oldest].copy()
+        if not at_once and oldest >= n_poses:
+            # Poses that left the window after the solve started, and landmarks first seen since, follow the
+            # solution rigidly: their geometry relative to the last solved pose is kept (it holds newer data).
+            anchor = n_poses - 1
+            before, after = self.history.view()[anchor], result.poses[anchor]
+            history[anchor + 1 :] = compose(after, between(before, self.history.view()[anchor + 1 :]))
+            oldest_value = compose(after, between(before, oldest_value))
+            new = landmarks[len(result.landmarks) :]
+            if len(new):
+                local = (new - before[:2]) @ rotation(before[2])  # R(before)^T (l - t)
+                landmarks[len(result.landmarks) :] = local @ rotation(after[2]).T + after[:2]
         p = self.prior
         anchored = None
         if p is not None and p.pose == oldest:
-            history = history_graph(graph, oldest)
+            graph = self.log.graph()
+            drop = outlier_mask(graph, self._decisions)
+            if drop.any():
+                graph = without_observations(graph, drop)
+            past = history_graph(graph, oldest)
+            values = np.vstack([history, oldest_value[None]])
+            if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
+                solver = replace(self.config.solver, max_iterations=self.config.global_iterations)
+                values, landmarks = refine_recent(past, n_poses, values, landmarks, solver, self.config.loss)
+                history, oldest_value = values[:-1], values[-1]
             exact = len(p.mu) <= self.config.global_exact_limit
-            g_k, information = prior_gradient(
-                history, result.poses[: oldest + 1], result.landmarks, p.landmarks, self.config.loss, exact
-            )
+            g_k, information = prior_gradient(past, values, landmarks, p.landmarks, self.config.loss, exact)
             Sigma = p.Sigma
             if information is not None:
                 try:
@@ -690,24 +798,22 @@ class SlidingWindowSmoother:
             # The history's pull on the prior's variables, in its own metric: an inlier-consistent history gives
             # a chi-square value; a larger one means the solve did not reconcile it (a poor minimum): keep all.
             if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):
-                self._since_global = 0
                 self.global_rejections += 1
-                return {"global_rejected": 1.0, "global_s": time.perf_counter() - started}
-            x_lin = np.r_[result.landmarks[p.landmarks].reshape(-1), result.poses[oldest]]
+                return {"global_rejected": 1.0}
+            x_lin = np.r_[landmarks[p.landmarks].reshape(-1), oldest_value]
             anchored = _Prior(oldest, p.landmarks, x_lin, -(Sigma @ g_k), Sigma)
-        self.history.replace(result.poses[:oldest])
-        for g in window:
-            self.poses[g] = result.poses[g].copy()
-        self._landmarks = result.landmarks.copy()
+        self.history.replace(history)
+        if at_once:
+            for g in self.window:
+                self.poses[g] = result.poses[g].copy()
+            self._landmarks = landmarks
         if anchored is not None:
             self.prior = anchored
-        self._since_global = 0
         self.global_solves += 1
         return {
             "global_iterations": result.iterations,
             "global_cost_before": result.initial_cost,
             "global_cost_after": result.final_cost,
-            "global_s": time.perf_counter() - started,
         }
 
     # -- protocol --------------------------------------------------------------------------------
@@ -727,9 +833,23 @@ class SlidingWindowSmoother:
                 marginalized.append(self.window[0])
                 self._marginalize_oldest()
             self._since_global += 1
+            self._steps += 1
+            job = self._global_job
+            if job is not None and self._steps >= job.handover:
+                started = time.perf_counter()
+                self._finish_job()
+                self._global_job = None
+                if job.result is not None:
+                    report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
+                    report["global_s"] = time.perf_counter() - started
             every = self.config.global_every
-            if every and self._since_global >= every and len(self.history) and not self._unsolved:
-                report = {**report, **self._relinearize_globally()}
+            due = every and self._since_global >= every and len(self.history) and not self._unsolved
+            if due and self._global_job is None:
+                if self.config.global_delay:
+                    self._start_global()
+                else:
+                    self._since_global = 0
+                    report = {**report, **self._relinearize_globally()}
             self._step_report, self._step_marginalized = report, marginalized
             return self.snapshot(step)
 
@@ -784,9 +904,30 @@ class SlidingWindowSmoother:
             "decision_sizes": np.array([len(d[1]) for d in self._decisions], dtype=np.int64),
             "decisions": np.concatenate([d[1] for d in self._decisions]) if self._decisions else np.zeros(0, bool),
             "log": self.log.state_dict(),
+            "steps": self._steps,
+            "global_job": self._job_state(),
             "since_global": self._since_global,
             "global_solves": self.global_solves,
             "global_rejections": self.global_rejections,
+        }
+
+    def _job_state(self) -> dict[str, Any] | None:
+        """The pending global solve, finished first (its result is part of the state)."""
+        job = self._finish_job()
+        if job is None:
+            return None
+        r = job.result
+        return {
+            "handover": job.handover,
+            "n_poses": job.n_poses,
+            "error": job.error,
+            "poses": None if r is None else r.poses,
+            "landmarks": None if r is None else r.landmarks,
+            "iterations": 0 if r is None else r.iterations,
+            "converged": False if r is None else r.converged,
+            "initial_cost": 0.0 if r is None else r.initial_cost,
+            "final_cost": 0.0 if r is None else r.final_cost,
+            "message": "" if r is None else r.message,
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -832,6 +973,22 @@ class SlidingWindowSmoother:
         masks = np.split(np.array(state["decisions"], dtype=bool), cuts) if len(state["decision_sizes"]) else []
         self._decisions = [(int(g), m.copy()) for g, m in zip(state["decision_poses"], masks)]
         self.log.load_state(state["log"])
+        self._steps = int(state["steps"])
+        job = state["global_job"]
+        self._global_job = None
+        if job is not None:
+            restored = _GlobalJob(int(job["handover"]), int(job["n_poses"]), error=job["error"])
+            if job["poses"] is not None:
+                restored.result = SolveResult(
+                    as_float(job["poses"]).reshape(-1, 3),
+                    as_float(job["landmarks"]).reshape(-1, 2),
+                    int(job["iterations"]),
+                    bool(job["converged"]),
+                    float(job["initial_cost"]),
+                    float(job["final_cost"]),
+                    str(job["message"]),
+                )
+            self._global_job = restored
         self._since_global = int(state["since_global"])
         self.global_solves = int(state["global_solves"])
         self.global_rejections = int(state["global_rejections"])
@@ -857,8 +1014,14 @@ class SlidingWindowSmoother:
         )
 
     def finish(self) -> Estimate:
-        """Solve once more if anything arrived since the last solve; each pose's last estimate is final."""
+        """Solve once more if anything arrived since the last solve; each pose's last estimate is final.
+
+        A global relinearization still running in the background is waited for and dropped: its hand-over
+        step never came (the final estimate is what the regular schedule gave).
+        """
         started = time.perf_counter()
+        self._finish_job()
+        self._global_job = None
         if self.window:
             with self._blas.limit(limits=1, user_api="blas"):
                 self._solve(final=True)

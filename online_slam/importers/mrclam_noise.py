@@ -3,7 +3,8 @@
 The conversion (:mod:`online_slam.importers.mrclam`) models each odometry increment's error as independent
 Gaussians per axis with variance ``a * dt + b * s^2 + floor`` (dt elapsed seconds, s the commanded path length
 or turned angle). This module measures, for every robot of a dataset folder, the error of each commanded
-increment against the increment between the interpolated Vicon poses at the same two times, and fits ``a`` and
+increment against the increment between the interpolated Vicon poses at the same two times (in the frame the
+commanded increment reaches, as the conversion models it), and fits ``a`` and
 ``b`` per axis by maximum likelihood (``scipy.optimize.minimize`` over the logarithms, so both stay positive).
 Range and bearing sigmas are the robust standard deviations (1.4826 x median absolute deviation) of the
 measurement residuals against the Vicon pose and the surveyed landmark positions: robust, because a few rows
@@ -86,6 +87,9 @@ def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array]):
     both = covered[:-1] & covered[1:]
     errors = actual - commanded
     errors[:, 2] = wrap(errors[:, 2])
+    # in the frame the commanded increment reaches (the conversion's model: d = d_commanded * Exp(e))
+    c, s = np.cos(commanded[:, 2]), np.sin(commanded[:, 2])
+    errors[:, 0], errors[:, 1] = c * errors[:, 0] + s * errors[:, 1], -s * errors[:, 0] + c * errors[:, 1]
     odo = (errors[both], np.diff(times)[both], np.diff(path)[both], np.diff(turn)[both])
     # measurement residuals at covered times, surveyed landmarks only
     at, inside = _interpolate_truth(data.truth, kept[:, 0])
