@@ -1,0 +1,183 @@
+"""Data association for sightings without landmark ids: nearest neighbour and joint compatibility (JCBB).
+
+Pure math over a Gaussian belief of the robot pose and the landmarks: state ``s = [pose (3), l_1 .. l_M (2 each)]``
+with covariance ``P`` (the EKF's own; a smoother can give pose and landmark marginals, cross terms zero). A
+sighting ``z_i`` (range, bearing; noise ``R_i``) and a landmark ``j`` give the innovation
+``nu_ij = wrap(z_i - h(pose, l_j))`` with Jacobian ``H_ij`` (``dh/dpose`` at the pose's columns, ``dh/dl`` at
+``l_j``'s) and covariance ``S_ij = H_ij P H_ij^T + R_i`` — the measurement noise is part of it (PythonRobotics'
+EKF-SLAM builds it from the state block alone, with a fixed threshold of 2.0).
+
+- Individual compatibility: ``nu^T S^-1 nu <= chi2.isf(1 - p, 2)``.
+- Nearest neighbour: compatible pairs by increasing distance, each sighting and each landmark used at most once.
+- JCBB (Neira & Tardos, 2001): branch and bound over the sightings of one scan for the hypothesis with the most
+  pairings whose *joint* innovation ``nu_H`` passes ``nu_H^T S_H^-1 nu_H <= chi2.isf(1 - p, 2 |H|)`` with
+  ``S_H = H_H P H_H^T + blockdiag(R)`` (ties: the smaller joint distance). Sightings paired with nothing are
+  candidates for new landmarks. The search is exponential in the worst case; it runs per scan, over
+  individually compatible pairs only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from online_slam.geometry.angles import wrap
+from online_slam.models.range_bearing import range_bearing_with_jacobians
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+METHODS = ("nn", "jcbb")
+"""Association methods for sightings without ids."""
+
+
+@dataclass(frozen=True)
+class Belief:
+    """What an estimator believes, as association needs it (M landmarks)."""
+
+    pose: Array
+    """Robot pose ``[x, y, theta]``, shape (3,)."""
+    landmarks: Array
+    """Landmark positions, shape (M, 2)."""
+    covariance: Array
+    """Covariance of ``[pose, l_1 .. l_M]``, shape (3 + 2M, 3 + 2M)."""
+
+
+@dataclass(frozen=True)
+class Association:
+    """One scan's pairing."""
+
+    landmark: Index
+    """Landmark index (into the belief's landmarks) of each sighting, -1 for none, shape (k,)."""
+    joint_distance: float
+    """Joint squared Mahalanobis distance of the pairings (0 with none)."""
+
+
+def _innovations(belief: Belief, z: Array) -> tuple[Array, Array, Array]:
+    """nu (k, M, 2), and the Jacobians dh/dpose (M, 2, 3), dh/dl (M, 2, 2) at the belief."""
+    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks)
+    nu = z[:, None, :] - z_hat[None, :, :]
+    nu[..., 1] = wrap(nu[..., 1])
+    return nu, J_p, J_l
+
+
+def individual_distances(belief: Belief, z: Array, R: Array) -> Array:
+    """Squared Mahalanobis distance of every (sighting, landmark) pair, shape (k, M).
+
+    Args:
+        belief: Pose, landmarks and their joint covariance.
+        z: Sightings ``[range, bearing]``, shape (k, 2).
+        R: Their noise covariances, shape (k, 2, 2).
+    """
+    k, M = len(z), len(belief.landmarks)
+    if k == 0 or M == 0:
+        return np.full((k, M), np.inf)
+    nu, J_p, J_l = _innovations(belief, z)
+    P = belief.covariance
+    cols = 3 + 2 * np.arange(M)
+    P_pp = P[:3, :3]
+    P_pl = np.stack([P[:3, c : c + 2] for c in cols])  # (M, 3, 2)
+    P_ll = np.stack([P[c : c + 2, c : c + 2] for c in cols])  # (M, 2, 2)
+    HPH = (
+        J_p @ P_pp @ np.swapaxes(J_p, 1, 2)
+        + J_p @ P_pl @ np.swapaxes(J_l, 1, 2)
+        + J_l @ np.swapaxes(P_pl, 1, 2) @ np.swapaxes(J_p, 1, 2)
+        + J_l @ P_ll @ np.swapaxes(J_l, 1, 2)
+    )  # (M, 2, 2)
+    S = HPH[None, :, :, :] + R[:, None, :, :]  # (k, M, 2, 2)
+    return np.einsum("kmi,kmi->km", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+
+
+def _joint_distance(belief: Belief, z: Array, R: Array, pairs: list[tuple[int, int]]) -> float:
+    """nu_H^T S_H^-1 nu_H of a hypothesis (sighting, landmark) pairs."""
+    if not pairs:
+        return 0.0
+    i = np.array([p[0] for p in pairs])
+    j = np.array([p[1] for p in pairs])
+    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks[j])
+    nu = z[i] - z_hat
+    nu[:, 1] = wrap(nu[:, 1])
+    n = len(belief.covariance)
+    H = np.zeros((2 * len(pairs), n))
+    for row, (Jp, Jl, lm) in enumerate(zip(J_p, J_l, j)):
+        H[2 * row : 2 * row + 2, :3] = Jp
+        H[2 * row : 2 * row + 2, 3 + 2 * lm : 5 + 2 * lm] = Jl
+    S = H @ belief.covariance @ H.T
+    for row, k in enumerate(i):
+        S[2 * row : 2 * row + 2, 2 * row : 2 * row + 2] += R[k]
+    v = nu.reshape(-1)
+    return float(v @ np.linalg.solve(S, v))
+
+
+def nearest_neighbour(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
+    """Pair each sighting with its nearest individually compatible landmark, each landmark at most once.
+
+    Pairs are taken by increasing distance (the globally nearest first), so a landmark goes to the sighting
+    closest to it.
+    """
+    d2 = individual_distances(belief, z, R)
+    gate = chi2.isf(1.0 - gate_probability, 2)
+    out = np.full(len(z), -1, dtype=np.int64)
+    used: set[int] = set()
+    total = 0.0
+    for flat in np.argsort(d2, axis=None, kind="stable"):
+        i, j = np.unravel_index(flat, d2.shape)
+        if d2[i, j] > gate:
+            break
+        if out[i] < 0 and int(j) not in used:
+            out[i], total = j, total + float(d2[i, j])
+            used.add(int(j))
+    return Association(out, total)
+
+
+def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
+    """Joint compatibility branch and bound: the largest jointly compatible pairing of one scan.
+
+    Args:
+        belief: Pose, landmarks and their joint covariance.
+        z: The scan's sightings, shape (k, 2).
+        R: Their noise covariances, shape (k, 2, 2).
+        gate_probability: Probability that a true pairing passes the (individual and joint) chi-square tests.
+
+    Returns:
+        The pairing (most pairings; among those, the smallest joint distance).
+    """
+    k = len(z)
+    d2 = individual_distances(belief, z, R)
+    gate = chi2.isf(1.0 - gate_probability, 2)
+    candidates = [list(np.argsort(d2[i])[d2[i][np.argsort(d2[i])] <= gate]) for i in range(k)]
+    best: list = [[], np.inf]  # pairs, joint distance
+
+    def search(i: int, pairs: list[tuple[int, int]], distance: float) -> None:
+        if i == k:
+            if len(pairs) > len(best[0]) or (len(pairs) == len(best[0]) and distance < best[1]):
+                best[0], best[1] = list(pairs), distance
+            return
+        used = {p[1] for p in pairs}
+        for j in candidates[i]:
+            if int(j) in used:
+                continue
+            extended = [*pairs, (i, int(j))]
+            joint = _joint_distance(belief, z, R, extended)
+            if joint <= chi2.isf(1.0 - gate_probability, 2 * len(extended)):
+                search(i + 1, extended, joint)
+        if len(pairs) + (k - i - 1) > len(best[0]) or (len(pairs) + (k - i - 1) == len(best[0]) and distance < best[1]):
+            search(i + 1, pairs, distance)  # leave sighting i unpaired, if that can still win
+
+    search(0, [], 0.0)
+    out = np.full(k, -1, dtype=np.int64)
+    for i, j in best[0]:
+        out[i] = j
+    return Association(out, float(best[1]) if best[0] else 0.0)
+
+
+def associate(method: str, belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
+    """``nn`` or ``jcbb`` on one scan."""
+    if method == "nn":
+        return nearest_neighbour(belief, z, R, gate_probability)
+    if method == "jcbb":
+        return jcbb(belief, z, R, gate_probability)
+    raise ValueError(f"association method must be one of {', '.join(METHODS)}, not {method!r}")

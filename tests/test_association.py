@@ -1,0 +1,78 @@
+"""Data association without ids: individual distances, nearest neighbour, JCBB (hand-made scans, a random one)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from online_slam.frontend.association import Belief, associate, individual_distances, jcbb, nearest_neighbour
+from online_slam.geometry.angles import wrap
+from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
+
+R1 = np.diag([0.05**2, 0.01**2])
+
+
+def belief(pose, landmarks, pose_var, landmark_var=1e-4) -> Belief:
+    landmarks = np.asarray(landmarks, dtype=float)
+    cov = np.zeros((3 + 2 * len(landmarks),) * 2)
+    cov[:3, :3] = np.diag(pose_var)
+    cov[3:, 3:] = landmark_var * np.eye(2 * len(landmarks))
+    return Belief(np.asarray(pose, dtype=float), landmarks, cov)
+
+
+def test_individual_distance_is_the_innovation_in_its_own_covariance(rng) -> None:
+    landmarks = rng.uniform(-10, 10, (4, 2))
+    A = rng.normal(size=(11, 11))
+    b = Belief(np.array([0.3, -0.2, 0.4]), landmarks, A @ A.T * 0.01 + 1e-3 * np.eye(11))
+    z = np.array([[5.0, 0.3], [8.0, -1.0]])
+    R = np.stack([R1, 2 * R1])
+    d2 = individual_distances(b, z, R)
+    for i in range(2):
+        for j in range(4):
+            z_hat, J_p, J_l = range_bearing_with_jacobians(b.pose, landmarks[j])
+            H = np.zeros((2, 11))
+            H[:, :3], H[:, 3 + 2 * j : 5 + 2 * j] = J_p, J_l
+            nu = z[i] - z_hat
+            nu[1] = wrap(nu[1])
+            assert d2[i, j] == pytest.approx(nu @ np.linalg.solve(H @ b.covariance @ H.T + R[i], nu), rel=1e-9)
+
+
+def test_jcbb_is_right_where_nearest_neighbour_is_wrong() -> None:
+    """Three landmarks in a row; the pose estimate is 1 m off along the row (and uncertain along it): each
+    sighting looks like its neighbour's prediction. NN pairs by distance and is wrong; JCBB finds that one common
+    pose error explains all three sightings."""
+    landmarks = np.array([[5.0, -1.0], [5.0, 0.0], [5.0, 1.0]])
+    true_pose = np.array([0.0, 1.0, 0.0])
+    b = belief([0.0, 0.0, 0.0], landmarks, [0.01, 1.0, 1e-4])
+    z = range_bearing(true_pose[None, :], landmarks)
+    R = np.stack([R1] * 3)
+    nn = nearest_neighbour(b, z, R)
+    assert nn.landmark[1] == 0 and nn.landmark[2] == 1  # sightings of landmarks 1 and 2 given to 0 and 1
+    joint = jcbb(b, z, R)
+    assert list(joint.landmark) == [0, 1, 2]
+    assert joint.joint_distance < 11.3  # chi-square 99% for 6 dof: 16.8; one common shift explains all
+
+
+def test_clutter_pairs_with_nothing_and_true_sightings_with_their_landmarks(rng) -> None:
+    landmarks = rng.uniform(-15, 15, (25, 2))
+    pose = np.array([1.0, -2.0, 0.3])
+    b = belief(pose, landmarks, [0.01, 0.01, 1e-4], landmark_var=0.01)
+    visible = np.flatnonzero(np.linalg.norm(landmarks - pose[:2], axis=1) < 12)
+    z = range_bearing(pose[None, :], landmarks[visible]) + rng.normal(0, [0.05, 0.01], (len(visible), 2))
+    clutter = np.array([[7.3, 2.9]])  # a sighting of nothing: no landmark is near where it points
+    assert np.min(np.linalg.norm(landmarks - (pose[:2] + 7.3 * np.array([np.cos(3.2), np.sin(3.2)])), axis=1)) > 2
+    z = np.vstack([z, clutter])
+    R = np.stack([R1] * len(z))
+    for method in ("nn", "jcbb"):
+        result = associate(method, b, z, R)
+        assert list(result.landmark[:-1]) == list(visible), method
+        assert result.landmark[-1] == -1, method
+
+
+def test_no_landmarks_or_no_sightings() -> None:
+    empty = Belief(np.zeros(3), np.zeros((0, 2)), 1e-2 * np.eye(3))
+    assert list(jcbb(empty, np.array([[3.0, 0.1]]), R1[None]).landmark) == [-1]
+    b = belief([0, 0, 0], [[1.0, 2.0]], [0.01, 0.01, 0.01])
+    assert len(nearest_neighbour(b, np.zeros((0, 2)), np.zeros((0, 2, 2))).landmark) == 0
+    with pytest.raises(ValueError):
+        associate("greedy", b, np.zeros((0, 2)), np.zeros((0, 2, 2)))
