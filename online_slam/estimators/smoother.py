@@ -66,6 +66,9 @@ from online_slam.sources.events import LandmarkId
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
 
+GLOBAL_GROWTH = 20
+"""Global relinearizations start at most every N / 20 steps after N steps: each costs O(N), so this keeps their
+amortized cost per step bounded on long runs."""
 GLOBAL_FALSE_ALARM = 1e-3
 """A global relinearization is kept unless the history's pull on the re-anchored prior exceeds the chi-square
 bound a consistent history exceeds with this probability."""
@@ -105,7 +108,8 @@ class SmootherConfig:
     there, which stays stable when first estimates are far off (see the module docstring)."""
 
     global_every: int = 200
-    """Relinearize globally every this many steps (0: never): re-solve every factor seen so far from the current
+    """Relinearize globally every this many steps, or every N / 20 steps after N steps if that is longer (0:
+    never): re-solve every factor seen so far from the current
     estimate (``global_iterations`` Levenberg-Marquardt iterations), write the revised poses into the history
     and move the prior to them (see :mod:`~online_slam.estimators.relinearize`). Keeps every factor. Default 200,
     chosen on the square, the grid, the 5000-pose world, MRCLAM 6 (5 robots), Victoria Park and cityTrees (see
@@ -842,7 +846,7 @@ class SlidingWindowSmoother:
                 if job.result is not None:
                     report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
                     report["global_s"] = time.perf_counter() - started
-            every = self.config.global_every
+            every = self.config.global_every and max(self.config.global_every, self._steps // GLOBAL_GROWTH)
             due = every and self._since_global >= every and len(self.history) and not self._unsolved
             if due and self._global_job is None:
                 if self.config.global_delay:
