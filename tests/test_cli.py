@@ -168,5 +168,6 @@ def test_bench_prints_ratio_against_gtsam() -> None:
     done = cli("bench", "--poses", "200", "--repeats", "1", "--fuzz-cases", "20", "--recording-source", "square")
     assert done.returncode == 0, done.stderr
     assert "online-slam LM" in done.stdout and "GTSAM LM" in done.stdout and "ratio online-slam / GTSAM" in done.stdout
-    for section in ("library API overhead", "checkpoint overhead", "compare --rrd: square", "fuzzing:", "robustness:"):
+    sections = ("library API overhead", "checkpoint overhead", "compare --rrd: square", "association without ids")
+    for section in (*sections, "fuzzing:", "robustness:"):
         assert section in done.stdout

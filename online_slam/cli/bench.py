@@ -11,7 +11,8 @@ from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
 SECTIONS = (
-    "batch", "ekf-update", "online", "api", "checkpoint", "recording", "fuzz", "robust", "big", "sweep", "soak"
+    "batch", "ekf-update", "online", "api", "checkpoint", "recording", "association", "fuzz", "robust", "big",
+    "sweep", "soak",
 )  # fmt: skip
 DEFAULT_SECTIONS = SECTIONS[:-3]
 """The big world (5000 poses beside iSAM2, minutes), the sweep (MRCLAM data) and the soak (100,000 poses,
@@ -162,6 +163,18 @@ def _recording(args: argparse.Namespace) -> None:
           f"(target <= 30%: {'met' if overhead <= 0.30 else 'NOT met'}); recording {r.size_mib:.2f} MiB")  # fmt: skip
 
 
+def _association() -> None:
+    from online_slam.bench.association import time_association
+
+    rows = time_association()
+    print("association without ids: time per scan (median of 20 random scans) and share paired right")
+    print(f"{'landmarks':>10}{'sightings':>11}{'nn ms':>9}{'nn right':>10}{'jcbb ms':>10}{'jcbb right':>12}")
+    pairs = {(r.landmarks, r.sightings, r.method): r for r in rows}
+    for m, k in sorted({(r.landmarks, r.sightings) for r in rows}):
+        nn, jc = pairs[(m, k, "nn")], pairs[(m, k, "jcbb")]
+        print(f"{m:>10}{k:>11}{nn.median_ms:>9.2f}{nn.accuracy:>10.1%}{jc.median_ms:>10.2f}{jc.accuracy:>12.1%}")
+
+
 def _checkpoint(args: argparse.Namespace, world: GridConfig) -> None:
     from online_slam.bench.reliability import measure_checkpoint_overhead
 
@@ -272,6 +285,8 @@ def run(args: argparse.Namespace) -> int:
             _checkpoint(args, world)
         elif section == "recording":
             _recording(args)
+        elif section == "association":
+            _association()
         elif section == "fuzz":
             _fuzz(args)
         elif section == "robust":
