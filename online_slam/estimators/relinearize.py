@@ -12,10 +12,9 @@ where ``g`` and ``H = J^T J`` are the gradient and Gauss-Newton matrix of the hi
 the oldest window pose, the history poses' sightings, the start prior) at the revised values, ``m`` the history
 poses and ``k`` the prior's variables (its landmarks, then the oldest window pose): ``g'`` is the gradient of the
 history's cost with the history poses eliminated (a Schur complement, computed with one sparse solve of the
-history poses' block — odometry chains make it banded). While the prior is small (``exact_limit`` variables) its
-covariance is recomputed there too, ``Sigma = (H_kk - H_km H_mm^-1 H_mk)^-1``; a larger prior (a map of
-hundreds of landmarks) keeps its ``Sigma``, the same information linearized at the earlier estimate (recomputing
-it costs a sparse solve per prior variable and a dense inverse over every landmark).
+history poses' block — odometry chains make it banded). The prior keeps its covariance ``Sigma``: the same
+information, linearized at the earlier estimate (recomputing it costs a sparse solve per prior variable and a
+dense inverse over every landmark; tried on MRCLAM, it did not improve the online error).
 """
 
 from __future__ import annotations
@@ -63,10 +62,8 @@ def prior_gradient(
     landmarks: Array,
     prior_landmarks: Index,
     loss: RobustLoss | None = None,
-    information: bool = False,
-) -> tuple[Array, Array | None]:
-    """Gradient (and information) of the history's cost with the history poses eliminated, over
-    ``[prior landmarks..., oldest pose]``.
+) -> Array:
+    """Gradient of the history's cost with the history poses eliminated, over ``[prior landmarks..., oldest pose]``.
 
     Args:
         history: :func:`history_graph` (poses ``0..oldest``; the last one is the oldest window pose).
@@ -74,10 +71,9 @@ def prior_gradient(
         landmarks: Values of every landmark, shape (M, 2).
         prior_landmarks: Landmark indices the prior holds, in its order, shape (L,).
         loss: The smoother's robust loss on sightings (IRLS weights at these values).
-        information: Also compute ``H_kk - H_km H_mm^-1 H_mk`` (one sparse solve per prior variable).
 
     Returns:
-        (g', shape (2 L + 3,); the information, shape (2 L + 3, 2 L + 3), or None).
+        g', shape (2 L + 3,).
     """
     sparse = layout(history)
     r, J = linearize(history, sparse, poses, landmarks, loss)
@@ -89,19 +85,11 @@ def prior_gradient(
         (sparse.landmark_column[prior_landmarks][:, None] + np.arange(2)).reshape(-1),
         sparse.pose_column[oldest] + np.arange(3),
     ]
-    Jk = J[:, k].tocsc()
-    H_kk = (Jk.T @ Jk).toarray() if information else None
     if not len(m):
-        return g[k], H_kk
-    Jm = J[:, m].tocsc()
+        return g[k]
+    Jm, Jk = J[:, m].tocsc(), J[:, k].tocsc()
     H_mm = (Jm.T @ Jm).tocsc() + sp.identity(len(m), format="csc") * 1e-12  # the start fixes the chain
-    lu = spla.splu(H_mm)
-    gradient = g[k] - Jk.T @ (Jm @ lu.solve(g[m]))
-    if not information:
-        return gradient, None
-    H_mk = (Jm.T @ Jk).toarray()
-    schur = H_kk - H_mk.T @ lu.solve(H_mk)
-    return gradient, 0.5 * (schur + schur.T)
+    return g[k] - Jk.T @ (Jm @ spla.splu(H_mm).solve(g[m]))
 
 
 def refine_recent(

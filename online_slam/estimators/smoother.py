@@ -120,9 +120,6 @@ class SmootherConfig:
     """Steps between starting a global relinearization (in a background thread, from a copy of the state) and
     handing its result over; the hand-over waits for the solve if it is not done, so results never depend on
     timing. 0 solves at once, inside the step."""
-    global_exact_limit: int = 0
-    """A global relinearization also recomputes the prior's covariance at the new estimate while the prior has
-    at most this many variables (0: never; otherwise the covariance is kept)."""
 
     def __post_init__(self) -> None:
         if self.global_every < 0 or self.global_iterations < 1 or self.global_delay < 0:
@@ -247,6 +244,13 @@ def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_
     return drop
 
 
+def inlier_graph(log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]]) -> FactorGraph:
+    """Every factor of the log but the sightings judged outliers."""
+    graph = log.graph()
+    drop = outlier_mask(graph, decisions)
+    return without_observations(graph, drop) if drop.any() else graph
+
+
 def solve_all(
     log: ProblemLog,
     decisions: list[tuple[int, NDArray[np.bool_]]],
@@ -256,11 +260,7 @@ def solve_all(
     loss: RobustLoss | None,
 ) -> SolveResult:
     """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread)."""
-    graph = log.graph()
-    drop = outlier_mask(graph, decisions)
-    if drop.any():
-        graph = without_observations(graph, drop)
-    return solve(graph, poses, landmarks, solver, loss=loss)
+    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss)
 
 
 class SlidingWindowSmoother:
@@ -703,6 +703,11 @@ class SlidingWindowSmoother:
         self.window.pop(0)
         self.marginalized += 1
 
+    @property
+    def _global_solver(self) -> SolverConfig:
+        """The window's solver settings with ``global_iterations`` iterations."""
+        return replace(self.config.solver, max_iterations=self.config.global_iterations)
+
     def _global_inputs(self) -> tuple[ProblemLog, list[tuple[int, NDArray[np.bool_]]], Array, Array] | None:
         """What a global solve needs, copied (the log's lists, the outlier decisions, the current values)."""
         window = self.window
@@ -717,8 +722,7 @@ class SlidingWindowSmoother:
         inputs = self._global_inputs()
         if inputs is None:
             return {}
-        solver = replace(self.config.solver, max_iterations=self.config.global_iterations)
-        result = solve_all(*inputs, solver, self.config.loss)
+        result = solve_all(*inputs, self._global_solver, self.config.loss)
         report = self._apply_global(result, len(inputs[2]), at_once=True)
         report["global_s"] = time.perf_counter() - started
         return report
@@ -730,7 +734,7 @@ class SlidingWindowSmoother:
         self._since_global = 0
         if inputs is None:
             return
-        solver = replace(self.config.solver, max_iterations=self.config.global_iterations)
+        solver = self._global_solver
         job = _GlobalJob(handover=self._steps + self.config.global_delay, n_poses=len(inputs[2]))
 
         def work() -> None:
@@ -780,25 +784,15 @@ class SlidingWindowSmoother:
         p = self.prior
         anchored = None
         if p is not None and p.pose == oldest:
-            graph = self.log.graph()
-            drop = outlier_mask(graph, self._decisions)
-            if drop.any():
-                graph = without_observations(graph, drop)
-            past = history_graph(graph, oldest)
+            past = history_graph(inlier_graph(self.log, self._decisions), oldest)
             values = np.vstack([history, oldest_value[None]])
             if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
-                solver = replace(self.config.solver, max_iterations=self.config.global_iterations)
-                values, landmarks = refine_recent(past, n_poses, values, landmarks, solver, self.config.loss)
+                values, landmarks = refine_recent(
+                    past, n_poses, values, landmarks, self._global_solver, self.config.loss
+                )
                 history, oldest_value = values[:-1], values[-1]
-            exact = len(p.mu) <= self.config.global_exact_limit
-            g_k, information = prior_gradient(past, values, landmarks, p.landmarks, self.config.loss, exact)
+            g_k = prior_gradient(past, values, landmarks, p.landmarks, self.config.loss)
             Sigma = p.Sigma
-            if information is not None:
-                try:
-                    Sigma = la.cho_solve(la.cho_factor(information), np.eye(len(g_k)))
-                    Sigma = _grow_buffer(0.5 * (Sigma + Sigma.T), len(g_k))
-                except la.LinAlgError:
-                    Sigma = p.Sigma
             # The history's pull on the prior's variables, in its own metric: an inlier-consistent history gives
             # a chi-square value; a larger one means the solve did not reconcile it (a poor minimum): keep all.
             if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):

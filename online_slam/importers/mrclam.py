@@ -33,7 +33,7 @@ import numpy as np
 
 from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
-from online_slam.geometry.se2 import between
+from online_slam.geometry.se2 import between, rotation
 from online_slam.importers._lines import numbered_lines, numbers
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
@@ -178,10 +178,10 @@ def increment_covariances(increments: np.ndarray, variances: np.ndarray) -> np.n
     Returns:
         Covariances, shape (K, 3, 3).
     """
-    c, s = np.cos(increments[:, 2]), np.sin(increments[:, 2])
-    R = np.zeros((len(increments), 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
-    cov = np.einsum("kij,kj,klj->kil", R, variances, R)
+    R = rotation(increments[:, 2])
+    cov = np.zeros((len(increments), 3, 3))
+    cov[:, :2, :2] = np.einsum("kij,kj,klj->kil", R, variances[:, :2], R)
+    cov[:, 2, 2] = variances[:, 2]
     return 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 

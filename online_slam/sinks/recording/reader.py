@@ -66,6 +66,11 @@ def _column(table: Any, suffix: str) -> list[Any]:
     return table.column(names[0]).to_pylist() if names else []
 
 
+def _scalars(table: Any, entity: str) -> list[float]:
+    """The logged values of one scalar entity (rows without one left out)."""
+    return [v[0] for v in _column(table, f"{entity}:Scalars:scalars") if v]
+
+
 def _seconds(value: Any) -> float:
     if hasattr(value, "total_seconds"):
         return float(value.total_seconds())
@@ -120,7 +125,7 @@ class Recording:
         latency, figures = {}, {}
         for name in layout.online:
             root = f"/{layout.metrics(name)}"
-            values = [v[0] for v in _column(metrics, f"{root}/step_ms:Scalars:scalars") if v]
+            values = _scalars(metrics, f"{root}/step_ms")
             if values:
                 ms = np.array(values, dtype=float)
                 latency[name] = {
@@ -128,8 +133,8 @@ class Recording:
                     "p95": float(np.percentile(ms, 95)),
                     "max": float(ms.max()),
                 }
-            errors = np.array([v[0] for v in _column(metrics, f"{root}/position_error_m:Scalars:scalars") if v])
-            nees = np.array([v[0] for v in _column(metrics, f"{root}/nees:Scalars:scalars") if v])
+            errors = np.array(_scalars(metrics, f"{root}/position_error_m"))
+            nees = np.array(_scalars(metrics, f"{root}/nees"))
             if errors.size:
                 figures[name] = {
                     "online_rmse_m": float(np.sqrt(np.mean(np.square(errors)))),

@@ -192,7 +192,6 @@ class RerunSink:
         self._last_flush = time.perf_counter()
         self._buffered = 0
         self._last_step: Step | None = None
-        self._roots: dict[str, str] = {}
         self.error: str | None = None
         """Set when the recording could not be delivered (the replay itself is not affected)."""
         estimated = [n for n in layout.online if n != "odometry"]
@@ -238,10 +237,7 @@ class RerunSink:
         )
 
     def _root(self, name: str) -> str:
-        root = self._roots.get(name)
-        if root is None:
-            root = self._roots[name] = "world/truth" if name == TRUTH else self.layout.world(name)
-        return root
+        return "world/truth" if name == TRUTH else self.layout.world(name)
 
     # -- per step ----------------------------------------------------------------------------------
     def _time(self, step: Step) -> None:
