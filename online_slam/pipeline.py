@@ -24,14 +24,16 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+from online_slam.evaluation.association import score_association, true_labels, with_true_ids
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
 from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, truth_array
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.importers.resolve import open_source
 from online_slam.sinks.protocol import ReplaySink
-from online_slam.sources.events import Event
+from online_slam.sources.events import Event, Observation, Scan
 
 Array = NDArray[np.float64]
 
@@ -59,6 +61,11 @@ class ReplayConfig:
     """Frame for errors: ``anchor`` (first pose with truth) or ``se2`` (least-squares rigid alignment)."""
     dataset: dict = field(default_factory=dict)
     """Options for dataset sources: ``format``, ``robot`` (MRCLAM), ``truth``, ``dt``, ``convention``."""
+    association: str = "auto"
+    """Data association: ``known`` (the stream's ids; a sighting without one is associated by JCBB), ``nn`` or
+    ``jcbb`` (every sighting associated by each online estimator against its own belief; ids only score it;
+    batch solves with the associations of the estimate it starts from), or ``auto`` (default): ``known`` when the
+    stream's first sighting has an id, else ``jcbb``."""
     on_error: str = "stop"
     """A bad line of a stream file or stdin: ``stop`` the replay there (figures cover what came before), or
     ``skip`` it and go on (counted in ``Results.input``; the results equal those of the stream without it)."""
@@ -66,6 +73,53 @@ class ReplayConfig:
     def __post_init__(self) -> None:
         if self.on_error not in ("stop", "skip"):
             raise OnlineSlamError(f"on_error must be 'stop' or 'skip', not {self.on_error!r}")
+        if self.association not in ("auto", *ASSOCIATION_CHOICES):
+            raise OnlineSlamError(
+                f"association must be one of auto, {', '.join(ASSOCIATION_CHOICES)}, not {self.association!r}"
+            )
+
+    def with_association(self, method: str) -> ReplayConfig:
+        """This configuration with every estimator set to associate by ``method`` (``known``, ``nn``, ``jcbb``)."""
+        config = dataclasses.replace(
+            self,
+            association=method,
+            ekf=dataclasses.replace(self.ekf, association=dataclasses.replace(self.ekf.association, method=method)),
+            smoother=_associating(self.smoother, method),
+            extra_smoothers=tuple(_associating(s, method) for s in self.extra_smoothers),
+            batch=dataclasses.replace(self.batch, use_ids=method == "known"),
+        )
+        if method != "known" and "batch" in config.estimators:
+            online = {"ekf", "smoother"} & set(config.estimators) or config.extra_smoothers
+            if config.batch.initial == "odometry" or not online:
+                raise OnlineSlamError(
+                    "batch without ids solves with the associations of an EKF or a smoother of the same run: "
+                    "run one, and do not start batch from odometry"
+                )
+        return config
+
+
+def _associating(config: SmootherConfig, method: str) -> SmootherConfig:
+    return dataclasses.replace(config, association=dataclasses.replace(config.association, method=method))
+
+
+def first_sighting_has_id(events: Iterable[Event]) -> tuple[bool, Iterable[Event]]:
+    """Whether the stream's first sighting carries a landmark id, and the same events to read from the start.
+
+    Events are read up to the first observation or scan (buffered and replayed); a stream without any sighting
+    counts as having ids.
+    """
+    iterator = iter(events)
+    buffered: list[Event] = []
+    has_id = True
+    for event in iterator:
+        buffered.append(event)
+        if isinstance(event, Observation):
+            has_id = event.landmark is not None
+            break
+        if isinstance(event, Scan) and event.landmarks:
+            has_id = event.landmarks[0] is not None
+            break
+    return has_id, itertools.chain(buffered, iterator)
 
 
 def make_estimator(name: str, config: ReplayConfig) -> Estimator:
@@ -216,7 +270,6 @@ def replay(
             checkpoint, one of another source, of other settings or of another format version.
     """
     cfg = config or ReplayConfig()
-    estimators = build_estimators(cfg)
     skipped: dict[str, int] = {}
     position = _SourcePosition()
     catching_up = 0  # events still to skip when resuming
@@ -233,6 +286,13 @@ def replay(
     else:
         label, events = "<events>", iter(source)
     label = name or label
+    method = cfg.association
+    if method == "auto":
+        has_id, events = first_sighting_has_id(events)
+        method = "known" if has_id else "jcbb"
+    run_cfg = cfg.with_association(method)
+    estimators = build_estimators(run_cfg)
+    sighting_ids: list = []  # the stream's id of every sighting, to score association (nn/jcbb) with
     odometry = DeadReckoning()
     engine = Engine([odometry, *estimators], cfg.frontend)
     tracks = {e.name: _Track(e) for e in estimators}
@@ -252,6 +312,7 @@ def replay(
             engine.load_state(state["engine"])
             _load_tracks(tracks, state["tracks"])
             step_times.extend(float(t) for t in state["step_times"])
+            sighting_ids.extend(state["sighting_ids"])
             skipped.update({str(k): int(v) for k, v in state["skipped"].items()})
             catching_up, expected_fingerprint = int(state["consumed"]), str(state["fingerprint"])
         except (KeyError, TypeError, ValueError, IndexError) as exc:
@@ -268,6 +329,7 @@ def replay(
             "engine": engine.state_dict(),
             "tracks": _tracks_state(tracks),
             "step_times": np.array(step_times, dtype=float),
+            "sighting_ids": list(sighting_ids),
         }
         write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
 
@@ -275,6 +337,8 @@ def replay(
         if record is None:
             return
         step_times.append(record.step.t)
+        if method != "known":
+            sighting_ids.extend(record.step.landmarks)
         for estimator_name, track in tracks.items():
             track.record(record.snapshots[estimator_name], record.seconds[estimator_name])
         if sinks:
@@ -327,11 +391,18 @@ def replay(
         estimates[estimator.name] = estimate
         details = dict(estimate.info)
         rejected = details.pop("rejected", None)
-        outliers = None
+        labels = details.pop("labels", None)
+        outliers = association = None
+        scored = estimate
+        if labels is not None and method != "known":
+            truth_labels = true_labels(sighting_ids, truth.outliers)
+            association = score_association(method, labels, truth_labels, estimate.landmark_ids)
+            scored = with_true_ids(estimate, labels, truth_labels)
+            rejected = None  # per used sighting, not per stream sighting
         if rejected is not None:
             marked = bool(truth.outliers) or bool(header_meta.get("contamination"))
             outliers = outlier_report(rejected, truth, marked)
-        errors = evaluate(estimate, truth, cfg.alignment)
+        errors = evaluate(scored, truth, cfg.alignment)
         online = None
         if estimator.online:
             online = online_figures(
@@ -355,6 +426,7 @@ def replay(
             step_ms=None if online is None else online.latency,
             details=details,
             outliers=outliers,
+            association=association,
         )
     odo = evaluate(estimates["odometry"], truth, cfg.alignment)
     results = Results(

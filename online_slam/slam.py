@@ -26,6 +26,7 @@ from online_slam.engine import Engine
 from online_slam.errors import ConfigError, InputError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.landmark_book import AssociationConfig
 from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.protocol import Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
@@ -49,6 +50,10 @@ OPTIONS: dict[str, tuple[type, str]] = {
     "gate_probability": (float, "ekf: chi-square gate on each observation's NIS, in (0, 1]"),
     "gate_persistence": (int, "ekf: use a landmark again after this many gated sightings in a row (>= 0)"),
     "ekf_update": (str, "ekf: 'joint' or 'sequential'"),
+    "association": (
+        str,
+        "'known' (default: the ids given; a sighting without one by JCBB), 'nn' or 'jcbb' (ids ignored)",
+    ),
     "first_observation_only": (bool, "keep only the first sighting of each landmark"),
     "keyframe_distance": (float, "merge observation-free odometry up to this many metres"),
     "keyframe_angle": (float, "... and up to this many radians"),
@@ -183,6 +188,7 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
                 gate_probability=options.get("gate_probability", EkfConfig.gate_probability),
                 gate_persistence=options.get("gate_persistence", EkfConfig.gate_persistence),
                 update=options.get("ekf_update", EkfConfig.update),
+                association=AssociationConfig(options.get("association", "known")),
             )
         else:
             config, _ = robust_settings(
@@ -193,6 +199,7 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
                     relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
                     global_every=options.get("global_every", SmootherConfig.global_every),
                     global_delay=options.get("global_delay", SmootherConfig.global_delay),
+                    association=AssociationConfig(options.get("association", "known")),
                 ),
                 BatchConfig(),
             )
@@ -263,13 +270,14 @@ class Slam:
         self._engine.push(self._validator.parse_odometry(_plain(t), _plain(delta), _plain(sigma), _plain(cov)))
 
     def add_observation(
-        self, t: float, landmark: LandmarkId, range: float, bearing: float, sigma: Any = None, cov: Any = None
+        self, t: float, landmark: LandmarkId | None, range: float, bearing: float, sigma: Any = None, cov: Any = None
     ) -> None:
         """A range-bearing sighting of a landmark; belongs to the newest pose with time <= ``t``.
 
         Args:
             t: Time, seconds.
-            landmark: Landmark id (int or non-empty string; ``3`` and ``"3"`` differ).
+            landmark: Landmark id (int or non-empty string; ``3`` and ``"3"`` differ), or None when unknown (the
+                estimator associates it; with ``association="nn"``/``"jcbb"`` every id is ignored).
             range: Distance, metres (> 0).
             bearing: Angle from the heading, radians.
             sigma: ``[s_range, s_bearing]``, or None when ``cov`` is given.
@@ -291,7 +299,7 @@ class Slam:
 
         Args:
             t: Time, seconds.
-            landmarks: k landmark ids.
+            landmarks: k landmark ids (None for an unknown one), or None: all unknown.
             ranges: k distances, metres (> 0).
             bearings: k angles from the heading, radians.
             sigma: ``[s_range, s_bearing]`` shared by all, or one per sighting (k, 2).
@@ -301,6 +309,8 @@ class Slam:
             InputError: Naming the first bad sighting's field, e.g. ``range[3]``; nothing is added.
         """
         self._validator.name = "Slam.add_observations"
+        if landmarks is None and isinstance(ranges, (list, tuple, np.ndarray)):
+            landmarks = [None] * len(ranges)
         scan = self._validator.parse_scan(
             _plain(t), _plain(landmarks), _plain(ranges), _plain(bearings), _plain(sigma), _plain(cov)
         )

@@ -11,6 +11,7 @@ from pathlib import Path
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig
+from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
 from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.robust import RobustLoss
@@ -146,6 +147,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
         help="smoother: run each global relinearization in a background thread and hand its result over D steps "
         f"later (deterministic; default {SmootherConfig.global_delay}; 0 = solve at once, inside the step)",
     )
+    p.add_argument(
+        "--association",
+        choices=("auto", *ASSOCIATION_CHOICES),
+        default="auto",
+        help="data association: known (the stream's ids), nn (nearest neighbour) or jcbb (joint compatibility) - "
+        "each online estimator against its own belief, new landmarks tentative until confirmed, the stream's ids "
+        "only score it; default auto: known when the first sighting has an id, else jcbb",
+    )
     p.add_argument("--format", choices=("mrclam", "gtsam", "g2o"), help="dataset format (default: detected)")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
     p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
@@ -235,6 +244,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
             "convention": args.convention,
         },
         alignment=args.align,
+        association=args.association,
         on_error=on_error_of(args, args.source),
     )
 

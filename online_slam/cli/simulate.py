@@ -9,7 +9,15 @@ import numpy as np
 
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.stream import write_stream
-from online_slam.sources.worlds import WORLDS, Contamination, GridConfig, contaminate, grid_world, square_world
+from online_slam.sources.worlds import (
+    WORLDS,
+    Contamination,
+    GridConfig,
+    contaminate,
+    grid_world,
+    square_world,
+    without_ids,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -49,6 +57,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--outlier-seed", type=int, default=0, help="seed of the outlier draws (default 0)")
     p.add_argument(
+        "--no-ids", action="store_true", help="write sightings without landmark ids (unknown data association)"
+    )
+    p.add_argument(
         "--sensor-sigma", type=float, nargs=2, default=g.sensor_sigma, metavar=("SR", "SB"),
         help="grid: range (m) and bearing (rad) noise",
     )  # fmt: skip
@@ -80,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
         raise OnlineSlamError(f"simulate: {exc}") from None
     if contamination.any:
         events = contaminate(events, contamination)
+    if args.no_ids:
+        events = without_ids(events)
     try:
         lines = write_stream(args.output, events)
     except ValueError as exc:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +42,9 @@ class BatchConfig:
     another estimator of the same replay (``ekf``, ``smoother``), or ``auto`` (default): the (first) smoother's if one
     ran, else the EKF's, else odometry. From composed odometry LM can end in a poor local minimum on long real runs
     (MRCLAM; see the README)."""
+    use_ids: bool = True
+    """False (association by ``nn``/``jcbb``): the stream's ids are ignored; the batch solves with the associations
+    of the estimate it starts from (each sighting's landmark as that estimator decided, in the end)."""
 
 
 def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
@@ -67,19 +70,52 @@ class BatchEstimator(LoggedEstimator):
 
     def __init__(self, config: BatchConfig | None = None) -> None:
         self.config = config or BatchConfig()
-        self.log = ProblemLog()
+        self.log = ProblemLog(use_ids=self.config.use_ids)
 
     def finish(self, initial: Estimate | None = None) -> Estimate:
-        """Solve the full problem, from composed odometry or from another estimate (same poses, same ids)."""
+        """Solve the full problem, from composed odometry or from another estimate (same poses, same ids).
+
+        Without ids (``use_ids`` False) the initial estimate must carry ``info["labels"]``: the landmark id of
+        each sighting (None: not used), whose landmarks it also gives.
+        """
         started = time.perf_counter()
+        if not self.config.use_ids:
+            return self._finish_associated(initial, started)
         graph = self.log.graph()
         poses, landmarks = np.array(self.log.poses).reshape(-1, 3), self.log.landmarks
+        return self._solve(graph, poses, landmarks, self.log.landmark_ids, initial, started)
+
+    def _finish_associated(self, initial: Estimate | None, started: float) -> Estimate:
+        """Solve with the associations (and values) of another estimate."""
+        labels = None if initial is None else initial.info.get("labels")
+        n_sightings = len(self.log.sightings()[0])
+        if initial is None or labels is None or len(labels) != n_sightings:
+            raise ValueError("batch without ids needs the associations of an estimator that saw every sighting")
+        where = {lid: k for k, lid in enumerate(initial.landmark_ids)}
+        index = np.array([where.get(lid, -1) if lid is not None else -1 for lid in labels], dtype=np.int64)
+        graph = self.log.graph(labels=index, n_landmarks=len(initial.landmark_ids))
+        ids = tuple(initial.landmark_ids)
+        landmarks = initial.landmarks.copy()
+        plain = Estimate(initial.estimator, initial.poses, ids, landmarks)
+        estimate = self._solve(graph, initial.poses.copy(), landmarks, ids, plain, started)
+        return replace(estimate, info={**estimate.info, "labels": list(labels)})
+
+    def _solve(
+        self,
+        graph: FactorGraph,
+        poses: NDArray[np.float64],
+        landmarks: NDArray[np.float64],
+        landmark_ids: tuple,
+        initial: Estimate | None,
+        started: float,
+    ) -> Estimate:
+        """Levenberg-Marquardt on the graph (with the robust pass where the residuals call for one)."""
         if initial is not None:
             if len(initial.poses) != len(poses):
                 raise ValueError("initial estimate has a different number of poses")
             poses = initial.poses.copy()
             where = {lid: k for k, lid in enumerate(initial.landmark_ids)}
-            for k, lid in enumerate(self.log.landmark_ids):
+            for k, lid in enumerate(landmark_ids):
                 if lid in where:
                     landmarks[k] = initial.landmarks[where[lid]]
         cfg = self.config
@@ -109,7 +145,7 @@ class BatchEstimator(LoggedEstimator):
             "robust_pass": robust_pass,
             "rejected": rejected,
         }
-        ids, positions = self.log.landmark_ids, result.landmarks
+        ids, positions = landmark_ids, result.landmarks
         if rejected.any():  # a landmark whose every sighting is an outlier is no landmark: leave it out of the map
             supported = np.zeros(len(ids), dtype=bool)
             supported[graph.obs_landmark[~rejected]] = True

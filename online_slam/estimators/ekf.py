@@ -34,7 +34,7 @@ threads, 0.49 ms with one).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -45,6 +45,7 @@ from threadpoolctl import ThreadpoolController
 
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
+from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
@@ -76,6 +77,9 @@ class EkfConfig:
     update: str = "joint"
     """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
     relinearized after each."""
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+    """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
+    filter's own mean and covariance (with tentative landmarks)."""
 
     def __post_init__(self) -> None:
         if not 0.0 < self.gate_probability <= 1.0:
@@ -125,6 +129,8 @@ class EkfSlam(ExtendedKalmanFilter):
         self._step_new: list[LandmarkId] = []
         self._rejected: list[NDArray[np.bool_]] = []  # gated sightings, per update call, in step order
         self._blas = ThreadpoolController()
+        self.book = LandmarkBook(self.config.association, inside=True)
+        self._step_ids: list[LandmarkId | None] = []  # the newest step's sightings as paired (None: not used)
 
     @classmethod
     def from_state(cls, x: Array, P: Array, landmark_ids: list[LandmarkId], config: EkfConfig | None = None) -> EkfSlam:
@@ -203,6 +209,34 @@ class EkfSlam(ExtendedKalmanFilter):
         self._streak = np.append(self._streak, 0)
         self._confirmed = np.append(self._confirmed, False)
         self._grow(position, cross, 0.5 * (block + block.T))
+
+    def remove_landmarks(self, ids: list[LandmarkId]) -> None:
+        """Delete landmarks from the state: their rows and columns (exact marginalization in covariance form)."""
+        gone = np.array(sorted(self._index[lid] for lid in ids), dtype=np.int64)
+        m = len(self.landmark_ids)
+        kept = np.setdiff1d(np.arange(m), gone)
+        rows = np.r_[0, 1, 2, _landmark_columns(kept)]
+        self.x = self.x[rows]
+        self.P = self.P[np.ix_(rows, rows)]
+        self.dim_x = len(rows)
+        self._I = np.eye(self.dim_x)
+        self.F = self._I
+        Q = np.zeros((self.dim_x, self.dim_x))
+        Q[:3, :3] = self.Q[:3, :3]
+        self.Q = Q
+        self.K = np.zeros((self.dim_x, self.K.shape[1] if self.K.ndim == 2 else 1))
+        renumber = np.full(m, -1, dtype=np.int64)
+        renumber[kept] = np.arange(len(kept))
+        self.landmark_ids = [self.landmark_ids[j] for j in kept]
+        self._index = {lid: j for j, lid in enumerate(self.landmark_ids)}
+        self._streak, self._confirmed = self._streak[kept], self._confirmed[kept]
+        self._recent = {int(renumber[j]): v for j, v in self._recent.items() if renumber[j] >= 0}
+
+    def _mapped(self) -> NDArray[np.bool_] | None:
+        """Which landmarks belong to the reported map (None: all; tentative ones do not)."""
+        if not self.book.has_tentative:
+            return None
+        return np.array([not self.book.is_tentative(lid) for lid in self.landmark_ids], dtype=bool)
 
     # -- update ----------------------------------------------------------------------------------
     def _innovation(self, indices: NDArray[np.int64], z: Array) -> tuple[Array, Array, NDArray[np.int64]]:
@@ -379,7 +413,7 @@ class EkfSlam(ExtendedKalmanFilter):
         else:
             self._history.append(self.x[:3, 0])  # the previous pose is complete
             self.predict(step.odometry, step.odometry_cov)
-        self._step_nis, self._step_gated, self._step_new = [], [], []
+        self._step_nis, self._step_gated, self._step_new, self._step_ids = [], [], [], []
         self._observe(step, 0)
         return self.snapshot(step)
 
@@ -387,8 +421,13 @@ class EkfSlam(ExtendedKalmanFilter):
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
         ids, z_all, R_all = step.landmarks[start:], step.z[start:], step.z_cov[start:]
         k = len(ids)
+        association = self.config.association
+        if k and (association.ignores_ids or None in ids):
+            ids = self._associate(step.index, ids, z_all, R_all)
+        self._step_ids += ids
         nis = np.full(k, np.nan)
-        rejected = np.zeros(k, dtype=bool)
+        held = np.array([lid is None for lid in ids], dtype=bool)
+        rejected = held.copy()  # a sighting association kept back is not used
         gated: list[LandmarkId] = []
         known = np.array([lid in self._index for lid in ids], dtype=bool)
         if known.any():
@@ -405,7 +444,7 @@ class EkfSlam(ExtendedKalmanFilter):
             gated = [ids[i] for i in where[~accepted]]
             rejected[where[~accepted]] = True
         new: list[LandmarkId] = []
-        for i in np.flatnonzero(~known):
+        for i in np.flatnonzero(~known & ~held):
             lid = ids[i]
             if lid in self._index:  # seen twice in this step: the first sighting initialised it
                 nis[i : i + 1], ok = self.update_structured(
@@ -422,6 +461,39 @@ class EkfSlam(ExtendedKalmanFilter):
         self._step_nis.append(nis)
         self._step_gated += gated
         self._step_new += new
+
+    def _associate(
+        self, step_index: int, ids: tuple[LandmarkId | None, ...], z: Array, R: Array
+    ) -> list[LandmarkId | None]:
+        """Ids for the sightings to associate (all of them, or those without one) against the filter's belief."""
+        ask = (
+            range(len(ids)) if self.config.association.ignores_ids else [i for i, lid in enumerate(ids) if lid is None]
+        )
+        ask = np.array(list(ask), dtype=np.int64)
+        dropped = self.book.expire(step_index)
+        if dropped:
+            self.remove_landmarks(dropped)
+        P = self.P
+
+        def covariance_of(indices: NDArray[np.int64]) -> Array:
+            cols = np.r_[0, 1, 2, _landmark_columns(indices)]
+            return P[np.ix_(cols, cols)]
+
+        assigned = self.book.assign(
+            step_index,
+            self.x[:3, 0].copy(),
+            P[:3, :3],
+            z[ask],
+            R[ask],
+            self.x[3:, 0].reshape(-1, 2),
+            self.landmark_ids,
+            covariance_of,
+            known=self._index,
+        )
+        out = list(ids)
+        for i, lid in zip(ask, assigned):
+            out[int(i)] = lid
+        return out
 
     def trajectory_parts(self) -> tuple[Array, Array]:
         """(poses that no longer change, read-only (N - 1, 3) view; the newest pose, a copy (1, 3))."""
@@ -449,6 +521,8 @@ class EkfSlam(ExtendedKalmanFilter):
             "step_gated": list(self._step_gated),
             "step_new": list(self._step_new),
             "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
+            "book": self.book.state_dict(),
+            "step_ids": list(self._step_ids),
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -479,6 +553,8 @@ class EkfSlam(ExtendedKalmanFilter):
         self._step_gated = list(state["step_gated"])
         self._step_new = list(state["step_new"])
         self._rejected = [np.array(state["rejected"], dtype=bool)]
+        self.book.load_state(state["book"])
+        self._step_ids = list(state["step_ids"])
 
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
@@ -490,35 +566,53 @@ class EkfSlam(ExtendedKalmanFilter):
 
     def snapshot(self, step: Step) -> Snapshot:
         """The current estimate as an immutable snapshot; ``info`` covers all of the step's observations."""
+        ids, landmarks, covs = self._map()
         return Snapshot(
             estimator=self.name,
             index=step.index,
             t=step.t,
             pose=self.x[:3, 0].copy(),
             pose_cov=self.P[:3, :3].copy(),
-            landmark_ids=tuple(self.landmark_ids),
-            landmarks=self.x[3:, 0].reshape(-1, 2).copy(),
-            landmark_covs=self.landmark_marginals(),
+            landmark_ids=ids,
+            landmarks=landmarks,
+            landmark_covs=covs,
             info={
                 "nis": np.concatenate(self._step_nis) if self._step_nis else np.zeros(0),
-                "observed": step.landmarks,
+                "observed": tuple(self._step_ids),
                 "gated": tuple(self._step_gated),
                 "new_landmarks": tuple(self._step_new),
             },
         )
 
+    def _association_info(self) -> dict[str, Any]:
+        """The book's labels and counts, when this filter associated sightings itself."""
+        if not self.config.association.ignores_ids and not self.book.labels_seen:
+            return {}
+        return {"association": self.book.report(), "labels": self.book.labels()}
+
+    def _map(self) -> tuple[tuple[LandmarkId, ...], Array, Array]:
+        """The reported map: ids, positions (M, 2), marginal covariances (M, 2, 2); tentative landmarks left out."""
+        landmarks, covs = self.x[3:, 0].reshape(-1, 2).copy(), self.landmark_marginals()
+        mapped = self._mapped()
+        if mapped is None:
+            return tuple(self.landmark_ids), landmarks, covs
+        ids = tuple(lid for lid, ok in zip(self.landmark_ids, mapped) if ok)
+        return ids, landmarks[mapped], covs[mapped]
+
     def finish(self) -> Estimate:
         """The filter has no smoothing: each pose keeps the estimate it had when it was the newest."""
+        ids, landmarks, covs = self._map()
         return Estimate(
             self.name,
             self.trajectory(),
-            tuple(self.landmark_ids),
-            self.x[3:, 0].reshape(-1, 2).copy(),
+            ids,
+            landmarks,
             {
                 "gated_observations": self.gated_total,
                 "landmarks_reanchored": self.reanchored,
                 "state_size": self.dim_x,
                 "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
+                **self._association_info(),
             },
-            landmark_covs=self.landmark_marginals(),
+            landmark_covs=covs,
         )

@@ -29,9 +29,11 @@ class ProblemLog:
         landmark_ids: Landmark ids in order of first observation.
     """
 
-    def __init__(self, keep_factors: bool = True) -> None:
+    def __init__(self, keep_factors: bool = True, use_ids: bool = True) -> None:
         self.keep_factors = keep_factors
         """False: keep initial values only (dead reckoning needs no factor), so memory grows with the path alone."""
+        self.use_ids = use_ids
+        """False: the stream's ids are not used (association decides later); every sighting is kept unpaired."""
         self.poses: list[Array] = []
         self.landmark_ids: tuple[LandmarkId, ...] = ()
         self._landmark_index: dict[LandmarkId, int] = {}
@@ -79,8 +81,10 @@ class ProblemLog:
             return
         pose = self.poses[-1]
         ids = list(self.landmark_ids)
+        if not self.use_ids:
+            ids_now = (None,) * len(ids_now)
         for lid, z in zip(ids_now, step.z[start:]):
-            if lid not in self._landmark_index:
+            if lid is not None and lid not in self._landmark_index:
                 self._landmark_index[lid] = len(ids)
                 ids.append(lid)
                 self._landmarks.append(landmark_from_observation(pose, z))
@@ -93,9 +97,18 @@ class ProblemLog:
         self._obs_z.append(step.z[start:])
         self._obs_cov.append(step.z_cov[start:])
 
+    def add_sightings(self, pose: int, ids: tuple[LandmarkId, ...], z: Array, cov: Array) -> None:
+        """Record sightings of known landmarks taken at an earlier pose (graphs order sightings by pose)."""
+        if not self.keep_factors:
+            return
+        self._obs_pose.append(np.full(len(ids), pose))
+        self._obs_landmark.append(self.landmark_indices(ids))
+        self._obs_z.append(np.asarray(z, dtype=float))
+        self._obs_cov.append(np.asarray(cov, dtype=float))
+
     def frozen(self) -> ProblemLog:
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
-        copy = ProblemLog(self.keep_factors)
+        copy = ProblemLog(self.keep_factors, self.use_ids)
         copy.poses = list(self.poses)
         copy.landmark_ids = self.landmark_ids
         copy._landmark_index = dict(self._landmark_index)
@@ -147,8 +160,23 @@ class ProblemLog:
         self._obs_z = split("obs_z", (2,), float)
         self._obs_cov = split("obs_cov", (2, 2), float)
 
-    def graph(self) -> FactorGraph:
-        """All factors recorded so far as one graph (start pose fixed, or a prior on it)."""
+    def sightings(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
+        """Every sighting recorded, in order: (pose, landmark index or -1 without id, z (k, 2), cov (k, 2, 2))."""
+        cat = np.concatenate
+        return (
+            cat(self._obs_pose).astype(np.int64) if self._obs_pose else np.zeros(0, dtype=np.int64),
+            cat(self._obs_landmark) if self._obs_landmark else np.zeros(0, dtype=np.int64),
+            cat(self._obs_z) if self._obs_z else np.zeros((0, 2)),
+            cat(self._obs_cov) if self._obs_cov else np.zeros((0, 2, 2)),
+        )
+
+    def graph(self, labels: NDArray[np.int64] | None = None, n_landmarks: int | None = None) -> FactorGraph:
+        """All factors recorded so far as one graph (start pose fixed, or a prior on it).
+
+        Args:
+            labels: Landmark index of every sighting (-1: left out) instead of the logged ids' indices.
+            n_landmarks: Landmarks the labels index (with ``labels``).
+        """
         if not self.keep_factors:
             raise ValueError("this log keeps no factors")
         n = len(self.poses)
@@ -160,20 +188,26 @@ class ProblemLog:
                 fixed = [0]
             else:
                 prior_args = {"prior_pose": [0], "prior_mean": mean[None], "prior_cov": cov[None]}
-        cat = np.concatenate
+        obs_pose, obs_landmark, obs_z, obs_cov = self.sightings()
+        if labels is not None:
+            obs_landmark = np.asarray(labels, dtype=np.int64)
+        used = obs_landmark >= 0
+        if len(obs_pose) > 1 and np.any(np.diff(obs_pose) < 0):  # sightings added at earlier poses: pose order
+            used = np.flatnonzero(used)
+            used = used[np.argsort(obs_pose[used], kind="stable")]
         return FactorGraph.build(
             n,
-            len(self.landmark_ids),
+            len(self.landmark_ids) if n_landmarks is None else n_landmarks,
             fixed_poses=fixed,
             **prior_args,  # type: ignore[arg-type]
             odo_from=np.arange(n - 1),
             odo_to=np.arange(1, n),
             odo_delta=np.array(self._odo_delta).reshape(-1, 3),
             odo_cov=np.array(self._odo_cov).reshape(-1, 3, 3),
-            obs_pose=cat(self._obs_pose) if self._obs_pose else [],
-            obs_landmark=cat(self._obs_landmark) if self._obs_landmark else [],
-            obs_z=cat(self._obs_z) if self._obs_z else np.zeros((0, 2)),
-            obs_cov=cat(self._obs_cov) if self._obs_cov else np.zeros((0, 2, 2)),
+            obs_pose=obs_pose[used],
+            obs_landmark=obs_landmark[used],
+            obs_z=obs_z[used],
+            obs_cov=obs_cov[used],
         )
 
 

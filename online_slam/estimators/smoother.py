@@ -43,6 +43,7 @@ from threadpoolctl import ThreadpoolController
 
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
+from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.estimators.relinearize import history_graph, prior_gradient, refine_recent
@@ -120,6 +121,10 @@ class SmootherConfig:
     """Steps between starting a global relinearization (in a background thread, from a copy of the state) and
     handing its result over; the hand-over waits for the solve if it is not done, so results never depend on
     timing. 0 solves at once, inside the step."""
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+    """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
+    smoother's own belief (the window's information linearized at the current estimate, the prior for landmarks
+    the window does not see), with tentative landmarks. Associations are not revised later."""
 
     def __post_init__(self) -> None:
         if self.global_every < 0 or self.global_iterations < 1 or self.global_delay < 0:
@@ -303,6 +308,8 @@ class SlidingWindowSmoother:
         self.global_solves = 0
         self.global_rejections = 0
         """Global relinearizations not kept (the solve did not reconcile the history)."""
+        self.book = LandmarkBook(self.config.association, inside=False)
+        self._resolved: Step | None = None  # the newest step with associated ids, when association changed it
 
     @property
     def landmarks(self) -> Array:
@@ -328,7 +335,122 @@ class SlidingWindowSmoother:
         self.window.append(i)
         self.poses[i] = pose
         self._unsolved.add(i)
-        self._add_observations(step, 0)
+
+    def _resolve(self, step: Step, start: int) -> tuple[Step, int]:
+        """The step with the sightings ``start:`` associated (those not used left out), and where they begin.
+
+        Without association (every sighting has an id, ids used) this is the step itself.
+        """
+        ids = step.landmarks[start:]
+        association = self.config.association
+        needed = len(ids) and (association.ignores_ids or None in ids)
+        if start == 0:
+            self._resolved = None
+        if not needed and self._resolved is None:
+            return step, start
+        base = self._resolved if self._resolved is not None else step
+        cut = len(base.landmarks) if self._resolved is not None else start
+        if needed:
+            ask = np.arange(len(ids)) if association.ignores_ids else np.flatnonzero([lid is None for lid in ids])
+            z, R = step.z[start:], step.z_cov[start:]
+            newest = self.window[-1]
+            self.book.expire(step.index)
+            assigned = self.book.assign(
+                step.index,
+                self.poses[newest].copy(),
+                self._pose_cov,
+                z[ask],
+                R[ask],
+                self._landmarks,
+                self.landmark_ids,
+                self._association_covariance,
+                known=self._index,
+            )
+            ids = list(ids)
+            for i, lid in zip(ask, assigned):
+                ids[int(i)] = lid
+        keep = np.array([lid is not None for lid in ids], dtype=bool)
+        resolved = replace(
+            step,
+            landmarks=base.landmarks[:cut] + tuple(lid for lid, ok in zip(ids, keep) if ok),
+            z=np.concatenate([base.z[:cut], step.z[start:][keep]]),
+            z_cov=np.concatenate([base.z_cov[:cut], step.z_cov[start:][keep]]),
+        )
+        self._resolved = resolved
+        return resolved, cut
+
+    def _add_retro(self) -> None:
+        """Earlier sightings of the landmarks association confirmed just now, at poses still in the window."""
+        for lid, g, z, R in self.book.retro:
+            if g not in self.poses or lid not in self._index:  # the pose left the window meanwhile
+                continue
+            factors = (np.array([self._index[lid]], dtype=np.int64), z[None], R[None], sqrt_information(R[None]))
+            if g in self._observations:
+                factors = tuple(np.concatenate([a, b]) for a, b in zip(self._observations[g], factors))  # type: ignore[assignment]
+            self._observations[g] = factors
+            self._unsolved.add(g)
+            self.log.add_sightings(g, (lid,), z[None], R[None])
+        self.book.retro = []
+
+    def _association_covariance(self, indices: Index) -> Array:
+        """Joint covariance of the newest pose and landmarks ``indices`` (c,), shape (3 + 2c, 3 + 2c).
+
+        The window (without the newest pose's sightings, still being associated) and the reduced prior are
+        linearized at the current estimate; landmarks the window observes read the inverse information;
+        landmarks only the prior holds are its conditional given the part the window shares, propagated.
+        """
+        c = len(indices)
+        observed = [self._observations[i][0] for i in self.window if i in self._observations]
+        active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+        graph, sparse, quadratic, _, poses = self._window_system(active)
+        linearized = solve(
+            graph,
+            poses,
+            self._landmarks[active],
+            SolverConfig(max_iterations=0),
+            loss=self.config.loss,
+            prior=quadratic,
+            return_information=True,
+            graph_layout=sparse,
+            dense=True,
+        )
+        rows = 3 + 2 * c
+        fallback = np.eye(rows) * 1e6  # a landmark nothing constrains (cannot happen with a consistent state)
+        if linearized.information is None:
+            return fallback
+        H = np.asarray(linearized.information)
+        n = len(H)
+        L = np.zeros((rows, n))
+        N = np.zeros((rows, rows))
+        newest = sparse.pose_column[len(self.window) - 1]
+        if newest >= 0:
+            L[np.arange(3), newest + np.arange(3)] = 1.0
+        position = np.searchsorted(active, indices)
+        is_active = (position < len(active)) & (active[np.minimum(position, len(active) - 1)] == indices)
+        for k in np.flatnonzero(is_active):
+            column = sparse.landmark_column[position[k]]
+            L[3 + 2 * k + np.arange(2), column + np.arange(2)] = 1.0
+        passive_k = np.flatnonzero(~is_active)
+        if len(passive_k):
+            p = self.prior
+            if p is None or quadratic is None:
+                return fallback
+            slots = np.array([np.flatnonzero(p.landmarks == indices[k]) for k in passive_k], dtype=object)
+            if any(len(sl) == 0 for sl in slots):
+                return fallback
+            order, _, _, A = self._prior_split(active)
+            state_rows = (2 * np.array([int(sl[0]) for sl in slots])[:, None] + np.arange(2)).reshape(-1)
+            S_pa = p.Sigma[np.ix_(state_rows, order)]
+            B = S_pa @ A
+            out_rows = (3 + 2 * passive_k[:, None] + np.arange(2)).reshape(-1)
+            L[np.ix_(out_rows, quadratic.columns)] = B
+            N[np.ix_(out_rows, out_rows)] = p.Sigma[np.ix_(state_rows, state_rows)] - B @ S_pa.T
+        try:
+            X = la.cho_solve(la.cho_factor(H), L.T)
+        except (la.LinAlgError, ValueError):
+            return fallback
+        joint = L @ X + N
+        return 0.5 * (joint + joint.T)
 
     def _add_observations(self, step: Step, start: int) -> None:
         """Factors for the newest pose's observations ``start:``; new landmarks from their first sight."""
@@ -819,7 +941,10 @@ class SlidingWindowSmoother:
         """Add the step; solve every K steps; marginalize beyond W poses."""
         with self._blas.limit(limits=1, user_api="blas"):
             self._add_pose(step)
+            step, _ = self._resolve(step, 0)
+            self._add_observations(step, 0)
             self.log.add(step)
+            self._add_retro()
             self._since_solve += 1
             report: dict[str, float] = {}
             if self._since_solve >= self.config.relinearize_every:
@@ -854,8 +979,10 @@ class SlidingWindowSmoother:
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
         with self._blas.limit(limits=1, user_api="blas"):
+            step, start = self._resolve(step, start)
             self._add_observations(step, start)
             self.log.extend(step, start)
+            self._add_retro()
             if self._since_solve == 0:  # this step solved: its new sightings are used at once
                 self._step_report = self._solve()
             return self.snapshot(step)
@@ -907,6 +1034,10 @@ class SlidingWindowSmoother:
             "since_global": self._since_global,
             "global_solves": self.global_solves,
             "global_rejections": self.global_rejections,
+            "book": self.book.state_dict(),
+            "resolved": None
+            if self._resolved is None
+            else {"landmarks": list(self._resolved.landmarks), "z": self._resolved.z, "z_cov": self._resolved.z_cov},
         }
 
     def _job_state(self) -> dict[str, Any] | None:
@@ -990,6 +1121,21 @@ class SlidingWindowSmoother:
         self._since_global = int(state["since_global"])
         self.global_solves = int(state["global_solves"])
         self.global_rejections = int(state["global_rejections"])
+        self.book.load_state(state["book"])
+        resolved = state["resolved"]
+        self._resolved = (
+            None
+            if resolved is None
+            else Step(  # only its sightings are read again (extend keeps them and appends)
+                index=self.window[-1],
+                t=math.nan,
+                odometry=None,
+                odometry_cov=None,
+                landmarks=tuple(resolved["landmarks"]),
+                z=as_float(resolved["z"]).reshape(-1, 2),
+                z_cov=as_float(resolved["z_cov"]).reshape(-1, 2, 2),
+            )
+        )
 
     def snapshot(self, step: Step) -> Snapshot:
         """The current estimate as an immutable snapshot."""
@@ -1040,5 +1186,12 @@ class SlidingWindowSmoother:
                 "window": self.config.window,
                 "relinearize_every": self.config.relinearize_every,
                 "final_solve_s": time.perf_counter() - started,
+                **self._association_info(),
             },
         )
+
+    def _association_info(self) -> dict[str, Any]:
+        """The book's labels and counts, when this smoother associated sightings itself."""
+        if not self.config.association.ignores_ids and not self.book.labels_seen:
+            return {}
+        return {"association": self.book.report(), "labels": self.book.labels()}

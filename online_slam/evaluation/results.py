@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.estimators.protocol import Estimate
+from online_slam.evaluation.association import AssociationScore
 
 Array = NDArray[np.float64]
 
@@ -90,6 +91,8 @@ class EstimatorResult:
     """Estimator-specific report (iterations, convergence, gated observations, ...)."""
     outliers: OutlierReport | None = None
     """Sightings judged outliers (and, on marked streams, how many were true outliers), where it judges."""
+    association: AssociationScore | None = None
+    """How it paired sightings with landmarks, scored against the stream's ids (``--association nn|jcbb``)."""
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of this result."""
@@ -106,6 +109,8 @@ class EstimatorResult:
         out.update(self.details)
         if self.outliers is not None:
             out["outliers"] = self.outliers.to_json()
+        if self.association is not None:
+            out["association"] = {**out.get("association", {}), **self.association.to_dict()}
         return out
 
 

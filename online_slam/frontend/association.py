@@ -54,6 +54,8 @@ class Association:
     """Landmark index (into the belief's landmarks) of each sighting, -1 for none, shape (k,)."""
     joint_distance: float
     """Joint squared Mahalanobis distance of the pairings (0 with none)."""
+    distances: Array
+    """Individual squared Mahalanobis distance of every (sighting, landmark) pair, shape (k, M)."""
 
 
 def _innovations(belief: Belief, z: Array) -> tuple[Array, Array, Array]:
@@ -130,7 +132,7 @@ def nearest_neighbour(belief: Belief, z: Array, R: Array, gate_probability: floa
         if out[i] < 0 and int(j) not in used:
             out[i], total = j, total + float(d2[i, j])
             used.add(int(j))
-    return Association(out, total)
+    return Association(out, total, d2)
 
 
 def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
@@ -171,7 +173,7 @@ def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> 
     out = np.full(k, -1, dtype=np.int64)
     for i, j in best[0]:
         out[i] = j
-    return Association(out, float(best[1]) if best[0] else 0.0)
+    return Association(out, float(best[1]) if best[0] else 0.0, d2)
 
 
 def associate(method: str, belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:

@@ -19,6 +19,14 @@ def _latency(result: EstimatorResult) -> str:
     return f"{result.step_ms.median:.2f} / {result.step_ms.p95:.2f}"
 
 
+def _association(result: EstimatorResult) -> str:
+    a = result.association
+    if a is None:
+        return "-"
+    right = "-" if a.accuracy is None else f"{a.accuracy:.3f}"
+    return f"{right}, {a.landmarks_mapped}/{a.landmarks_true}"
+
+
 def format_results(results: Results) -> str:
     """Render results as a plain-text table.
 
@@ -40,6 +48,8 @@ def format_results(results: Results) -> str:
         ("Step time median / p95 (ms)", ["-"] + [_latency(r) for r in est]),
         ("Total time", ["-"] + [f"{r.total_s:.3f} s" for r in est]),
     ]
+    if any(r.association is not None for r in est):
+        rows.append(("Association right, landmarks mapped/true", ["-"] + [_association(r) for r in est]))
     label_width = max(len("Metric"), *(len(label) for label, _ in rows))
     widths = [max(len(c), *(len(cells[k]) for _, cells in rows)) for k, c in enumerate(columns)]
     title = (

@@ -121,8 +121,9 @@ class Observation:
 
     t: float
     """Time of the observation; it belongs to the newest pose with time <= t."""
-    landmark: LandmarkId
-    """Identifier of the observed landmark (known data association)."""
+    landmark: LandmarkId | None
+    """Identifier of the observed landmark (known data association), or None: unknown (absent from the line),
+    for the estimators to associate."""
     range: float
     """Distance to the landmark, metres (> 0)."""
     bearing: float
@@ -150,6 +151,8 @@ class Observation:
             "bearing": self.bearing,
             **_noise_record(self.sigma, self.cov),
         }
+        if self.landmark is None:
+            del record["landmark"]
         if self.truth_outlier is not None:
             record["truth_outlier"] = self.truth_outlier
         return record

@@ -266,7 +266,7 @@ class EventValidator:
     def _scan_fast(landmarks: Any, ranges: Any, bearings: Any) -> tuple[tuple, tuple] | None:
         """Ranges and bearings as float tuples when every sighting plainly passes, else None (check one by one)."""
         for lid in landmarks:
-            if type(lid) is not int and (type(lid) is not str or lid == ""):
+            if lid is not None and type(lid) is not int and (type(lid) is not str or lid == ""):
                 return None
         low, high = MIN_RANGE, MAX_MAGNITUDE
         for r in ranges:  # NaN fails the comparisons
@@ -366,8 +366,10 @@ class EventValidator:
         self._pending.seen_content = True
         return t
 
-    def landmark(self, record: dict[str, Any], line: int) -> LandmarkId:
-        if "landmark" not in record:
+    def landmark(self, record: dict[str, Any], line: int, optional: bool = False) -> LandmarkId | None:
+        if "landmark" not in record or (optional and record["landmark"] is None):
+            if optional:
+                return None
             raise self.fail(line, "landmark", "missing required field")
         value = record["landmark"]
         if isinstance(value, bool) or not isinstance(value, (int, str)) or value == "":
@@ -406,7 +408,7 @@ class EventValidator:
 
     def _observation(self, record: dict[str, Any], line: int) -> Observation:
         t = self.time(record, line)
-        landmark = self.landmark(record, line)
+        landmark = self.landmark(record, line, optional=True)
         rng = self.number(record, "range", line)
         if rng < MIN_RANGE:
             raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")

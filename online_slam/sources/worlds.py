@@ -252,3 +252,9 @@ def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
 
 WORLDS: dict[str, Callable[[], Iterator[Event]]] = {"square": square_world, "grid": grid_world}
 """Built-in worlds by name, each with its default settings."""
+
+
+def without_ids(events: Iterable[Event]) -> Iterator[Event]:
+    """The same stream with every sighting's landmark id removed (unknown data association); truth kept."""
+    for event in events:
+        yield replace(event, landmark=None) if isinstance(event, Observation) else event

@@ -1,0 +1,405 @@
+"""Landmarks for sightings without ids: association against an estimator's own belief, tentative landmarks.
+
+An estimator that associates holds one :class:`LandmarkBook`. For each scan (the sightings of the newest pose)
+the book
+
+1. picks the candidate landmarks within reach of the predicted pose and asks the estimator for the joint
+   covariance of ``[pose, candidates]`` (its own belief: the EKF's P, the smoother's window information);
+2. pairs sightings with confirmed landmarks by nearest neighbour or JCBB (``frontend.association``);
+3. keeps a sighting no confirmed landmark takes but one passes a wider gate out of everything (ambiguous: it
+   could be either, and a new landmark there would duplicate one);
+4. matches the remaining sightings with *tentative* landmarks (nearest, chi-square gate on the two sightings'
+   world points, each tentative at most once per scan), or starts a new tentative landmark;
+5. confirms a tentative landmark at its ``confirm``-th sighting (in distinct steps). Tentative landmarks not
+   confirmed within ``tentative_steps`` steps of their first sighting are dropped: clutter never becomes map.
+
+Where tentative landmarks live depends on the estimator (``inside``):
+
+- *inside* (the EKF): a new landmark enters the estimator's state at once, from its first sighting, and is
+  associated like any other (its own covariance); dropping it deletes it from the state (for a Gaussian in
+  covariance form, exact marginalization). Maps reported leave tentative landmarks out.
+- *outside* (the smoother): the book keeps tentative landmarks itself (a world point fused from the sightings,
+  gated on the sightings' noise); at confirmation the estimator gets the confirming sighting with a fresh id, and
+  the earlier sightings (``retro``) to add at their poses while those are still in its window.
+
+Each sighting's label (the landmark it went to, if that landmark stayed) is kept for scoring against ids where a
+stream has them, and for the batch solver, which solves with these associations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from online_slam.frontend.association import Belief, associate
+from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.sources.events import LandmarkId
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+ASSOCIATION_CHOICES = ("known", "nn", "jcbb")
+"""Values of ``--association`` / ``association=``."""
+
+
+@dataclass(frozen=True)
+class AssociationConfig:
+    """How an estimator pairs sightings with landmarks."""
+
+    method: str = "known"
+    """``known``: the stream's ids (a sighting without one is associated by JCBB); ``nn`` / ``jcbb``: every
+    sighting is associated by that method, ids in the stream are ignored (used only to score)."""
+    gate_probability: float = 0.99
+    """Individual and joint chi-square gates: probability that a true pairing passes."""
+    new_probability: float = 0.9999
+    """A sighting no landmark takes starts a new (tentative) landmark only if no confirmed landmark passes
+    this wider gate either."""
+    confirm: int = 3
+    """Sightings (in distinct steps, mutually consistent) that confirm a tentative landmark."""
+    tentative_steps: int = 15
+    """A tentative landmark not confirmed within this many steps of its first sighting is dropped (keep it below
+    the smoother's window, so that its sightings can still be added when it is confirmed)."""
+    reach: float = 2.0
+    """Candidates: landmarks within the scan's longest range plus this margin (m) plus three sigmas of the
+    pose's position and heading from the predicted pose."""
+
+    def __post_init__(self) -> None:
+        if self.method not in ASSOCIATION_CHOICES:
+            raise ValueError(f"association must be one of {', '.join(ASSOCIATION_CHOICES)}, not {self.method!r}")
+        if not 0.0 < self.gate_probability < 1.0 or not self.gate_probability <= self.new_probability < 1.0:
+            raise ValueError("need 0 < gate_probability <= new_probability < 1")
+        if self.confirm < 1 or self.tentative_steps < 1:
+            raise ValueError("confirm and tentative_steps must be >= 1")
+
+    @property
+    def ignores_ids(self) -> bool:
+        """True when every sighting is associated (the stream's ids are for scoring only)."""
+        return self.method != "known"
+
+    @property
+    def scan_method(self) -> str:
+        """The method applied to a scan's sightings without ids."""
+        return "jcbb" if self.method == "known" else self.method
+
+
+CovarianceOf = Callable[[Index], Array]
+"""Joint covariance of ``[pose, landmarks idx...]``, shape (3 + 2c, 3 + 2c), for landmark indices (c,)."""
+
+
+def _point_covariance(pose: Array, z: Array, R: Array) -> Array:
+    """Covariance of each sighting's world point from its measurement noise alone, shape (k, 2, 2)."""
+    angle = pose[2] + z[:, 1]
+    c, s = np.cos(angle), np.sin(angle)
+    J = np.empty((len(z), 2, 2))
+    J[:, 0, 0], J[:, 0, 1] = c, -z[:, 0] * s
+    J[:, 1, 0], J[:, 1, 1] = s, z[:, 0] * c
+    return J @ R @ np.swapaxes(J, 1, 2)
+
+
+class LandmarkBook:
+    """Association state of one estimator: tentative landmarks, ids given out, each sighting's label.
+
+    Args:
+        config: Method, gates, confirmation.
+        inside: Tentative landmarks live in the estimator's state (True) or in the book (False).
+        prefix: Ids of new landmarks are ``f"{prefix}{n}"`` (n = 0, 1, ...), skipping ids already known.
+    """
+
+    def __init__(self, config: AssociationConfig, inside: bool, prefix: str = "u") -> None:
+        self.config = config
+        self.inside = inside
+        self.prefix = prefix
+        self._gate = float(chi2.isf(1.0 - config.gate_probability, 2))
+        self._new_gate = float(chi2.isf(1.0 - config.new_probability, 2))
+        self._next_key = 0
+        self._next_id = 0
+        # inside: tentative landmarks of the estimator, id -> [sightings, first step, last step]
+        self._pending: dict[LandmarkId, list[int]] = {}
+        self._deleted: set[LandmarkId] = set()
+        # outside: tentative landmarks of the book, one row each, and their sightings
+        self._keys = np.zeros(0, dtype=np.int64)
+        self._points = np.zeros((0, 2))
+        self._covs = np.zeros((0, 2, 2))
+        self._counts = np.zeros(0, dtype=np.int64)
+        self._first = np.zeros(0, dtype=np.int64)
+        self._last = np.zeros(0, dtype=np.int64)
+        self._sightings: dict[int, list[tuple[int, Array, Array]]] = {}
+        self._confirmed_keys: dict[int, LandmarkId] = {}
+        self._labels: list[Any] = []  # per sighting: a landmark id, -(key + 1) for a book-tentative one, or None
+        self.retro: list[tuple[LandmarkId, int, Array, Array]] = []
+        """Outside: earlier sightings ``(id, step, z, R)`` of the landmarks the last :meth:`assign` confirmed."""
+        self.dropped = 0
+        """Tentative landmarks dropped unconfirmed."""
+        self.ambiguous = 0
+        """Sightings kept out: no landmark took them, but one was too close for a new landmark."""
+
+    # -- the scan ----------------------------------------------------------------------------------
+    def expire(self, step_index: int) -> list[LandmarkId]:
+        """Drop tentative landmarks whose time to be confirmed is over; inside: the ids to delete from the state."""
+        limit = self.config.tentative_steps
+        if self.inside:
+            old = [lid for lid, (_, first, _) in self._pending.items() if step_index - first >= limit]
+            for lid in old:
+                del self._pending[lid]
+            self._deleted.update(old)
+            self.dropped += len(old)
+            return old
+        rows = np.flatnonzero(step_index - self._first >= limit)
+        if len(rows):
+            self.dropped += len(rows)
+            for key in self._keys[rows]:
+                self._sightings.pop(int(key), None)
+            self._remove(rows)
+        return []
+
+    def is_tentative(self, lid: LandmarkId) -> bool:
+        """Inside: whether the estimator's landmark ``lid`` is still tentative."""
+        return lid in self._pending
+
+    @property
+    def has_tentative(self) -> bool:
+        """Inside: whether any of the estimator's landmarks is tentative."""
+        return bool(self._pending)
+
+    def assign(
+        self,
+        step_index: int,
+        pose: Array,
+        pose_cov: Array,
+        z: Array,
+        R: Array,
+        positions: Array,
+        ids: Sequence[LandmarkId],
+        covariance_of: CovarianceOf,
+        known: set | dict | None = None,
+    ) -> list[LandmarkId | None]:
+        """Pair one scan's sightings with landmarks (call :meth:`expire` for the step first).
+
+        Args:
+            step_index: Index of the pose that took the scan.
+            pose: Its predicted pose, shape (3,); ``pose_cov`` its covariance (3, 3).
+            z: Sightings ``[range, bearing]``, shape (k, 2); ``R`` their noise, (k, 2, 2).
+            positions: Current estimates of the estimator's landmarks, shape (M, 2); ``ids`` their ids (M,).
+            covariance_of: The estimator's joint covariance of the pose and some landmarks.
+            known: Ids the estimator knows (new ids avoid them); defaults to ``ids``.
+
+        Returns:
+            Per sighting: the id to use (an existing landmark, or a new one to create from this sighting), or
+            None (the estimator does not use it).
+        """
+        k = len(z)
+        out: list[LandmarkId | None] = [None] * k
+        labels: list[Any] = [None] * k
+        self.retro = []
+        if k == 0:
+            return out
+        free = np.ones(k, dtype=bool)
+        if len(positions):
+            candidates = self._candidates(pose, pose_cov, z, positions)
+            if len(candidates):
+                belief = Belief(pose, positions[candidates], covariance_of(candidates))
+                pairing = associate(self.config.scan_method, belief, z, R, self.config.gate_probability)
+                for i in np.flatnonzero(pairing.landmark >= 0):
+                    lid = ids[int(candidates[pairing.landmark[i]])]
+                    out[i] = labels[i] = lid
+                    self._seen_again(lid, step_index)
+                paired = pairing.landmark >= 0
+                near = pairing.distances.min(axis=1) <= self._new_gate
+                self.ambiguous += int(np.sum(~paired & near))
+                free = ~paired & ~near
+        if free.any():
+            known = set(ids) if known is None else known
+            if self.inside:
+                for i in np.flatnonzero(free):
+                    lid = out[i] = labels[i] = self._new_id(known)
+                    if self.config.confirm > 1:
+                        self._pending[lid] = [1, step_index, step_index]
+            else:
+                self._tentative(step_index, pose, z, R, free, out, labels, known)
+        self._labels.extend(labels)
+        return out
+
+    def _seen_again(self, lid: LandmarkId, step_index: int) -> None:
+        """Inside: a tentative landmark paired again (once per step counts); confirmed at ``confirm``."""
+        entry = self._pending.get(lid)
+        if entry is None or entry[2] == step_index:
+            return
+        entry[0] += 1
+        entry[2] = step_index
+        if entry[0] >= self.config.confirm:
+            del self._pending[lid]
+
+    def _candidates(self, pose: Array, pose_cov: Array, z: Array, positions: Array) -> Index:
+        """Landmarks within reach of the predicted pose (a generous Euclidean prefilter of the gate)."""
+        longest = float(z[:, 0].max())
+        position_sigma = float(np.sqrt(max(np.linalg.eigvalsh(pose_cov[:2, :2])[-1], 0.0)))
+        heading_sigma = float(np.sqrt(max(pose_cov[2, 2], 0.0)))
+        reach = longest + self.config.reach + 3.0 * (position_sigma + longest * heading_sigma)
+        offsets = positions - pose[:2]
+        return np.flatnonzero(np.einsum("mi,mi->m", offsets, offsets) <= reach * reach)
+
+    def _tentative(
+        self,
+        step_index: int,
+        pose: Array,
+        z: Array,
+        R: Array,
+        free: NDArray[np.bool_],
+        out: list,
+        labels: list,
+        known: set | dict,
+    ) -> None:
+        """Outside: match free sightings with the book's tentative landmarks; confirm, or start new ones."""
+        rows = np.flatnonzero(free)
+        points = landmark_from_observation(pose[None, :], z[rows])
+        covs = _point_covariance(pose, z[rows], R[rows])
+        taken = np.full(len(rows), -1, dtype=np.int64)
+        if len(self._keys):
+            diff = points[:, None, :] - self._points[None, :, :]  # (f, T, 2)
+            S = covs[:, None] + self._covs[None, :]
+            d2 = np.einsum("fti,fti->ft", diff, np.linalg.solve(S, diff[..., None])[..., 0])
+            d2[:, self._last == step_index] = np.inf  # one sighting per tentative landmark and step
+            used: set[int] = set()
+            for flat in np.argsort(d2, axis=None, kind="stable"):
+                f, t = np.unravel_index(flat, d2.shape)
+                if d2[f, t] > self._gate:
+                    break
+                if taken[f] < 0 and int(t) not in used:
+                    taken[f] = t
+                    used.add(int(t))
+        confirmed: list[int] = []
+        for f, i in enumerate(rows):
+            t = int(taken[f])
+            if t >= 0:  # fuse the two estimates of the point (information form)
+                A, B = np.linalg.inv(self._covs[t]), np.linalg.inv(covs[f])
+                C = np.linalg.inv(A + B)
+                self._points[t] = C @ (A @ self._points[t] + B @ points[f])
+                self._covs[t] = C
+                self._counts[t] += 1
+                self._last[t] = step_index
+                key = int(self._keys[t])
+                labels[i] = -(key + 1)
+                if self._counts[t] < self.config.confirm:
+                    self._sightings[key].append((step_index, z[i].copy(), R[i].copy()))
+                    continue
+                confirmed.append(t)
+                lid = out[i] = labels[i] = self._new_id(known)
+                self._confirmed_keys[key] = lid
+                self.retro += [(lid, g, zz, RR) for g, zz, RR in self._sightings.pop(key)]
+                continue
+            key = self._next_key
+            self._next_key += 1
+            if self.config.confirm <= 1:
+                out[i] = labels[i] = self._confirmed_keys[key] = self._new_id(known)
+                continue
+            labels[i] = -(key + 1)
+            self._sightings[key] = [(step_index, z[i].copy(), R[i].copy())]
+            self._keys = np.r_[self._keys, key]
+            self._points = np.vstack([self._points, points[f]])
+            self._covs = np.concatenate([self._covs, covs[f][None]])
+            self._counts = np.r_[self._counts, 1]
+            self._first = np.r_[self._first, step_index]
+            self._last = np.r_[self._last, step_index]
+        if confirmed:
+            self._remove(np.array(confirmed, dtype=np.int64))
+
+    def _new_id(self, known: set | dict) -> LandmarkId:
+        """A fresh landmark id."""
+        while f"{self.prefix}{self._next_id}" in known:
+            self._next_id += 1
+        lid = f"{self.prefix}{self._next_id}"
+        self._next_id += 1
+        return lid
+
+    def _remove(self, rows: Index) -> None:
+        keep = np.ones(len(self._keys), dtype=bool)
+        keep[rows] = False
+        self._keys, self._points, self._covs = self._keys[keep], self._points[keep], self._covs[keep]
+        self._counts, self._first, self._last = self._counts[keep], self._first[keep], self._last[keep]
+
+    # -- reports -----------------------------------------------------------------------------------
+    @property
+    def labels_seen(self) -> bool:
+        """True once the book has seen a sighting."""
+        return bool(self._labels)
+
+    @property
+    def tentative(self) -> int:
+        """Tentative landmarks held now."""
+        return len(self._pending) if self.inside else len(self._keys)
+
+    def labels(self) -> list[LandmarkId | None]:
+        """Per sighting the book saw, in order: the landmark it went to (if that one stayed), or None."""
+        resolved, deleted, pending = self._confirmed_keys, self._deleted, self._pending
+
+        def label(value: Any) -> LandmarkId | None:
+            if isinstance(value, int) and not isinstance(value, bool) and value < 0 and not self.inside:
+                return resolved.get(-value - 1)
+            return None if value in deleted or value in pending else value
+
+        return [label(value) for value in self._labels]
+
+    def report(self) -> dict[str, Any]:
+        """Counts for the estimator's final info."""
+        return {
+            "method": self.config.method,
+            "tentative_dropped": self.dropped,
+            "tentative_left": self.tentative,
+            "ambiguous_sightings": self.ambiguous,
+        }
+
+    # -- checkpoints -------------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        """The whole book (numbers, strings, lists and arrays)."""
+        sightings = [
+            [key, [g for g, _, _ in rows], np.array([zz for _, zz, _ in rows]), np.array([RR for _, _, RR in rows])]
+            for key, rows in self._sightings.items()
+        ]
+        return {
+            "next_key": self._next_key,
+            "next_id": self._next_id,
+            "pending": [[lid, *entry] for lid, entry in self._pending.items()],
+            "deleted": list(self._deleted),
+            "keys": self._keys.copy(),
+            "points": self._points.copy(),
+            "covs": self._covs.copy(),
+            "counts": self._counts.copy(),
+            "first": self._first.copy(),
+            "last": self._last.copy(),
+            "sightings": sightings,
+            "labels": list(self._labels),
+            "confirmed_keys": [[k, v] for k, v in self._confirmed_keys.items()],
+            "retro": [[lid, g, zz, RR] for lid, g, zz, RR in self.retro],
+            "dropped": self.dropped,
+            "ambiguous": self.ambiguous,
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict`."""
+        self._next_key, self._next_id = int(state["next_key"]), int(state["next_id"])
+        self._pending = {entry[0]: [int(v) for v in entry[1:]] for entry in state["pending"]}
+        self._deleted = set(state["deleted"])
+        self._keys = np.array(state["keys"], dtype=np.int64).reshape(-1)
+        self._points = np.array(state["points"], dtype=float).reshape(-1, 2)
+        self._covs = np.array(state["covs"], dtype=float).reshape(-1, 2, 2)
+        self._counts = np.array(state["counts"], dtype=np.int64).reshape(-1)
+        self._first = np.array(state["first"], dtype=np.int64).reshape(-1)
+        self._last = np.array(state["last"], dtype=np.int64).reshape(-1)
+        self._sightings = {
+            int(key): [
+                (int(g), np.array(zz, dtype=float), np.array(RR, dtype=float))
+                for g, zz, RR in zip(steps, np.array(z).reshape(-1, 2), np.array(R).reshape(-1, 2, 2))
+            ]
+            for key, steps, z, R in state["sightings"]
+        }
+        self._labels = list(state["labels"])
+        self._confirmed_keys = {int(k): v for k, v in state["confirmed_keys"]}
+        self.retro = [
+            (lid, int(g), np.array(zz, dtype=float), np.array(RR, dtype=float)) for lid, g, zz, RR in state["retro"]
+        ]
+        self.dropped, self.ambiguous = int(state["dropped"]), int(state["ambiguous"])

@@ -1,0 +1,188 @@
+"""SLAM on sightings without ids: streams without ids, tentative landmarks, scoring, checkpoints, the CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from online_slam import Slam
+from online_slam.estimators.landmark_book import AssociationConfig
+from online_slam.evaluation.association import score_association, true_labels
+from online_slam.pipeline import ReplayConfig, replay
+from online_slam.sources.events import Observation, Odometry, Start
+from online_slam.sources.stream import read_stream, write_stream
+from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, without_ids
+
+SMALL = GridConfig(poses=300, blocks=3, landmarks=40)
+
+
+@pytest.fixture(scope="module")
+def small_runs() -> dict[str, object]:
+    """One known-id and one JCBB replay of a small grid world (EKF, smoother, batch)."""
+    events = list(grid_world(SMALL))
+    return {
+        "known": replay(events, ReplayConfig(), name="small"),
+        "jcbb": replay(events, ReplayConfig(association="jcbb"), name="small"),
+        "nn": replay(events, ReplayConfig(association="nn", estimators=("ekf",)), name="small"),
+    }
+
+
+def test_jcbb_on_a_small_world_pairs_right_and_stays_close_to_known_ids(small_runs) -> None:
+    known, jcbb = small_runs["known"], small_runs["jcbb"]
+    for name in ("ekf", "smoother", "batch"):
+        score = jcbb.estimators[name].association
+        assert score is not None and score.method == "jcbb"
+        assert score.accuracy >= 0.97, (name, score)
+        assert score.landmarks_true == len(known.estimates["odometry"].landmark_ids)
+        assert score.landmarks_mapped <= 1.1 * score.landmarks_true
+    for name in ("ekf", "smoother"):
+        assert jcbb.estimators[name].online_rmse_m <= 1.5 * known.estimators[name].online_rmse_m + 0.02
+    # batch solves with the smoother's associations: the same landmarks, the same labels
+    assert jcbb.estimates["batch"].landmark_ids == jcbb.estimates["smoother"].landmark_ids
+    assert jcbb.estimators["batch"].final_rmse_m <= 1.5 * known.estimators["batch"].final_rmse_m + 0.02
+    assert jcbb.estimators["batch"].landmark_rmse_m is not None  # mapped landmarks scored against their true ones
+    nn = small_runs["nn"].estimators["ekf"].association
+    assert nn.method == "nn" and nn.accuracy >= 0.9
+
+
+def test_known_ids_are_unchanged_by_the_association_machinery(small_runs) -> None:
+    known = small_runs["known"]
+    assert all(r.association is None for r in known.estimators.values())
+    assert known.estimators["ekf"].details.get("association") is None
+
+
+def test_clutter_only_scans_map_nothing() -> None:
+    """A robot standing still, seeing only clutter (random points, never twice in one place): no landmark stays."""
+    rng = np.random.default_rng(5)
+    events: list = [Start(t=0.0, pose=(0.0, 0.0, 0.0))]
+    for k in range(60):
+        t = float(k)
+        if k:
+            events.append(Odometry(t=t, delta=(0.0, 0.0, 0.0), sigma=(0.01, 0.01, 0.001)))
+        for _ in range(4):
+            events.append(
+                Observation(
+                    t=t,
+                    landmark=None,
+                    range=float(rng.uniform(1.0, 10.0)),
+                    bearing=float(rng.uniform(-np.pi, np.pi)),
+                    sigma=(0.05, 0.01),
+                )
+            )
+    results = replay(events, ReplayConfig(association="jcbb", estimators=("ekf", "smoother")), name="clutter")
+    for name in ("ekf", "smoother"):
+        estimate = results.estimates[name]
+        assert estimate.landmark_ids == (), name
+        assert results.estimators[name].details["association"]["tentative_dropped"] > 100  # of 240 sightings
+        np.testing.assert_allclose(estimate.poses[:, :2], 0.0, atol=0.25)  # 3 sigmas of the odometry alone
+
+
+def test_clutter_in_a_world_is_not_mapped() -> None:
+    events = list(contaminate(grid_world(SMALL), Contamination(clutter=0.1, seed=2)))
+    results = replay(events, ReplayConfig(association="jcbb", estimators=("ekf", "smoother")), name="cluttered")
+    for name in ("ekf", "smoother"):
+        score = results.estimators[name].association
+        assert score.accuracy >= 0.95, (name, score)
+        assert score.landmarks_mapped <= 1.1 * score.landmarks_true, (name, score)
+
+
+def test_streams_without_ids_round_trip_and_default_to_jcbb(tmp_path: Path) -> None:
+    path = tmp_path / "noids.jsonl"
+    write_stream(path, without_ids(grid_world(replace(SMALL, poses=120))))
+    text = path.read_text()
+    sightings = [json.loads(line) for line in text.splitlines() if '"observation"' in line]
+    assert sightings and all("landmark" not in s for s in sightings)
+    assert all(e.landmark is None for e in read_stream(path) if isinstance(e, Observation))
+    results = replay(path, ReplayConfig(estimators=("ekf", "smoother", "batch")))
+    assert results.estimators["ekf"].details["association"]["method"] == "jcbb"
+    assert results.estimators["smoother"].final_rmse_m < 0.2
+    assert results.estimators["ekf"].association.accuracy is None  # nothing to score against
+    assert len(results.estimates["batch"].landmark_ids) > 0
+
+
+def test_cli_association_flag_and_table(tmp_path: Path) -> None:
+    stream = tmp_path / "grid.jsonl"
+    write_stream(stream, grid_world(replace(SMALL, poses=120)))
+    out = tmp_path / "r.json"
+    proc = subprocess.run(
+        [sys.executable, "-m", "online_slam", "replay", str(stream), "--association", "nn", "--json", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "Association right, landmarks mapped/true" in proc.stdout
+    document = json.loads(out.read_text())
+    for name in ("ekf", "smoother", "batch"):
+        association = document["estimators"][name]["association"]
+        assert association["method"] == "nn"
+        assert set(association) >= {"accuracy", "landmarks_mapped", "landmarks_true"}
+        assert association["accuracy"] > 0.9
+
+
+@pytest.mark.parametrize("estimator", ["ekf", "smoother"])
+def test_api_without_ids_save_load_continue_equals_uninterrupted(tmp_path: Path, estimator: str) -> None:
+    events = list(without_ids(grid_world(replace(SMALL, poses=160))))
+    half = next(i for i, e in enumerate(events) if isinstance(e, Odometry) and e.t >= 80)
+
+    def run(slam: Slam, chunk: list) -> None:
+        for event in chunk:
+            slam.add(event)
+            if isinstance(event, Odometry):
+                slam.estimate()
+
+    whole = Slam(estimator, association="jcbb")
+    run(whole, events)
+    first = Slam(estimator, association="jcbb")
+    run(first, events[:half])
+    first.save(tmp_path / "c.zip")
+    resumed = Slam.load(tmp_path / "c.zip")
+    run(resumed, events[half:])
+    a, b = whole.estimate(), resumed.estimate()
+    np.testing.assert_array_equal(a.trajectory, b.trajectory)
+    assert a.landmark_ids == b.landmark_ids
+    np.testing.assert_array_equal(a.landmark_array, b.landmark_array)
+    assert len(a.landmark_ids) > 10
+
+
+def test_api_scan_without_ids_is_associated() -> None:
+    slam = Slam("ekf", association="jcbb")
+    landmarks = np.array([[3.0, 1.0], [4.0, -2.0], [6.0, 0.5]])
+    for k in range(5):
+        if k:
+            slam.add_odometry(float(k), delta=[0.2, 0.0, 0.0], sigma=[0.01, 0.01, 0.002])
+        pose = np.array([0.2 * k, 0.0])
+        d = landmarks - pose
+        slam.add_observations(
+            float(k),
+            None,
+            [float(x) for x in np.hypot(d[:, 0], d[:, 1])],
+            [float(x) for x in np.arctan2(d[:, 1], d[:, 0])],
+            sigma=[0.05, 0.01],
+        )
+    estimate = slam.estimate()
+    assert len(estimate.landmark_ids) == 3  # three landmarks, confirmed, never duplicated
+    np.testing.assert_allclose(np.sort(estimate.landmark_array, axis=0), np.sort(landmarks, axis=0), atol=0.05)
+
+
+def test_scoring_counts_majorities_and_clutter() -> None:
+    truth = true_labels([1, 1, 2, 2, 7, None], {4: "clutter"})
+    assert truth == [1, 1, 2, 2, None, False]
+    # landmark "a" holds both sightings of 1; "b" holds one of 2 and the clutter; the other 2 went nowhere
+    score = score_association("jcbb", ["a", "a", "b", None, "b", "a"], truth, ("a", "b"))
+    assert score.sightings_scored == 5
+    assert score.accuracy == pytest.approx(3 / 5)  # the two of 1 and the one of 2 in "b" (b's majority: tie -> first)
+    assert (score.landmarks_mapped, score.landmarks_true) == (2, 2)
+
+
+def test_association_config_is_validated() -> None:
+    with pytest.raises(ValueError):
+        AssociationConfig(method="guess")
+    with pytest.raises(ValueError):
+        AssociationConfig(confirm=0)
