@@ -76,3 +76,22 @@ def test_no_landmarks_or_no_sightings() -> None:
     assert len(nearest_neighbour(b, np.zeros((0, 2)), np.zeros((0, 2, 2))).landmark) == 0
     with pytest.raises(ValueError):
         associate("greedy", b, np.zeros((0, 2)), np.zeros((0, 2, 2)))
+
+
+def test_jcbb_incremental_joint_distance_equals_the_explicit_one(rng) -> None:
+    """The Schur-complement updates along the search give the same joint distance as one 2m x 2m solve."""
+    from online_slam.frontend.association import _joint_distance
+
+    for _ in range(5):
+        landmarks = rng.uniform(-10, 10, (12, 2))
+        n = 3 + 2 * len(landmarks)
+        A = rng.normal(size=(n, 6)) * 0.05
+        cov = A @ A.T + np.diag(np.r_[[0.04, 0.04, 0.002], np.full(n - 3, 0.01)])
+        b = Belief(np.array([0.2, -0.1, 0.05]), landmarks, cov)
+        seen = rng.choice(len(landmarks), 6, replace=False)
+        z = range_bearing(np.zeros(3)[None, :], landmarks[seen]) + rng.normal(0, [0.05, 0.01], (6, 2))
+        R = np.stack([R1] * 6)
+        result = jcbb(b, z, R)
+        pairs = [(i, int(j)) for i, j in enumerate(result.landmark) if j >= 0]
+        assert len(pairs) >= 4
+        assert result.joint_distance == pytest.approx(_joint_distance(b, z, R, pairs), rel=1e-8)

@@ -15,7 +15,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     p = sub.add_parser(
         "convert",
-        help="convert a dataset (mrclam, gtsam, g2o) to stream v1, or a stream to g2o",
+        help="convert a dataset (mrclam, gtsam, g2o, acfr) to stream v1, or a stream to g2o",
         description="Convert MRCLAM, GTSAM/iSAM text or g2o files to stream v1 (-o X.jsonl[.gz]), "
         "or a stream to g2o (FORMAT stream, -o X.g2o).",
     )

@@ -16,7 +16,7 @@ from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
-from online_slam.importers.detect import NOISE_HELP
+from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP
 from online_slam.pipeline import ESTIMATORS, Checkpointing, ReplayConfig, replay
 from online_slam.reports.table import format_results
 from online_slam.sinks.live import Pacer, Progress
@@ -155,7 +155,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
         "each online estimator against its own belief, new landmarks tentative until confirmed, the stream's ids "
         "only score it; default auto: known when the first sighting has an id, else jcbb",
     )
-    p.add_argument("--format", choices=("mrclam", "gtsam", "g2o"), help="dataset format (default: detected)")
+    p.add_argument("--format", choices=DATASET_FORMATS, help="dataset format (default: detected)")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
     p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
     p.add_argument("--truth", metavar="PATH", help="GTSAM/iSAM text: the noise-free twin file (truth)")

@@ -65,7 +65,7 @@ def evaluate(estimate: Estimate, truth: GroundTruth, alignment: str = "anchor") 
     if len(indices) == 0:
         return Errors(None, None, gap)
     true_poses = np.array([truth.poses[i] for i in indices])
-    if alignment == "se2" and len(indices) >= 2:
+    if (alignment == "se2" or np.isnan(true_poses[:, 2]).any()) and len(indices) >= 2:  # no heading: rigid fit
         T = align_se2(estimate.poses[indices], true_poses)
     else:
         T = anchor_transform(estimate.poses[indices[0]], true_poses[0])

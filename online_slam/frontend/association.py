@@ -135,41 +135,92 @@ def nearest_neighbour(belief: Belief, z: Array, R: Array, gate_probability: floa
     return Association(out, total, d2)
 
 
-def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
+MAX_NODES = 20000
+"""JCBB explores at most this many hypotheses per scan, then keeps the best found (bounds the worst case)."""
+
+
+def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, max_nodes: int = MAX_NODES) -> Association:
     """Joint compatibility branch and bound: the largest jointly compatible pairing of one scan.
+
+    The joint distance grows by one Schur complement per pairing added (``S_H^-1`` kept along the search), so
+    extending a hypothesis of m pairings costs O(m^2), not a new 2m x 2m solve.
 
     Args:
         belief: Pose, landmarks and their joint covariance.
         z: The scan's sightings, shape (k, 2).
         R: Their noise covariances, shape (k, 2, 2).
         gate_probability: Probability that a true pairing passes the (individual and joint) chi-square tests.
+        max_nodes: Hypotheses explored at most (the best found so far is kept when the budget runs out).
 
     Returns:
         The pairing (most pairings; among those, the smallest joint distance).
     """
     k = len(z)
     d2 = individual_distances(belief, z, R)
-    gate = chi2.isf(1.0 - gate_probability, 2)
-    candidates = [list(np.argsort(d2[i])[d2[i][np.argsort(d2[i])] <= gate]) for i in range(k)]
+    limits = chi2.isf(1.0 - gate_probability, 2 * np.arange(1, k + 1))
+    candidates = [[int(j) for j in np.argsort(row, kind="stable") if row[j] <= limits[0]] for row in d2]
     best: list = [[], np.inf]  # pairs, joint distance
+    if not any(candidates):
+        return Association(np.full(k, -1, dtype=np.int64), 0.0, d2)
+    P = belief.covariance
+    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks)
+    used_landmarks = sorted({j for row in candidates for j in row})
+    PG = {  # P G_j^T, shape (n, 2), for every landmark a candidate pair may use
+        j: P[:, :3] @ J_p[j].T + P[:, 3 + 2 * j : 5 + 2 * j] @ J_l[j].T for j in used_landmarks
+    }
 
-    def search(i: int, pairs: list[tuple[int, int]], distance: float) -> None:
+    innovations = z[:, None, :] - z_hat[None, :, :]  # (k, M, 2)
+    innovations[..., 1] = wrap(innovations[..., 1])
+
+    def gpg(a: tuple[int, int], j: int) -> Array:
+        """G_a P G_j^T (2, 2)."""
+        ja = a[1]
+        return J_p[ja] @ PG[j][:3] + J_l[ja] @ PG[j][3 + 2 * ja : 5 + 2 * ja]
+
+    nodes = [0]
+
+    def search(i: int, pairs: list[tuple[int, int]], S_inv: Array, nu: Array, distance: float) -> None:
+        nodes[0] += 1
         if i == k:
             if len(pairs) > len(best[0]) or (len(pairs) == len(best[0]) and distance < best[1]):
                 best[0], best[1] = list(pairs), distance
             return
         used = {p[1] for p in pairs}
+        m = len(pairs)
         for j in candidates[i]:
-            if int(j) in used:
+            if j in used or nodes[0] >= max_nodes:
                 continue
-            extended = [*pairs, (i, int(j))]
-            joint = _joint_distance(belief, z, R, extended)
-            if joint <= chi2.isf(1.0 - gate_probability, 2 * len(extended)):
-                search(i + 1, extended, joint)
-        if len(pairs) + (k - i - 1) > len(best[0]) or (len(pairs) + (k - i - 1) == len(best[0]) and distance < best[1]):
-            search(i + 1, pairs, distance)  # leave sighting i unpaired, if that can still win
+            S_bb = gpg((i, j), j) + R[i]
+            nu_b = innovations[i, j]
+            if m:
+                C = np.vstack([gpg(a, j) for a in pairs])  # (2m, 2): cov of the hypothesis' and the new innovation
+                K = S_inv @ C
+                s = S_bb - C.T @ K
+                e = nu_b - K.T @ nu
+            else:
+                s, e = S_bb, nu_b
+            try:
+                s_inv = np.linalg.inv(s)
+            except np.linalg.LinAlgError:
+                continue
+            joint = distance + float(e @ s_inv @ e)
+            if joint > limits[m]:
+                continue
+            if m:  # block inverse of [[S, C], [C^T, S_bb]]
+                grown = np.empty((2 * m + 2, 2 * m + 2))
+                Ks = K @ s_inv
+                grown[: 2 * m, : 2 * m] = S_inv + Ks @ K.T
+                grown[: 2 * m, 2 * m :] = -Ks
+                grown[2 * m :, : 2 * m] = -Ks.T
+                grown[2 * m :, 2 * m :] = s_inv
+            else:
+                grown = s_inv
+            search(i + 1, [*pairs, (i, j)], grown, np.concatenate([nu, nu_b]), joint)
+        remaining = len(pairs) + (k - i - 1)
+        if remaining > len(best[0]) or (remaining == len(best[0]) and distance < best[1]):
+            search(i + 1, pairs, S_inv, nu, distance)  # leave sighting i unpaired, if that can still win
 
-    search(0, [], 0.0)
+    search(0, [], np.zeros((0, 0)), np.zeros(0), 0.0)
     out = np.full(k, -1, dtype=np.int64)
     for i, j in best[0]:
         out[i] = j

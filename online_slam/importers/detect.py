@@ -9,7 +9,7 @@ from typing import Any
 from online_slam.errors import InputError
 from online_slam.sources.events import Event
 
-DATASET_FORMATS = ("mrclam", "gtsam", "g2o")
+DATASET_FORMATS = ("mrclam", "gtsam", "g2o", "acfr")
 """Formats ``convert`` reads (besides stream v1)."""
 
 
@@ -21,11 +21,14 @@ NOISE_HELP = (
 
 
 def detect_format(path: str | Path) -> str | None:
-    """``mrclam`` for a folder with Barcodes.dat, ``g2o`` for .g2o, ``gtsam`` for a text file of ODOMETRY/EDGE2
+    """``mrclam`` for a folder with Barcodes.dat, ``acfr`` for one with inputs.dat, measurements.dat and gps.dat
+    (Victoria Park's raw log), ``g2o`` for .g2o, ``gtsam`` for a text file of ODOMETRY/EDGE2
     lines; None for anything else (a stream-v1 file)."""
     p = Path(path)
     if p.is_dir() and (p / "Barcodes.dat").is_file():
         return "mrclam"
+    if p.is_dir() and all((p / name).is_file() for name in ("inputs.dat", "measurements.dat", "gps.dat")):
+        return "acfr"
     if p.suffix == ".g2o":
         return "g2o"
     if p.is_file() and p.suffix in (".txt", ".dat"):
@@ -63,6 +66,10 @@ def open_dataset(path: str | Path, format: str | None = None, **options: Any) ->
         return read_gtsam_text(
             path, truth=options.get("truth"), dt=options.get("dt") or 1.0, convention=options.get("convention")
         )
+    if kind == "acfr":
+        from online_slam.importers.acfr import read_acfr
+
+        return read_acfr(path)
     if kind == "g2o":
         from online_slam.importers.g2o import read_g2o
 

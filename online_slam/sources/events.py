@@ -165,10 +165,12 @@ class Truth:
     t: float
     """Time, seconds; it applies to the pose whose time equals t."""
     pose: Vector
-    """True ``[x, y, theta]``."""
+    """True ``[x, y, theta]``; theta is NaN for position-only truth (a ``position: [x, y]`` line, e.g. GPS)."""
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""
+        if self.pose[2] != self.pose[2]:  # NaN heading: position only
+            return {"type": "truth", "t": self.t, "position": list(self.pose[:2])}
         return {"type": "truth", "t": self.t, "pose": list(self.pose)}
 
 

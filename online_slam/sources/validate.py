@@ -66,7 +66,7 @@ FIELDS: dict[str, set[str]] = {
     "start": {"type", "t", "pose", "sigma", "cov"},
     "odometry": {"type", "t", "delta", "sigma", "cov"},
     "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier"},
-    "truth": {"type", "t", "pose"},
+    "truth": {"type", "t", "pose", "position"},
     "landmark_truth": {"type", "landmark", "position"},
 }
 """Allowed fields of each event type."""
@@ -421,6 +421,9 @@ class EventValidator:
 
     def _truth(self, record: dict[str, Any], line: int) -> Truth:
         t = self.time(record, line)
+        if "pose" not in record and "position" in record:  # position-only truth (e.g. GPS): heading unknown
+            x, y = self.vector(record, "position", 2, line)
+            return Truth(t=t, pose=(x, y, math.nan))
         return Truth(t=t, pose=self.vector(record, "pose", 3, line))
 
     def _landmark_truth(self, record: dict[str, Any], line: int) -> LandmarkTruth:
