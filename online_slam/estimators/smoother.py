@@ -426,7 +426,11 @@ class SlidingWindowSmoother:
         if newest >= 0:
             L[np.arange(3), newest + np.arange(3)] = 1.0
         position = np.searchsorted(active, indices)
-        is_active = (position < len(active)) & (active[np.minimum(position, len(active) - 1)] == indices)
+        is_active = (
+            (position < len(active)) & (active[np.minimum(position, len(active) - 1)] == indices)
+            if len(active)
+            else np.zeros(c, dtype=bool)
+        )
         for k in np.flatnonzero(is_active):
             column = sparse.landmark_column[position[k]]
             L[3 + 2 * k + np.arange(2), column + np.arange(2)] = 1.0
