@@ -6,8 +6,8 @@ the book
 1. picks the candidate landmarks within reach of the predicted pose and asks the estimator for the joint
    covariance of ``[pose, candidates]`` (its own belief: the EKF's P, the smoother's window information);
 2. pairs sightings with confirmed landmarks by nearest neighbour or JCBB (``frontend.association``);
-3. keeps a sighting no confirmed landmark takes but one passes a wider gate out of everything (ambiguous: it
-   could be either, and a new landmark there would duplicate one);
+3. keeps a sighting no landmark takes out of everything when a landmark not taken by another sighting of the scan
+   passes a wider gate (ambiguous: it could be that one, and a new landmark there would duplicate it);
 4. matches the remaining sightings with *tentative* landmarks (nearest, chi-square gate on the two sightings'
    world points, each tentative at most once per scan), or starts a new tentative landmark;
 5. confirms a tentative landmark at its ``confirm``-th sighting (in distinct steps). Tentative landmarks not
@@ -209,7 +209,9 @@ class LandmarkBook:
                     out[i] = labels[i] = lid
                     self._seen_again(lid, step_index)
                 paired = pairing.landmark >= 0
-                near = pairing.distances.min(axis=1) <= self._new_gate
+                distances = pairing.distances.copy()
+                distances[:, pairing.landmark[paired]] = np.inf  # a landmark taken in this scan is not that one
+                near = distances.min(axis=1) <= self._new_gate
                 self.ambiguous += int(np.sum(~paired & near))
                 free = ~paired & ~near
         if free.any():
