@@ -70,8 +70,12 @@ def test_simulated_log_converts_exactly(tmp_path: Path) -> None:
     on_input = np.abs(t[k] - times) < 1e-9  # scan times (fillers between scans fall inside a sample)
     times, k = times[on_input], k[on_input]
     assert len(times) > 100
-    np.testing.assert_allclose(np.array([at[s] for s in times])[:, :2], poses[k, :2], atol=1e-6)
+    start = next(e for e in events if isinstance(e, Start)).pose  # in the GPS frame: offset by (10, -5) here
+    np.testing.assert_allclose(start, (10.0, -5.0, 0.0), atol=2e-3)
+    relative = np.array([compose(-np.array([10.0, -5.0, 0.0]) * (1, 1, 0), at[s] - (0, 0, start[2])) for s in times])
+    np.testing.assert_allclose(relative[:, :2], poses[k, :2], atol=0.05)
     # every sighting is the range and bearing of a tree from the rear axle (laser offset undone)
+    at = {s: compose(np.zeros(3), poses[np.argmin(np.abs(t - s))]) for s in at}
     sightings = [e for e in events if isinstance(e, Observation)]
     assert sightings and all(e.landmark is None for e in sightings)
     for event in sightings[::7]:

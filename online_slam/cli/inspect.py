@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
+
 from online_slam.errors import OnlineSlamError
 
 
@@ -72,7 +74,9 @@ def run(args: argparse.Namespace) -> int:
         )
     if summary.figures:
         logged = ", ".join(
-            f"{name} {f['online_rmse_m']:.4f} m / NEES {f['nees_mean']:.2f}" for name, f in summary.figures.items()
+            f"{name} {f['online_rmse_m']:.4f} m / NEES "
+            + (f"{f['nees_mean']:.2f}" if np.isfinite(f["nees_mean"]) else "- (no heading truth)")
+            for name, f in summary.figures.items()
         )
         print(f"recomputed from the logged series (online RMSE / mean NEES): {logged}")
     if state is not None:

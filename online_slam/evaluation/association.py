@@ -22,8 +22,8 @@ class AssociationScore:
     None when nothing could be scored (no ids in the stream)."""
     landmarks_mapped: int
     """Landmarks in the estimator's final map."""
-    landmarks_true: int
-    """Distinct true landmarks among the sightings."""
+    landmarks_true: int | None
+    """Distinct true landmarks among the sightings (None when the stream has no ids)."""
     sightings_scored: int
     """Sightings with a known truth (an id, or marked clutter); sightings given a wrong id are not scored."""
     sightings_used: int
@@ -94,7 +94,7 @@ def score_association(
         method=method,
         accuracy=right / scored if scored else None,
         landmarks_mapped=len(on_map),
-        landmarks_true=len(seen_true),
+        landmarks_true=len(seen_true) if scored else None,
         sightings_scored=scored,
         sightings_used=used,
     )

@@ -24,7 +24,7 @@ def _association(result: EstimatorResult) -> str:
     if a is None:
         return "-"
     right = "-" if a.accuracy is None else f"{a.accuracy:.3f}"
-    return f"{right}, {a.landmarks_mapped}/{a.landmarks_true}"
+    return f"{right}, {a.landmarks_mapped}/{'-' if a.landmarks_true is None else a.landmarks_true}"
 
 
 def format_results(results: Results) -> str:

@@ -249,7 +249,8 @@ class RerunSink:
 
     def _pose(self, name: str, pose: Array, step: Step) -> None:
         root = self._root(name)
-        heading = 0.5 * np.array([math.cos(pose[2]), math.sin(pose[2])])
+        # position-only truth (GPS) has no heading: a short stub along x marks the point
+        heading = 0.5 * np.array([math.cos(pose[2]), math.sin(pose[2])]) if math.isfinite(pose[2]) else np.zeros(2)
         self.columns.add(f"{root}/pose", "arrow", step, (pose[:2], heading))
         whole, recent = self.paths.setdefault(name, _Path()).add(pose)
         if whole is not None:
