@@ -186,3 +186,20 @@ def test_association_config_is_validated() -> None:
         AssociationConfig(method="guess")
     with pytest.raises(ValueError):
         AssociationConfig(confirm=0)
+
+
+def test_replay_resumed_from_a_checkpoint_scores_association_as_the_whole_run(tmp_path: Path) -> None:
+    """Checkpoints hold the landmark books and the ids gathered for scoring: a resumed run reports the same."""
+    from online_slam.pipeline import Checkpointing
+
+    path = tmp_path / "grid.jsonl"
+    write_stream(path, contaminate(grid_world(replace(SMALL, poses=230)), Contamination(clutter=0.1, seed=4)))
+    config = ReplayConfig(association="jcbb")
+    whole = replay(path, config)
+    replay(path, config, checkpoint=Checkpointing(tmp_path / "ck", every=100))  # last checkpoint at step 200
+    resumed = replay(path, config, resume=tmp_path / "ck")
+    for name in ("ekf", "smoother", "batch"):
+        a, b = whole.estimators[name], resumed.estimators[name]
+        assert a.association == b.association, name
+        assert a.final_rmse_m == pytest.approx(b.final_rmse_m, abs=1e-12), name
+        assert whole.estimates[name].landmark_ids == resumed.estimates[name].landmark_ids
