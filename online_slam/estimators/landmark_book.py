@@ -128,6 +128,7 @@ class LandmarkBook:
         self._counts = np.zeros(0, dtype=np.int64)
         self._first = np.zeros(0, dtype=np.int64)
         self._last = np.zeros(0, dtype=np.int64)
+        self._pose_covs = np.zeros((0, 3, 3))  # the pose's covariance when each was last seen
         self._sightings: dict[int, list[tuple[int, Array, Array]]] = {}
         self._confirmed_keys: dict[int, LandmarkId] = {}
         self._labels: list[Any] = []  # per sighting: a landmark id, -(key + 1) for a book-tentative one, or None
@@ -222,7 +223,7 @@ class LandmarkBook:
                     if self.config.confirm > 1:
                         self._pending[lid] = [1, step_index, step_index]
             else:
-                self._tentative(step_index, pose, z, R, free, out, labels, known)
+                self._tentative(step_index, pose, pose_cov, z, R, free, out, labels, known)
         self._labels.extend(labels)
         return out
 
@@ -249,6 +250,7 @@ class LandmarkBook:
         self,
         step_index: int,
         pose: Array,
+        pose_cov: Array,
         z: Array,
         R: Array,
         free: NDArray[np.bool_],
@@ -256,14 +258,26 @@ class LandmarkBook:
         labels: list,
         known: set | dict,
     ) -> None:
-        """Outside: match free sightings with the book's tentative landmarks; confirm, or start new ones."""
+        """Outside: match free sightings with the book's tentative landmarks; confirm, or start new ones.
+
+        A sighting and a tentative point are compared in the world: their noise, plus what the pose may have
+        drifted since the tentative landmark was last seen (the growth of the pose's covariance since then,
+        through the sighting's point Jacobian).
+        """
         rows = np.flatnonzero(free)
         points = landmark_from_observation(pose[None, :], z[rows])
         covs = _point_covariance(pose, z[rows], R[rows])
         taken = np.full(len(rows), -1, dtype=np.int64)
         if len(self._keys):
             diff = points[:, None, :] - self._points[None, :, :]  # (f, T, 2)
-            S = covs[:, None] + self._covs[None, :]
+            growth = np.asarray(pose_cov)[None] - self._pose_covs  # (T, 3, 3), clipped to its PSD part
+            values, vectors = np.linalg.eigh(0.5 * (growth + np.swapaxes(growth, 1, 2)))
+            growth = (vectors * np.maximum(values, 0.0)[:, None, :]) @ np.swapaxes(vectors, 1, 2)
+            G = np.zeros((len(rows), 2, 3))  # d(point)/d(pose)
+            G[:, 0, 0] = G[:, 1, 1] = 1.0
+            G[:, :, 2] = np.stack([-(points[:, 1] - pose[1]), points[:, 0] - pose[0]], -1)
+            drift = np.einsum("fai,tij,fbj->ftab", G, growth, G)
+            S = covs[:, None] + self._covs[None, :] + drift
             d2 = np.einsum("fti,fti->ft", diff, np.linalg.solve(S, diff[..., None])[..., 0])
             d2[:, self._last == step_index] = np.inf  # one sighting per tentative landmark and step
             used: set[int] = set()
@@ -284,6 +298,7 @@ class LandmarkBook:
                 self._covs[t] = C
                 self._counts[t] += 1
                 self._last[t] = step_index
+                self._pose_covs[t] = pose_cov
                 key = int(self._keys[t])
                 labels[i] = -(key + 1)
                 if self._counts[t] < self.config.confirm:
@@ -307,6 +322,7 @@ class LandmarkBook:
             self._counts = np.r_[self._counts, 1]
             self._first = np.r_[self._first, step_index]
             self._last = np.r_[self._last, step_index]
+            self._pose_covs = np.concatenate([self._pose_covs, np.asarray(pose_cov, dtype=float)[None]])
         if confirmed:
             self._remove(np.array(confirmed, dtype=np.int64))
 
@@ -323,6 +339,7 @@ class LandmarkBook:
         keep[rows] = False
         self._keys, self._points, self._covs = self._keys[keep], self._points[keep], self._covs[keep]
         self._counts, self._first, self._last = self._counts[keep], self._first[keep], self._last[keep]
+        self._pose_covs = self._pose_covs[keep]
 
     # -- reports -----------------------------------------------------------------------------------
     @property
@@ -373,6 +390,7 @@ class LandmarkBook:
             "counts": self._counts.copy(),
             "first": self._first.copy(),
             "last": self._last.copy(),
+            "pose_covs": self._pose_covs.copy(),
             "sightings": sightings,
             "labels": list(self._labels),
             "confirmed_keys": [[k, v] for k, v in self._confirmed_keys.items()],
@@ -392,6 +410,7 @@ class LandmarkBook:
         self._counts = np.array(state["counts"], dtype=np.int64).reshape(-1)
         self._first = np.array(state["first"], dtype=np.int64).reshape(-1)
         self._last = np.array(state["last"], dtype=np.int64).reshape(-1)
+        self._pose_covs = np.array(state["pose_covs"], dtype=float).reshape(-1, 3, 3)
         self._sightings = {
             int(key): [
                 (int(g), np.array(zz, dtype=float), np.array(RR, dtype=float))
