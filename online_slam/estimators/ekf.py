@@ -171,7 +171,11 @@ class EkfSlam(ExtendedKalmanFilter):
         P[n:, n:] = block
         self.P = P
         self.x = np.vstack([self.x, rows.reshape(-1, 1)])
-        self.dim_x = n + m
+        self._resized()
+
+    def _resized(self) -> None:
+        """The state's size changed: filterpy's matrices (I, F, Q, K) follow it; Q keeps the robot block."""
+        self.dim_x = len(self.x)
         self._I = np.eye(self.dim_x)
         self.F = self._I
         Q = np.zeros((self.dim_x, self.dim_x))
@@ -218,13 +222,7 @@ class EkfSlam(ExtendedKalmanFilter):
         rows = np.r_[0, 1, 2, _landmark_columns(kept)]
         self.x = self.x[rows]
         self.P = self.P[np.ix_(rows, rows)]
-        self.dim_x = len(rows)
-        self._I = np.eye(self.dim_x)
-        self.F = self._I
-        Q = np.zeros((self.dim_x, self.dim_x))
-        Q[:3, :3] = self.Q[:3, :3]
-        self.Q = Q
-        self.K = np.zeros((self.dim_x, self.K.shape[1] if self.K.ndim == 2 else 1))
+        self._resized()
         renumber = np.full(m, -1, dtype=np.int64)
         renumber[kept] = np.arange(len(kept))
         self.landmark_ids = [self.landmark_ids[j] for j in kept]

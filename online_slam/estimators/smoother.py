@@ -400,25 +400,11 @@ class SlidingWindowSmoother:
         landmarks only the prior holds are its conditional given the part the window shares, propagated.
         """
         c = len(indices)
-        observed = [self._observations[i][0] for i in self.window if i in self._observations]
-        active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
-        graph, sparse, quadratic, _, poses = self._window_system(active)
-        linearized = solve(
-            graph,
-            poses,
-            self._landmarks[active],
-            SolverConfig(max_iterations=0),
-            loss=self.config.loss,
-            prior=quadratic,
-            return_information=True,
-            graph_layout=sparse,
-            dense=True,
-        )
+        active, sparse, quadratic, H = self._linearized_window()
         rows = 3 + 2 * c
         fallback = np.eye(rows) * 1e6  # a landmark nothing constrains (cannot happen with a consistent state)
-        if linearized.information is None:
+        if H is None:
             return fallback
-        H = np.asarray(linearized.information)
         n = len(H)
         L = np.zeros((rows, n))
         N = np.zeros((rows, rows))
@@ -664,6 +650,30 @@ class SlidingWindowSmoother:
 
         return quadratic, recover
 
+    def _linearized_window(self) -> tuple[Index, Any, Any, Array | None]:
+        """The window and the reduced prior linearized once at the current estimate (no iteration).
+
+        Returns:
+            (landmarks the window observes, the system's layout, the reduced prior, its dense information matrix
+            or None when nothing is free).
+        """
+        observed = [self._observations[i][0] for i in self.window if i in self._observations]
+        active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+        graph, sparse, quadratic, _, poses = self._window_system(active)
+        linearized = solve(
+            graph,
+            poses,
+            self._landmarks[active],
+            SolverConfig(max_iterations=0),
+            loss=self.config.loss,
+            prior=quadratic,
+            return_information=True,
+            graph_layout=sparse,
+            dense=True,
+        )
+        H = None if linearized.information is None else np.asarray(linearized.information)
+        return active, sparse, quadratic, H
+
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
 
@@ -676,23 +686,9 @@ class SlidingWindowSmoother:
         if not self.window:
             return out
         with self._blas.limit(limits=1, user_api="blas"):
-            observed = [self._observations[i][0] for i in self.window if i in self._observations]
-            active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
-            graph, sparse, quadratic, _, poses = self._window_system(active)
-            linearized = solve(
-                graph,
-                poses,
-                self._landmarks[active],
-                SolverConfig(max_iterations=0),
-                loss=self.config.loss,
-                prior=quadratic,
-                return_information=True,
-                graph_layout=sparse,
-                dense=True,
-            )
-            if linearized.information is None:  # no free variable
+            active, sparse, quadratic, H = self._linearized_window()
+            if H is None:  # no free variable
                 return out
-            H = np.asarray(linearized.information)
             try:
                 C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
             except (la.LinAlgError, ValueError):  # singular, or not finite
