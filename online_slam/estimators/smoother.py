@@ -505,8 +505,7 @@ class SlidingWindowSmoother:
         their conditional mean, so each iteration factors a system over the window poses and the observed
         landmarks only. The result equals the solve over all landmarks.
         """
-        observed = [self._observations[i][0] for i in self.window if i in self._observations]
-        active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+        active = self._active()
         graph, sparse, quadratic, recover, poses = self._window_system(active)
         result = solve(
             graph,
@@ -541,6 +540,11 @@ class SlidingWindowSmoother:
         if self.config.consensus and np.isfinite(self._reject_bound) and self._revisit(graph, active, depth):
             return self._solve(final, depth + 1)
         return report
+
+    def _active(self) -> Index:
+        """Landmarks some window pose observes (sorted)."""
+        observed = [self._observations[i][0] for i in self.window if i in self._observations]
+        return np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
 
     def _window_system(self, active: Index) -> tuple:
         """The window's factor graph, its layout, the reduced prior (and passive recovery), the window poses."""
@@ -657,8 +661,7 @@ class SlidingWindowSmoother:
             (landmarks the window observes, the system's layout, the reduced prior, its dense information matrix
             or None when nothing is free).
         """
-        observed = [self._observations[i][0] for i in self.window if i in self._observations]
-        active = np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+        active = self._active()
         graph, sparse, quadratic, _, poses = self._window_system(active)
         linearized = solve(
             graph,
