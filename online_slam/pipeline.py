@@ -27,7 +27,7 @@ from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
-from online_slam.evaluation.association import score_association, true_labels, with_true_ids
+from online_slam.evaluation.association import majority, score_association, true_labels, with_true_ids
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
 from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, truth_array
 from online_slam.frontend.steps import FrontEndConfig
@@ -83,7 +83,7 @@ class ReplayConfig:
         config = dataclasses.replace(
             self,
             association=method,
-            ekf=dataclasses.replace(self.ekf, association=dataclasses.replace(self.ekf.association, method=method)),
+            ekf=_associating(self.ekf, method),
             smoother=_associating(self.smoother, method),
             extra_smoothers=tuple(_associating(s, method) for s in self.extra_smoothers),
             batch=dataclasses.replace(self.batch, use_ids=method == "known"),
@@ -98,7 +98,8 @@ class ReplayConfig:
         return config
 
 
-def _associating(config: SmootherConfig, method: str) -> SmootherConfig:
+def _associating(config: Any, method: str) -> Any:
+    """An EKF or smoother configuration with its association method replaced."""
     return dataclasses.replace(config, association=dataclasses.replace(config.association, method=method))
 
 
@@ -396,8 +397,9 @@ def replay(
         scored = estimate
         if labels is not None and method != "known":
             truth_labels = true_labels(sighting_ids, truth.outliers)
-            association = score_association(method, labels, truth_labels, estimate.landmark_ids)
-            scored = with_true_ids(estimate, labels, truth_labels)
+            owner = majority(labels, truth_labels)
+            association = score_association(method, labels, truth_labels, estimate.landmark_ids, owner)
+            scored = with_true_ids(estimate, owner)
             rejected = None  # per used sighting, not per stream sighting
         if rejected is not None:
             marked = bool(truth.outliers) or bool(header_meta.get("contamination"))

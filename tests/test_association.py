@@ -78,10 +78,29 @@ def test_no_landmarks_or_no_sightings() -> None:
         associate("greedy", b, np.zeros((0, 2)), np.zeros((0, 2, 2)))
 
 
+def _joint_distance(belief: Belief, z: np.ndarray, R: np.ndarray, pairs: list[tuple[int, int]]) -> float:
+    """nu_H^T S_H^-1 nu_H of a hypothesis (sighting, landmark) pairs."""
+    if not pairs:
+        return 0.0
+    i = np.array([p[0] for p in pairs])
+    j = np.array([p[1] for p in pairs])
+    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks[j])
+    nu = z[i] - z_hat
+    nu[:, 1] = wrap(nu[:, 1])
+    n = len(belief.covariance)
+    H = np.zeros((2 * len(pairs), n))
+    for row, (Jp, Jl, lm) in enumerate(zip(J_p, J_l, j)):
+        H[2 * row : 2 * row + 2, :3] = Jp
+        H[2 * row : 2 * row + 2, 3 + 2 * lm : 5 + 2 * lm] = Jl
+    S = H @ belief.covariance @ H.T
+    for row, k in enumerate(i):
+        S[2 * row : 2 * row + 2, 2 * row : 2 * row + 2] += R[k]
+    v = nu.reshape(-1)
+    return float(v @ np.linalg.solve(S, v))
+
+
 def test_jcbb_incremental_joint_distance_equals_the_explicit_one(rng) -> None:
     """The Schur-complement updates along the search give the same joint distance as one 2m x 2m solve."""
-    from online_slam.frontend.association import _joint_distance
-
     for _ in range(5):
         landmarks = rng.uniform(-10, 10, (12, 2))
         n = 3 + 2 * len(landmarks)

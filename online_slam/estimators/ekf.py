@@ -419,8 +419,7 @@ class EkfSlam(ExtendedKalmanFilter):
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
         ids, z_all, R_all = step.landmarks[start:], step.z[start:], step.z_cov[start:]
         k = len(ids)
-        association = self.config.association
-        if k and (association.ignores_ids or None in ids):
+        if self.book.needs(ids):
             ids = self._associate(step.index, ids, z_all, R_all)
         self._step_ids += ids
         nis = np.full(k, np.nan)
@@ -464,10 +463,6 @@ class EkfSlam(ExtendedKalmanFilter):
         self, step_index: int, ids: tuple[LandmarkId | None, ...], z: Array, R: Array
     ) -> list[LandmarkId | None]:
         """Ids for the sightings to associate (all of them, or those without one) against the filter's belief."""
-        ask = (
-            range(len(ids)) if self.config.association.ignores_ids else [i for i, lid in enumerate(ids) if lid is None]
-        )
-        ask = np.array(list(ask), dtype=np.int64)
         dropped = self.book.expire(step_index)
         if dropped:
             self.remove_landmarks(dropped)
@@ -477,21 +472,11 @@ class EkfSlam(ExtendedKalmanFilter):
             cols = np.r_[0, 1, 2, _landmark_columns(indices)]
             return P[np.ix_(cols, cols)]
 
-        assigned = self.book.assign(
-            step_index,
-            self.x[:3, 0].copy(),
-            P[:3, :3],
-            z[ask],
-            R[ask],
-            self.x[3:, 0].reshape(-1, 2),
-            self.landmark_ids,
-            covariance_of,
-            known=self._index,
+        positions = self.x[3:, 0].reshape(-1, 2)
+        pose = self.x[:3, 0].copy()
+        return self.book.assign_ids(
+            step_index, ids, z, R, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, known=self._index
         )
-        out = list(ids)
-        for i, lid in zip(ask, assigned):
-            out[int(i)] = lid
-        return out
 
     def trajectory_parts(self) -> tuple[Array, Array]:
         """(poses that no longer change, read-only (N - 1, 3) view; the newest pose, a copy (1, 3))."""
@@ -582,12 +567,6 @@ class EkfSlam(ExtendedKalmanFilter):
             },
         )
 
-    def _association_info(self) -> dict[str, Any]:
-        """The book's labels and counts, when this filter associated sightings itself."""
-        if not self.config.association.ignores_ids and not self.book.labels_seen:
-            return {}
-        return {"association": self.book.report(), "labels": self.book.labels()}
-
     def _map(self) -> tuple[tuple[LandmarkId, ...], Array, Array]:
         """The reported map: ids, positions (M, 2), marginal covariances (M, 2, 2); tentative landmarks left out."""
         landmarks, covs = self.x[3:, 0].reshape(-1, 2).copy(), self.landmark_marginals()
@@ -610,7 +589,7 @@ class EkfSlam(ExtendedKalmanFilter):
                 "landmarks_reanchored": self.reanchored,
                 "state_size": self.dim_x,
                 "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
-                **self._association_info(),
+                **self.book.info(),
             },
             landmark_covs=covs,
         )

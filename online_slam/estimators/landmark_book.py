@@ -167,6 +167,34 @@ class LandmarkBook:
         """Inside: whether any of the estimator's landmarks is tentative."""
         return bool(self._pending)
 
+    def needs(self, ids: Sequence[LandmarkId | None]) -> bool:
+        """Whether these sightings ask for association (every one with ``nn``/``jcbb``; else those without id)."""
+        return bool(len(ids)) and (self.config.ignores_ids or None in ids)
+
+    def assign_ids(
+        self,
+        step_index: int,
+        ids: Sequence[LandmarkId | None],
+        z: Array,
+        R: Array,
+        pose: Array,
+        pose_cov: Array,
+        positions: Array,
+        landmark_ids: Sequence[LandmarkId],
+        covariance_of: CovarianceOf,
+        known: set | dict | None = None,
+    ) -> list[LandmarkId | None]:
+        """The sightings' ids with those to associate (all, or those without one) filled in by :meth:`assign`."""
+        everything = self.config.ignores_ids
+        ask = np.array([i for i, lid in enumerate(ids) if everything or lid is None], dtype=np.int64)
+        assigned = self.assign(
+            step_index, pose, pose_cov, z[ask], R[ask], positions, landmark_ids, covariance_of, known
+        )
+        out = list(ids)
+        for i, lid in zip(ask, assigned):
+            out[int(i)] = lid
+        return out
+
     def assign(
         self,
         step_index: int,
@@ -343,11 +371,6 @@ class LandmarkBook:
 
     # -- reports -----------------------------------------------------------------------------------
     @property
-    def labels_seen(self) -> bool:
-        """True once the book has seen a sighting."""
-        return bool(self._labels)
-
-    @property
     def tentative(self) -> int:
         """Tentative landmarks held now."""
         return len(self._pending) if self.inside else len(self._keys)
@@ -362,6 +385,12 @@ class LandmarkBook:
             return None if value in deleted or value in pending else value
 
         return [label(value) for value in self._labels]
+
+    def info(self) -> dict[str, Any]:
+        """For an estimate's info: ``association`` (counts) and ``labels``, once the book has associated ({})."""
+        if not self.config.ignores_ids and not self._labels:
+            return {}
+        return {"association": self.report(), "labels": self.labels()}
 
     def report(self) -> dict[str, Any]:
         """Counts for the estimator's final info."""

@@ -342,8 +342,7 @@ class SlidingWindowSmoother:
         Without association (every sighting has an id, ids used) this is the step itself.
         """
         ids = step.landmarks[start:]
-        association = self.config.association
-        needed = len(ids) and (association.ignores_ids or None in ids)
+        needed = self.book.needs(ids)
         if start == 0:
             self._resolved = None
         if not needed and self._resolved is None:
@@ -351,24 +350,19 @@ class SlidingWindowSmoother:
         base = self._resolved if self._resolved is not None else step
         cut = len(base.landmarks) if self._resolved is not None else start
         if needed:
-            ask = np.arange(len(ids)) if association.ignores_ids else np.flatnonzero([lid is None for lid in ids])
-            z, R = step.z[start:], step.z_cov[start:]
-            newest = self.window[-1]
             self.book.expire(step.index)
-            assigned = self.book.assign(
+            ids = self.book.assign_ids(
                 step.index,
-                self.poses[newest].copy(),
+                ids,
+                step.z[start:],
+                step.z_cov[start:],
+                self.poses[self.window[-1]].copy(),
                 self._pose_cov,
-                z[ask],
-                R[ask],
                 self._landmarks,
                 self.landmark_ids,
                 self._association_covariance,
                 known=self._index,
             )
-            ids = list(ids)
-            for i, lid in zip(ask, assigned):
-                ids[int(i)] = lid
         keep = np.array([lid is not None for lid in ids], dtype=bool)
         resolved = replace(
             step,
@@ -425,11 +419,12 @@ class SlidingWindowSmoother:
             p = self.prior
             if p is None or quadratic is None:
                 return fallback
-            slots = np.array([np.flatnonzero(p.landmarks == indices[k]) for k in passive_k], dtype=object)
-            if any(len(sl) == 0 for sl in slots):
+            slot_of = {int(j): slot for slot, j in enumerate(p.landmarks)}
+            slots = [slot_of.get(int(indices[k]), -1) for k in passive_k]
+            if min(slots) < 0:
                 return fallback
             order, _, _, A = self._prior_split(active)
-            state_rows = (2 * np.array([int(sl[0]) for sl in slots])[:, None] + np.arange(2)).reshape(-1)
+            state_rows = (2 * np.array(slots)[:, None] + np.arange(2)).reshape(-1)
             S_pa = p.Sigma[np.ix_(state_rows, order)]
             B = S_pa @ A
             out_rows = (3 + 2 * passive_k[:, None] + np.arange(2)).reshape(-1)
@@ -1189,12 +1184,6 @@ class SlidingWindowSmoother:
                 "window": self.config.window,
                 "relinearize_every": self.config.relinearize_every,
                 "final_solve_s": time.perf_counter() - started,
-                **self._association_info(),
+                **self.book.info(),
             },
         )
-
-    def _association_info(self) -> dict[str, Any]:
-        """The book's labels and counts, when this smoother associated sightings itself."""
-        if not self.config.association.ignores_ids and not self.book.labels_seen:
-            return {}
-        return {"association": self.book.report(), "labels": self.book.labels()}

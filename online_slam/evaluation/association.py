@@ -64,6 +64,7 @@ def score_association(
     labels: Sequence[LandmarkId | None],
     truth: Sequence[LandmarkId | None | bool],
     mapped: Sequence[LandmarkId],
+    owner: dict | None = None,
 ) -> AssociationScore:
     """Score per-sighting labels (the estimator's landmark of each sighting) against the true ones.
 
@@ -72,11 +73,12 @@ def score_association(
         labels: Landmark id each sighting went to (None: not used), in stream order.
         truth: :func:`true_labels` of the same sightings.
         mapped: The ids of the estimator's final map.
+        owner: :func:`majority` of these labels, if already computed.
     """
     if len(labels) != len(truth):
         raise ValueError(f"{len(labels)} labels for {len(truth)} sightings")
     on_map = set(mapped)
-    owner = majority(labels, truth)
+    owner = majority(labels, truth) if owner is None else owner
     scored = right = used = 0
     seen_true = set()
     for label, true in zip(labels, truth):
@@ -100,9 +102,9 @@ def score_association(
     )
 
 
-def with_true_ids(estimate: Estimate, labels: Sequence, truth: Sequence) -> Estimate:
-    """The estimate with each landmark renamed to its true landmark (for landmark RMSE); clutter-made ones dropped."""
-    owner = majority(labels, truth)
+def with_true_ids(estimate: Estimate, owner: dict) -> Estimate:
+    """The estimate with each landmark renamed to its true landmark (``owner``: :func:`majority`), for landmark
+    RMSE; landmarks made of clutter (or of nothing scored) left out."""
     keep = [k for k, lid in enumerate(estimate.landmark_ids) if owner.get(lid) is not None]
     return replace(
         estimate,

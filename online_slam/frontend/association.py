@@ -93,27 +93,6 @@ def individual_distances(belief: Belief, z: Array, R: Array) -> Array:
     return np.einsum("kmi,kmi->km", nu, np.linalg.solve(S, nu[..., None])[..., 0])
 
 
-def _joint_distance(belief: Belief, z: Array, R: Array, pairs: list[tuple[int, int]]) -> float:
-    """nu_H^T S_H^-1 nu_H of a hypothesis (sighting, landmark) pairs."""
-    if not pairs:
-        return 0.0
-    i = np.array([p[0] for p in pairs])
-    j = np.array([p[1] for p in pairs])
-    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks[j])
-    nu = z[i] - z_hat
-    nu[:, 1] = wrap(nu[:, 1])
-    n = len(belief.covariance)
-    H = np.zeros((2 * len(pairs), n))
-    for row, (Jp, Jl, lm) in enumerate(zip(J_p, J_l, j)):
-        H[2 * row : 2 * row + 2, :3] = Jp
-        H[2 * row : 2 * row + 2, 3 + 2 * lm : 5 + 2 * lm] = Jl
-    S = H @ belief.covariance @ H.T
-    for row, k in enumerate(i):
-        S[2 * row : 2 * row + 2, 2 * row : 2 * row + 2] += R[k]
-    v = nu.reshape(-1)
-    return float(v @ np.linalg.solve(S, v))
-
-
 def nearest_neighbour(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
     """Pair each sighting with its nearest individually compatible landmark, each landmark at most once.
 
