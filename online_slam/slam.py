@@ -43,6 +43,8 @@ ESTIMATORS = ("ekf", "smoother")
 OPTIONS: dict[str, tuple[type, str]] = {
     "window": (int, "smoother: poses kept in the window (W, >= 1)"),
     "relinearize_every": (int, "smoother: relinearize and solve every K steps (>= 1)"),
+    "window_distance": (float, "smoother: keep poses beyond W until the window's path is this long (m; 0 = W poses)"),
+    "window_max": (int, "smoother: most poses the window keeps for window_distance (>= 1)"),
     "global_every": (int, "smoother: re-solve the whole history every N steps (0 = never)"),
     "global_delay": (int, "smoother: hand a background global solve over D steps after it starts (0 = at once)"),
     "robust": (str, "smoother: outliers 'auto' (default), 'none', 'huber' or 'cauchy'"),
@@ -63,7 +65,16 @@ OPTIONS: dict[str, tuple[type, str]] = {
 
 _ESTIMATOR_OPTIONS = {
     "ekf": {"gate_probability", "gate_persistence", "ekf_update"},
-    "smoother": {"window", "relinearize_every", "global_every", "global_delay", "robust", "robust_scale"},
+    "smoother": {
+        "window",
+        "window_distance",
+        "window_max",
+        "relinearize_every",
+        "global_every",
+        "global_delay",
+        "robust",
+        "robust_scale",
+    },
 }
 _CHECKPOINT_KIND = "slam"
 
@@ -199,6 +210,8 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
                     relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
                     global_every=options.get("global_every", SmootherConfig.global_every),
                     global_delay=options.get("global_delay", SmootherConfig.global_delay),
+                    window_distance=options.get("window_distance", SmootherConfig.window_distance),
+                    window_max=options.get("window_max", SmootherConfig.window_max),
                     association=AssociationConfig(options.get("association", "known")),
                 ),
                 BatchConfig(),

@@ -76,7 +76,7 @@ def test_marginalization_is_exact_at_the_solution() -> None:
 
 
 def test_loop_closure_corrects_the_current_pose_long_after_the_window_moved_on() -> None:
-    fe, smoother, final, _, _, snapshots = run(square_world(), SmootherConfig(window=3))
+    fe, smoother, final, _, _, snapshots = run(square_world(), SmootherConfig(window=3, window_distance=0.0))
     odometry = online_slam.replay("square").estimates["odometry"].poses
     truth_last = fe.truth.poses[24]
     assert np.linalg.norm(odometry[24, :2] - truth_last[:2]) > 1.5
@@ -155,7 +155,7 @@ def test_robust_smoother_with_a_large_window_equals_robust_batch(kind: str) -> N
 
 
 def test_snapshots_report_the_window_and_solves() -> None:
-    _, smoother, final, _, _, snapshots = run(square_world(), SmootherConfig(window=5, relinearize_every=3))
+    _, smoother, final, _, _, snapshots = run(square_world(), SmootherConfig(window=5, relinearize_every=3, window_distance=0.0))
     relinearized = [s.index for s in snapshots if s.info["relinearized"]]
     assert relinearized[:3] == [2, 5, 8]  # every 3 steps
     s = snapshots[10]
@@ -165,7 +165,7 @@ def test_snapshots_report_the_window_and_solves() -> None:
     assert all(s.info["cost_after"] <= s.info["cost_before"] + 1e-9 for s in solved)
     assert final.info["solves"] == len(solved) + 1  # plus the final solve
     # A pose is never marginalized before it has been optimized: with K > W the window forces a solve.
-    _, _, _, _, _, snapshots = run(square_world(), SmootherConfig(window=2, relinearize_every=5))
+    _, _, _, _, _, snapshots = run(square_world(), SmootherConfig(window=2, relinearize_every=5, window_distance=0.0))
     assert [s.index for s in snapshots if s.info["relinearized"]][:3] == [2, 5, 8]  # K alone: 4, 9, 14
 
 
@@ -219,3 +219,27 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
     first, again, resumed = run_all(), run_all(), run_all(cut=310)
     np.testing.assert_array_equal(first, again)
     np.testing.assert_array_equal(first, resumed)
+
+
+def test_window_sized_by_motion_keeps_poses_until_its_path_is_long_enough() -> None:
+    """``window_distance``: beyond W poses, the oldest is marginalized only once the rest span D metres of path;
+    ``window_max`` caps the window (a robot standing still)."""
+    steps = list(FrontEnd().steps(square_world()))
+    length = {s.index: float(np.hypot(*s.odometry[:2])) for s in steps if s.odometry is not None}
+    smoother = SlidingWindowSmoother(SmootherConfig(window=3, window_distance=2.0, window_max=6))
+    sizes = []
+    for step in steps:
+        window = smoother.step(step).info["window"]
+        sizes.append(len(window))
+        rest = sum(length[g] for g in window[2:])  # the path of the window without its oldest pose
+        assert len(window) <= 3 or (rest < 2.0 and len(window) <= 6)  # not marginalized too soon
+        if window[0] > 0:  # the pose before the oldest left because the window without it spans D (or 6 poses)
+            assert sum(length[g] for g in window[1:]) >= 2.0 or len(window) == 6 or len(window) == 3
+    assert max(sizes) == 5  # the square's 0.63 m steps: 2 m take 4 steps after the oldest pose
+    events = [Observation(0.0, j, 3.0 + j, 0.3 * j, sigma=(0.05, 0.01)) for j in range(4)]
+    for k in range(1, 20):
+        events.append(Odometry(float(k), (0.0, 0.0, 0.0), sigma=(0.01, 0.01, 0.005)))
+        events += [Observation(float(k), j, 3.0 + j, 0.3 * j, sigma=(0.05, 0.01)) for j in range(4)]
+    _, smoother, final, _, batch, snapshots = run(events, SmootherConfig(window=3, window_distance=1.0, window_max=8))
+    assert [len(s.info["window"]) for s in snapshots][7:] == [8] * 13  # standing still: capped at window_max
+    assert np.max(np.abs(final.poses)) < 1e-9

@@ -49,6 +49,18 @@ def _tangent(theta: float) -> Array:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def between_covariance(delta: Array, cov: Array) -> Array:
+    """Our odometry covariance (of ``between(a, b) - delta``, in the earlier pose's axes) as GTSAM's between factor
+    takes it (of ``Log(delta^-1 between(a, b))``, in the axes of the pose reached): to first order
+    ``between - delta = J xi`` with ``J = diag(R(delta_theta), 1)``, so ``cov_xi = J^T cov J``.
+
+    Without this, an increment with a large turn (MRCLAM after a long blind stretch) gets its forward and lateral
+    variances swapped in GTSAM.
+    """
+    J = _tangent(float(delta[2]))
+    return J.T @ np.asarray(cov, dtype=float) @ J
+
+
 def _vec(p: gtsam.Pose2) -> Array:
     return np.array([p.x(), p.y(), p.theta()])
 
@@ -106,7 +118,7 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
         if exact:
             fg.add(_odometry_factor(X(int(a)), X(int(b)), delta, cov))
         else:
-            noise = gtsam.noiseModel.Gaussian.Covariance(cov)
+            noise = gtsam.noiseModel.Gaussian.Covariance(between_covariance(delta, cov))
             fg.add(gtsam.BetweenFactorPose2(X(int(a)), X(int(b)), gtsam.Pose2(*delta), noise))
     obs_cov = _covariances(graph.obs_sqrt_info)[:, ::-1, ::-1]  # GTSAM orders (bearing, range)
     for p, l, z, cov in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov):
@@ -219,7 +231,7 @@ def isam2_online(
             )
             graph.add(gtsam.PriorFactorPose2(X(i), gtsam.Pose2(*latest), noise))
         else:
-            noise = gtsam.noiseModel.Gaussian.Covariance(np.asarray(step.odometry_cov))
+            noise = gtsam.noiseModel.Gaussian.Covariance(between_covariance(step.odometry, step.odometry_cov))
             graph.add(gtsam.BetweenFactorPose2(X(i - 1), X(i), gtsam.Pose2(*step.odometry), noise))
             c, s = np.cos(latest[2]), np.sin(latest[2])
             d = step.odometry

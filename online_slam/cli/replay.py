@@ -132,6 +132,21 @@ def add_options(p: argparse.ArgumentParser) -> None:
         "the smoother's if it runs, else the EKF's, else odometry)",
     )
     p.add_argument(
+        "--window-distance",
+        type=float,
+        default=SmootherConfig.window_distance,
+        metavar="M",
+        help="smoother: keep poses beyond W until the window's path is M metres long, up to --window-max poses "
+        f"(a window sized by motion; default {SmootherConfig.window_distance:g}; 0 = exactly W poses)",
+    )
+    p.add_argument(
+        "--window-max",
+        type=int,
+        default=SmootherConfig.window_max,
+        metavar="N",
+        help=f"smoother: most poses the window keeps for --window-distance (default {SmootherConfig.window_max})",
+    )
+    p.add_argument(
         "--global-every",
         type=int,
         default=SmootherConfig.global_every,
@@ -224,6 +239,8 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
                 relinearize_every=every,
                 global_every=args.global_every,
                 global_delay=args.global_delay,
+                window_distance=args.window_distance,
+                window_max=args.window_max,
             ),
             BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), initial=args.batch_init),
         )

@@ -80,7 +80,13 @@ class SmootherConfig:
     """Settings of the sliding-window smoother."""
 
     window: int = 20
-    """W: poses kept as variables (>= 1); older ones are marginalized."""
+    """W: poses kept as variables at least (>= 1); older ones are marginalized once the window is full (below)."""
+    window_distance: float = 5.0
+    """The window also keeps poses beyond W until the path from its oldest pose to its newest is at least this
+    long (metres, by odometry; up to ``window_max`` poses): sized by motion, it spans W poses where the robot moves
+    far per pose and more where it creeps, so that the poses it freezes have seen enough geometry. 0: W poses."""
+    window_max: int = 120
+    """Most poses the window keeps to span ``window_distance`` (never fewer than W; ignored when that is 0)."""
     relinearize_every: int = 1
     """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
     solver: SolverConfig = field(
@@ -131,6 +137,8 @@ class SmootherConfig:
             raise ValueError("global_every and global_delay must be >= 0, global_iterations >= 1")
         if self.window < 1:
             raise ValueError("window must be >= 1")
+        if not 0.0 <= self.window_distance < math.inf or self.window_max < 1:
+            raise ValueError("window_distance must be finite and >= 0, window_max >= 1")
         if self.relinearize_every < 1:
             raise ValueError("relinearize_every must be >= 1")
 
@@ -934,6 +942,16 @@ class SlidingWindowSmoother:
             "global_cost_after": result.final_cost,
         }
 
+    def _window_full(self) -> bool:
+        """Whether the oldest window pose is to be marginalized (see ``window`` and ``window_distance``)."""
+        c, n = self.config, len(self.window)
+        if n <= c.window:
+            return False
+        if not c.window_distance or n > c.window_max:  # n > window >= ... : never fewer than W
+            return True
+        path = sum(math.hypot(*self._odometry[g][0][:2]) for g in self.window[2:] if g in self._odometry)
+        return path >= c.window_distance
+
     # -- protocol --------------------------------------------------------------------------------
     def step(self, step: Step) -> Snapshot:
         """Add the step; solve every K steps; marginalize beyond W poses."""
@@ -948,7 +966,7 @@ class SlidingWindowSmoother:
             if self._since_solve >= self.config.relinearize_every:
                 report = self._solve()
             marginalized = []
-            while len(self.window) > self.config.window:
+            while self._window_full():
                 if self.window[0] in self._unsolved:
                     report = self._solve()
                 marginalized.append(self.window[0])
