@@ -155,7 +155,9 @@ def test_robust_smoother_with_a_large_window_equals_robust_batch(kind: str) -> N
 
 
 def test_snapshots_report_the_window_and_solves() -> None:
-    _, smoother, final, _, _, snapshots = run(square_world(), SmootherConfig(window=5, relinearize_every=3, window_distance=0.0))
+    _, smoother, final, _, _, snapshots = run(
+        square_world(), SmootherConfig(window=5, relinearize_every=3, window_distance=0.0)
+    )
     relinearized = [s.index for s in snapshots if s.info["relinearized"]]
     assert relinearized[:3] == [2, 5, 8]  # every 3 steps
     s = snapshots[10]
