@@ -191,7 +191,11 @@ class PeerOnline:
 
 
 def isam2_online(
-    steps: list, relinearize_threshold: float = 0.01, relinearize_skip: int = 1, cauchy: float | None = None
+    steps: list,
+    relinearize_threshold: float = 0.01,
+    relinearize_skip: int = 1,
+    cauchy: float | None = None,
+    huber: float | None = None,
 ) -> PeerOnline:
     """Run GTSAM's iSAM2 step by step (one update per step, reading the latest pose), native factors.
 
@@ -203,6 +207,7 @@ def isam2_online(
         relinearize_threshold: iSAM2's relinearization threshold.
         relinearize_skip: Relinearize every this many updates.
         cauchy: Put a Cauchy kernel of this width (sigmas) on the observation factors (None: Gaussian).
+        huber: Or a Huber kernel of this width.
 
     Returns:
         Online poses, final poses and per-step times.
@@ -248,6 +253,8 @@ def isam2_online(
             noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(np.asarray(cov)[::-1, ::-1]))
             if cauchy is not None:
                 noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy), noise)
+            elif huber is not None:
+                noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(huber), noise)
             graph.add(gtsam.BearingRangeFactor2D(X(i), key, gtsam.Rot2(z[1]), z[0], noise))
         isam.update(graph, values)
         latest = _vec(isam.calculateEstimatePose2(X(i)))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 from online_slam.bench.batch import run_batch_bench
 from online_slam.bench.ekf import time_smoother, time_steps, time_updates
@@ -12,11 +13,11 @@ from online_slam.sources.worlds import GridConfig
 
 SECTIONS = (
     "batch", "ekf-update", "online", "api", "checkpoint", "recording", "association", "fuzz", "robust", "big",
-    "sweep", "soak",
+    "mrclam", "sweep", "soak",
 )  # fmt: skip
-DEFAULT_SECTIONS = SECTIONS[:-3]
-"""The big world (5000 poses beside iSAM2, minutes), the sweep (MRCLAM data) and the soak (100,000 poses,
-minutes) run only when asked for (``--only``)."""
+DEFAULT_SECTIONS = SECTIONS[:-4]
+"""The big world (5000 poses beside iSAM2, minutes), MRCLAM and the sweep (MRCLAM data) and the soak (100,000
+poses, minutes) run only when asked for (``--only``)."""
 
 
 def _repeats(args: argparse.Namespace, default: int = 3) -> int:
@@ -57,7 +58,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
-    p.add_argument("--mrclam", default="../shared/data/MRCLAM_Dataset6", help="sweep: the MRCLAM Dataset 6 folder")
+    p.add_argument(
+        "--mrclam", default="../shared/data/MRCLAM_Dataset6", help="mrclam, sweep: the MRCLAM Dataset 6 folder"
+    )
 
 
 def _batch(args: argparse.Namespace, world: GridConfig) -> None:
@@ -251,8 +254,28 @@ def _robust(args: argparse.Namespace, world: GridConfig) -> None:
         )
 
 
+def _mrclam(args: argparse.Namespace) -> None:
+    from online_slam.bench.mrclam import HUBER, run_robot
+
+    folder = Path(args.mrclam)
+    if not folder.is_dir():
+        raise OnlineSlamError(f"bench mrclam: no MRCLAM folder at {folder} (give --mrclam PATH)")
+    print(f"MRCLAM Dataset 6: default smoother beside GTSAM iSAM2 + Huber {HUBER} on the same steps (ATE vs Vicon, m)")
+    print(f"{'robot':<7}{'poses':>6}{'online':>9}{'iSAM2':>9}{'ratio':>7}{'final':>9}{'iSAM2':>9}{'ms':>7}"
+          f"{'iSAM2 ms':>10}")  # fmt: skip
+    met = 0
+    for robot in range(1, 6):
+        r = run_robot(folder, robot)
+        peer = (r.peer_online_m, r.peer_final_m, r.peer_median_ms)
+        ratio = f"{r.online_m / r.peer_online_m:>7.2f}" if r.peer_online_m else f"{'-':>7}"
+        met += bool(r.peer_online_m and r.online_m <= r.peer_online_m)
+        cells = [f"{v:>9.3f}" if v is not None else f"{'-':>9}" for v in peer]
+        print(f"{r.robot:<7}{r.poses:>6}{r.online_m:>9.3f}{cells[0]}{ratio}{r.final_m:>9.3f}{cells[1]}"
+              f"{r.median_ms:>7.2f}{cells[2]:>10}")  # fmt: skip
+    print(f"target: smoother online ATE <= iSAM2's per robot: {met} of 5 met")
+
+
 def _sweep(args: argparse.Namespace) -> None:
-    from pathlib import Path
 
     from online_slam.sweep import make_cells, run_cell, sweep
 
@@ -304,6 +327,8 @@ def run(args: argparse.Namespace) -> int:
             _robust(args, world)
         elif section == "big":
             _big(args)
+        elif section == "mrclam":
+            _mrclam(args)
         elif section == "sweep":
             _sweep(args)
         elif section == "soak":

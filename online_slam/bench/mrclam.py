@@ -1,0 +1,81 @@
+"""MRCLAM Dataset 6, each robot: the default smoother's online and final ATE beside GTSAM iSAM2 + Huber.
+
+Both run on the same front-end steps of our conversion (poses at sighting times, odometry integrated from the
+commands, its noise along the axes of the pose reached). iSAM2: relinearization threshold 0.01 every step, a
+Huber kernel of 1.345 sigmas on the sightings; its between factors take our odometry covariance rotated into their
+frame (:func:`~online_slam.bench.gtsam_peer.between_covariance`). Errors: position RMSE against Vicon at the poses
+Vicon covers, in the dataset's frame (the start pose is Vicon's), each pose as estimated when newest (online) and
+at the end (final).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from online_slam.bench import gtsam_peer
+from online_slam.engine import Engine
+from online_slam.estimators.smoother import SlidingWindowSmoother
+from online_slam.importers.resolve import open_source
+
+HUBER = 1.345
+"""iSAM2's Huber kernel width (sigmas), as in the issue's reference figures."""
+
+
+@dataclass(frozen=True)
+class RobotRow:
+    """One robot's figures."""
+
+    robot: int
+    """MRCLAM robot number."""
+    poses: int
+    """Poses (steps) in the stream."""
+    online_m: float
+    """Default smoother: RMSE of each pose as estimated when newest."""
+    final_m: float
+    """Default smoother: RMSE of its final estimate."""
+    median_ms: float
+    """Default smoother: median step time."""
+    peer_online_m: float | None
+    """iSAM2 + Huber: online RMSE (None without gtsam)."""
+    peer_final_m: float | None
+    """iSAM2 + Huber: final RMSE."""
+    peer_median_ms: float | None
+    """iSAM2 + Huber: median step time."""
+
+
+def _rmse(poses: np.ndarray, truth: np.ndarray, rows: list[int]) -> float:
+    return float(np.sqrt(np.mean(np.sum((poses[rows, :2] - truth[:, :2]) ** 2, axis=1))))
+
+
+def run_robot(folder: str | Path, robot: int) -> RobotRow:
+    """Replay one robot with the default smoother and (when gtsam is there) iSAM2 + Huber on the same steps."""
+    _, events = open_source(str(folder), robot=robot)
+    smoother = SlidingWindowSmoother()
+    engine = Engine([smoother])
+    steps, online, seconds = [], [], []
+    records = [engine.push(e) for e in events]
+    records.append(engine.close())
+    for record in records:
+        if record is not None:
+            steps.append(record.step)
+            online.append(np.array(record.snapshots[smoother.name].pose, dtype=float))
+            seconds.append(record.seconds[smoother.name])
+    final = smoother.finish().poses
+    truth_by_index = engine.frontend.truth.poses
+    rows = [k for k, s in enumerate(steps) if s.index in truth_by_index]
+    truth = np.array([truth_by_index[steps[k].index] for k in rows])
+    ours = np.array(online)
+    peer = gtsam_peer.isam2_online(steps, huber=HUBER) if gtsam_peer.available() else None
+    return RobotRow(
+        robot,
+        len(steps),
+        _rmse(ours, truth, rows),
+        _rmse(final, truth, rows),
+        1e3 * float(np.median(seconds)),
+        None if peer is None else _rmse(peer.poses, truth, rows),
+        None if peer is None else _rmse(peer.final_poses, truth, rows),
+        None if peer is None else 1e3 * float(np.median(peer.step_s)),
+    )
