@@ -4,6 +4,7 @@ beside GTSAM's iSAM2 on the same steps."""
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,8 +113,13 @@ def _latency(label: str, seconds: Array, poses: Array, truth: Array) -> StepLate
     return StepLatency(label, float(np.median(ms)), float(p95), float(p99), float(ms.max()), rmse)
 
 
-def _drive(estimator: object, events: list) -> tuple[Array, Array, Array, list]:
-    """Push events through the engine (the one way in); per-step seconds, online poses, truth, and the steps."""
+def drive(estimator: object, events: Iterable) -> tuple[Array, Array, list, dict]:
+    """Push events through the engine (the one way in).
+
+    Returns:
+        (per-step seconds (N,), online poses (N, 3), the steps, the true poses by pose index where the stream has
+        them).
+    """
     engine = Engine([estimator])  # type: ignore[list-item]
     seconds, poses, steps = [], [], []
     name = estimator.name  # type: ignore[attr-defined]
@@ -123,8 +129,13 @@ def _drive(estimator: object, events: list) -> tuple[Array, Array, Array, list]:
             seconds.append(record.seconds[name])
             poses.append(record.snapshots[name].pose)
             steps.append(record.step)
-    truth = np.array([engine.frontend.truth.poses[s.index] for s in steps])
-    return np.array(seconds), np.array(poses), truth, steps
+    return np.array(seconds), np.array(poses), steps, engine.frontend.truth.poses
+
+
+def _drive(estimator: object, events: list) -> tuple[Array, Array, Array, list]:
+    """:func:`drive` over a world with truth at every pose: per-step seconds, online poses, truth, the steps."""
+    seconds, poses, steps, truth = drive(estimator, events)
+    return seconds, poses, np.array([truth[s.index] for s in steps]), steps
 
 
 def time_steps(config: GridConfig, with_peer: bool = True) -> tuple[int, list[StepLatency]]:

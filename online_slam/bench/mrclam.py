@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from online_slam.bench import gtsam_peer
-from online_slam.engine import Engine
+from online_slam.bench.ekf import drive
 from online_slam.estimators.smoother import SlidingWindowSmoother
 from online_slam.importers.resolve import open_source
 
@@ -54,20 +54,10 @@ def run_robot(folder: str | Path, robot: int) -> RobotRow:
     """Replay one robot with the default smoother and (when gtsam is there) iSAM2 + Huber on the same steps."""
     _, events = open_source(str(folder), robot=robot)
     smoother = SlidingWindowSmoother()
-    engine = Engine([smoother])
-    steps, online, seconds = [], [], []
-    records = [engine.push(e) for e in events]
-    records.append(engine.close())
-    for record in records:
-        if record is not None:
-            steps.append(record.step)
-            online.append(np.array(record.snapshots[smoother.name].pose, dtype=float))
-            seconds.append(record.seconds[smoother.name])
+    seconds, ours, steps, truth_by_index = drive(smoother, events)
     final = smoother.finish().poses
-    truth_by_index = engine.frontend.truth.poses
     rows = [k for k, s in enumerate(steps) if s.index in truth_by_index]
     truth = np.array([truth_by_index[steps[k].index] for k in rows])
-    ours = np.array(online)
     peer = gtsam_peer.isam2_online(steps, huber=HUBER) if gtsam_peer.available() else None
     return RobotRow(
         robot,

@@ -276,7 +276,6 @@ def _mrclam(args: argparse.Namespace) -> None:
 
 
 def _sweep(args: argparse.Namespace) -> None:
-
     from online_slam.sweep import make_cells, run_cell, sweep
 
     folder = Path(args.mrclam)

@@ -947,7 +947,7 @@ class SlidingWindowSmoother:
         c, n = self.config, len(self.window)
         if n <= c.window:
             return False
-        if not c.window_distance or n > c.window_max:  # n > window >= ... : never fewer than W
+        if not c.window_distance or n > c.window_max:  # n > W already: never fewer than W poses
             return True
         path = sum(math.hypot(*self._odometry[g][0][:2]) for g in self.window[2:] if g in self._odometry)
         return path >= c.window_distance
