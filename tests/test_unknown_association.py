@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from online_slam import Slam
-from online_slam.estimators.landmark_book import AssociationConfig
+from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.evaluation.association import score_association, true_labels
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.events import Observation, Odometry, Start
@@ -49,6 +49,27 @@ def test_jcbb_on_a_small_world_pairs_right_and_stays_close_to_known_ids(small_ru
     assert jcbb.estimators["batch"].landmark_rmse_m is not None  # mapped landmarks scored against their true ones
     nn = small_runs["nn"].estimators["ekf"].association
     assert nn.method == "nn" and nn.accuracy >= 0.9
+
+
+def test_new_density_turns_an_unlikely_pairing_into_a_new_landmark() -> None:
+    """After a poorly known turn (heading sigma 0.3 rad) a tree 5 m ahead passes the gate of a mapped tree 2.2 m
+    to its side (d2 about 2.3); as a sighting of that tree it is less likely than of an unmapped one at 0.5 / m^2."""
+    pose, pose_cov = np.zeros(3), np.diag([0.01, 0.01, 0.09])
+    positions, ids = np.array([[5.0, 0.0]]), ["L"]
+
+    def covariance_of(candidates: np.ndarray) -> np.ndarray:
+        cov = np.eye(3 + 2 * len(candidates)) * 0.01
+        cov[:3, :3] = pose_cov
+        return cov
+
+    R = np.diag([0.05**2, 0.01**2])[None]
+    aside, ahead = np.array([[5.0, 0.45]]), np.array([[5.0, 0.0]])
+    for density, expected in ((0.0, "L"), (0.5, "new")):
+        book = LandmarkBook(AssociationConfig(method="jcbb", new_density=density), inside=True)
+        got = book.assign(1, pose, pose_cov, aside, R, positions, ids, covariance_of)[0]
+        assert (got == "L") == (expected == "L"), (density, got)
+        assert book.report()["unlikely_pairings"] == (expected != "L")
+        assert book.assign(2, pose, pose_cov, ahead, R, positions, ids, covariance_of) == ["L"]  # right on it: paired
 
 
 def test_known_ids_are_unchanged_by_the_association_machinery(small_runs) -> None:

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
-from online_slam.frontend.association import Belief, associate
+from online_slam.frontend.association import Association, Belief, associate, individual_log_likelihoods
 from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.sources.events import LandmarkId
 
@@ -64,6 +64,11 @@ class AssociationConfig:
     tentative_steps: int = 15
     """A tentative landmark not confirmed within this many steps of its first sighting is dropped (keep it below
     the smoother's window, so that its sightings can still be added when it is confirmed)."""
+    new_density: float = 0.0
+    """Density of landmarks not yet mapped (per m^2): a pairing is kept only if the sighting is likelier a
+    sighting of its landmark (the innovation's Gaussian density, per unit of range x bearing) than of an unmapped
+    landmark (this density times the range); otherwise the sighting starts a new tentative landmark, however near
+    a mapped one it lies. 0 (default): no such test (JCBB's pairing stands)."""
     reach: float = 2.0
     """Candidates: landmarks within the scan's longest range plus this margin (m) plus three sigmas of the
     pose's position and heading from the predicted pose."""
@@ -73,6 +78,8 @@ class AssociationConfig:
             raise ValueError(f"association must be one of {', '.join(ASSOCIATION_CHOICES)}, not {self.method!r}")
         if not 0.0 < self.gate_probability < 1.0 or not self.gate_probability <= self.new_probability < 1.0:
             raise ValueError("need 0 < gate_probability <= new_probability < 1")
+        if not 0.0 <= self.new_density < np.inf:
+            raise ValueError("new_density must be finite and >= 0")
         if self.confirm < 1 or self.tentative_steps < 1:
             raise ValueError("confirm and tentative_steps must be >= 1")
 
@@ -138,6 +145,8 @@ class LandmarkBook:
         """Tentative landmarks dropped unconfirmed."""
         self.ambiguous = 0
         """Sightings kept out: no landmark took them, but one was too close for a new landmark."""
+        self.unlikely = 0
+        """Sightings JCBB paired that were likelier of an unmapped landmark (``new_density``): made new ones."""
 
     # -- the scan ----------------------------------------------------------------------------------
     def expire(self, step_index: int) -> list[LandmarkId]:
@@ -233,6 +242,8 @@ class LandmarkBook:
             if len(candidates):
                 belief = Belief(pose, positions[candidates], covariance_of(candidates))
                 pairing = associate(self.config.scan_method, belief, z, R, self.config.gate_probability)
+                if self.config.new_density > 0.0:
+                    pairing = self._likely(pairing, belief, z, R)
                 for i in np.flatnonzero(pairing.landmark >= 0):
                     lid = ids[int(candidates[pairing.landmark[i]])]
                     out[i] = labels[i] = lid
@@ -241,8 +252,9 @@ class LandmarkBook:
                 distances = pairing.distances.copy()
                 distances[:, pairing.landmark[paired]] = np.inf  # a landmark taken in this scan is not that one
                 near = distances.min(axis=1) <= self._new_gate
-                self.ambiguous += int(np.sum(~paired & near))
-                free = ~paired & ~near
+                new = pairing.landmark == -2  # less likely than an unmapped landmark: a new one, however near
+                self.ambiguous += int(np.sum(~paired & ~new & near))
+                free = (~paired & ~near) | new
         if free.any():
             known = set(ids) if known is None else known
             if self.inside:
@@ -254,6 +266,21 @@ class LandmarkBook:
                 self._tentative(step_index, pose, pose_cov, z, R, free, out, labels, known)
         self._labels.extend(labels)
         return out
+
+    def _likely(self, pairing: Association, belief: Belief, z: Array, R: Array) -> Association:
+        """The pairing without pairs less likely than a sighting of an unmapped landmark (``new_density``)."""
+        paired = np.flatnonzero(pairing.landmark >= 0)
+        if len(paired) == 0:
+            return pairing
+        _, log_l = individual_log_likelihoods(belief, z[paired], R[paired])
+        own = log_l[np.arange(len(paired)), pairing.landmark[paired]]
+        unlikely = own < np.log(self.config.new_density * z[paired, 0])
+        if not unlikely.any():
+            return pairing
+        landmark = pairing.landmark.copy()
+        landmark[paired[unlikely]] = -2
+        self.unlikely += int(unlikely.sum())
+        return Association(landmark, pairing.joint_distance, pairing.distances)
 
     def _seen_again(self, lid: LandmarkId, step_index: int) -> None:
         """Inside: a tentative landmark paired again (once per step counts); confirmed at ``confirm``."""
@@ -399,6 +426,7 @@ class LandmarkBook:
             "tentative_dropped": self.dropped,
             "tentative_left": self.tentative,
             "ambiguous_sightings": self.ambiguous,
+            "unlikely_pairings": self.unlikely,
         }
 
     # -- checkpoints -------------------------------------------------------------------------------
@@ -426,6 +454,7 @@ class LandmarkBook:
             "retro": [[lid, g, zz, RR] for lid, g, zz, RR in self.retro],
             "dropped": self.dropped,
             "ambiguous": self.ambiguous,
+            "unlikely": self.unlikely,
         }
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -453,3 +482,4 @@ class LandmarkBook:
             (lid, int(g), np.array(zz, dtype=float), np.array(RR, dtype=float)) for lid, g, zz, RR in state["retro"]
         ]
         self.dropped, self.ambiguous = int(state["dropped"]), int(state["ambiguous"])
+        self.unlikely = int(state.get("unlikely", 0))

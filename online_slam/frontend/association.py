@@ -74,9 +74,15 @@ def individual_distances(belief: Belief, z: Array, R: Array) -> Array:
         z: Sightings ``[range, bearing]``, shape (k, 2).
         R: Their noise covariances, shape (k, 2, 2).
     """
+    return individual_log_likelihoods(belief, z, R)[0]
+
+
+def individual_log_likelihoods(belief: Belief, z: Array, R: Array) -> tuple[Array, Array]:
+    """Squared Mahalanobis distances ``d2`` and log densities ``-d2 / 2 - log(2 pi sqrt(det S))`` of every
+    (sighting, landmark) pair, shapes (k, M) each (densities per unit of range x bearing)."""
     k, M = len(z), len(belief.landmarks)
     if k == 0 or M == 0:
-        return np.full((k, M), np.inf)
+        return np.full((k, M), np.inf), np.full((k, M), -np.inf)
     nu, J_p, J_l = _innovations(belief, z)
     P = belief.covariance
     cols = 3 + 2 * np.arange(M)
@@ -90,7 +96,9 @@ def individual_distances(belief: Belief, z: Array, R: Array) -> Array:
         + J_l @ P_ll @ np.swapaxes(J_l, 1, 2)
     )  # (M, 2, 2)
     S = HPH[None, :, :, :] + R[:, None, :, :]  # (k, M, 2, 2)
-    return np.einsum("kmi,kmi->km", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    d2 = np.einsum("kmi,kmi->km", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    log_det = np.log(S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] * S[..., 1, 0])
+    return d2, -0.5 * d2 - 0.5 * log_det - np.log(2.0 * np.pi)
 
 
 def nearest_neighbour(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:

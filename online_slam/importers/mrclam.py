@@ -9,18 +9,25 @@
 - Start pose: Vicon ground truth interpolated at the first pose time, with a small prior. Truth interpolated at
   pose times where Vicon covers them; landmark truth from ``Landmark_Groundtruth.dat``.
 
-Noise model (``MrclamNoise``): per-increment variances ``var = a * dt + b * s^2 + floor`` with dt the
-elapsed time, s the commanded path length (x, y) or turned angle (theta), of a perturbation at the end of the
+Noise model (``MrclamNoise``): per-increment variances ``var = a * dt + b * |s| + c * s^2 + floor`` with dt
+the elapsed time, s the commanded path length (x, y) or turned angle (theta), of a perturbation at the end of the
 increment (forward and lateral along the axes of the pose it reaches, as GTSAM's between factor has it; written
 to the stream as a full covariance in the earlier pose's frame, see :func:`increment_covariances`); range and
 bearing sigmas. Measured on Dataset 6 (all robots, 8,812 Vicon-covered increments), this end-frame model fits
 the data better than the same variances along the earlier pose's axes (log-likelihood higher by 358), and on
 MRCLAM robot 1 it halves the smoother's online error (0.46 -> 0.24 m; iSAM2 with GTSAM's factor: 0.22 m). The default
-coefficients are maximum-likelihood fits against Vicon over Dataset 6 (see ../shared/ANCHORS.md, where the same
-conversion is described); the floor keeps 1-ms-apart poses well conditioned. :mod:`online_slam.importers.mrclam_noise`
-repeats the fit on a folder (``--noise fit``): it reproduces the x and heading coefficients within 5%; its lateral
-term is pure path-squared, and its range/bearing sigmas are median-based (0.131 m, 0.0083 rad: the core of the
-residuals, with the misread rows left out) where the built-in ones are plain Gaussian fits (0.178 m, 0.0125 rad).
+coefficients are maximum-likelihood fits against Vicon over Dataset 6; the floor keeps 1-ms-apart poses well
+conditioned. The data choose the form per axis: forward and lateral variances grow with the squared path (the
+linear term fits to zero), the heading variance with the angle turned (a random walk in the angle: ``0.020 |turn|``,
+the squared term fits to zero). ../shared/ANCHORS.md describes an older conversion with a squared-turn heading term
+(``0.47 turn^2``): its log-likelihood is lower by 148 and it is badly calibrated: increments turning more than 0.8
+rad (often long blind stretches) err by 0.17 rad RMS where it predicts 1.09 rad (z RMS 0.13), and small turns err
+more than it predicts (z RMS 1.39 at 0.01-0.05 rad); the linear term gives z RMS 0.80-1.18 in every size band.
+Such an over-wide heading sigma after a long turn let association pair a cluster of tubes with another cluster a
+1.2 rad turn away (``--association jcbb``, robot 1 step 131). :mod:`online_slam.importers.mrclam_noise` repeats
+the fit on a folder (``--noise fit``): it reproduces the x and heading coefficients within 5%; its range/bearing
+sigmas are median-based (0.131 m, 0.0083 rad: the core of the residuals, with the misread rows left out) where the
+built-in ones are plain Gaussian fits (0.178 m, 0.0125 rad).
 """
 
 from __future__ import annotations
@@ -44,15 +51,21 @@ class MrclamNoise:
 
     x_per_s: float = 2.9e-5
     """Forward variance per second elapsed, m^2/s."""
+    x_per_m: float = 0.0
+    """Forward variance per metre of commanded path, m^2/m."""
     x_per_m2: float = 0.019
     """Forward variance per squared metre of commanded path."""
     y_per_s: float = 4.7e-7
     """Lateral variance per second, m^2/s."""
+    y_per_m: float = 0.0
+    """Lateral variance per metre of commanded path, m^2/m."""
     y_per_m2: float = 0.0011
     """Lateral variance per squared metre of commanded path."""
-    theta_per_s: float = 3.5e-4
+    theta_per_s: float = 3.0e-4
     """Heading variance per second, rad^2/s."""
-    theta_per_rad2: float = 0.47
+    theta_per_rad: float = 0.020
+    """Heading variance per radian of commanded turn, rad^2/rad (a random walk in the angle turned)."""
+    theta_per_rad2: float = 0.0
     """Heading variance per squared radian of commanded turn."""
     floor: float = 1e-6
     """Added to every variance."""
@@ -208,9 +221,9 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     dt, ds, da = np.diff(times), np.diff(path), np.diff(turn)
     variances = np.stack(
         [
-            cfg.x_per_s * dt + cfg.x_per_m2 * ds**2 + cfg.floor,
-            cfg.y_per_s * dt + cfg.y_per_m2 * ds**2 + cfg.floor,
-            cfg.theta_per_s * dt + cfg.theta_per_rad2 * da**2 + cfg.floor,
+            cfg.x_per_s * dt + cfg.x_per_m * np.abs(ds) + cfg.x_per_m2 * ds**2 + cfg.floor,
+            cfg.y_per_s * dt + cfg.y_per_m * np.abs(ds) + cfg.y_per_m2 * ds**2 + cfg.floor,
+            cfg.theta_per_s * dt + cfg.theta_per_rad * np.abs(da) + cfg.theta_per_rad2 * da**2 + cfg.floor,
         ],
         -1,
     )

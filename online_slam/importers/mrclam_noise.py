@@ -1,11 +1,11 @@
 """Choosing the MRCLAM noise model from data: a maximum-likelihood fit against the Vicon ground truth.
 
 The conversion (:mod:`online_slam.importers.mrclam`) models each odometry increment's error as independent
-Gaussians per axis with variance ``a * dt + b * s^2 + floor`` (dt elapsed seconds, s the commanded path length
-or turned angle). This module measures, for every robot of a dataset folder, the error of each commanded
+Gaussians per axis with variance ``a * dt + b * |s| + c * s^2 + floor`` (dt elapsed seconds, s the commanded
+path length or turned angle). This module measures, for every robot of a dataset folder, the error of each commanded
 increment against the increment between the interpolated Vicon poses at the same two times (in the frame the
-commanded increment reaches, as the conversion models it), and fits ``a`` and
-``b`` per axis by maximum likelihood (``scipy.optimize.minimize`` over the logarithms, so both stay positive).
+commanded increment reaches, as the conversion models it), and fits ``a``, ``b`` and
+``c`` per axis by maximum likelihood (``scipy.optimize.minimize`` over the logarithms, so both stay positive).
 Range and bearing sigmas are the robust standard deviations (1.4826 x median absolute deviation) of the
 measurement residuals against the Vicon pose and the surveyed landmark positions: robust, because a few rows
 carry another landmark's barcode and would dominate a plain standard deviation.
@@ -48,8 +48,8 @@ class NoiseFit:
     """Median bearing residual (measured - true), radians."""
 
 
-def fit_variance(errors: Array, dt: Array, size: Array, floor: float) -> tuple[float, float]:
-    """Maximum-likelihood ``(a, b)`` of ``errors ~ N(0, a * dt + b * size^2 + floor)``.
+def fit_variance(errors: Array, dt: Array, size: Array, floor: float) -> tuple[float, float, float]:
+    """Maximum-likelihood ``(a, b, c)`` of ``errors ~ N(0, a * dt + b * |size| + c * size^2 + floor)``.
 
     Args:
         errors: Increment errors of one axis, shape (N,).
@@ -58,22 +58,25 @@ def fit_variance(errors: Array, dt: Array, size: Array, floor: float) -> tuple[f
         floor: Variance added to every increment.
 
     Returns:
-        The coefficients (a per second, b per squared unit of size).
+        The coefficients (a per second, b per unit of size, c per squared unit of size); a term the data do not
+        support comes out near zero (the lower bound, e^-40).
     """
-    e2, s2 = errors**2, size**2
+    e2 = errors**2
+    features = np.stack([dt, np.abs(size), size**2], -1)  # (N, 3)
 
-    def negative_log_likelihood(log_ab: Array) -> tuple[float, Array]:
-        a, b = np.exp(log_ab)
-        var = a * dt + b * s2 + floor
+    def negative_log_likelihood(log_abc: Array) -> tuple[float, Array]:
+        coefficients = np.exp(log_abc)
+        var = features @ coefficients + floor
         value = 0.5 * float(np.sum(np.log(var) + e2 / var))
         d_var = 0.5 * (1.0 / var - e2 / var**2)
-        return value, np.array([a * float(d_var @ dt), b * float(d_var @ s2)])
+        return value, coefficients * (d_var @ features)
 
     mean_e2 = float(np.mean(e2))
-    start = np.log([max(mean_e2 / max(float(np.mean(dt)), 1e-9), 1e-12), max(mean_e2, 1e-12)])
-    result = minimize(negative_log_likelihood, start, jac=True, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 2)
-    a, b = np.exp(result.x)
-    return float(a), float(b)
+    scale = np.maximum(features.mean(axis=0), 1e-9)
+    start = np.log(np.maximum(mean_e2 / (3.0 * scale), 1e-12))
+    result = minimize(negative_log_likelihood, start, jac=True, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 3)
+    a, b, c = np.exp(result.x)
+    return float(a), float(b), float(c)
 
 
 def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array]):
@@ -124,17 +127,20 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     range_residuals = np.concatenate([p[1] for p in parts])
     bearing_residuals = np.concatenate([p[2] for p in parts])
     floor = defaults.floor
-    x_a, x_b = fit_variance(errors[:, 0], dt, path, floor)
-    y_a, y_b = fit_variance(errors[:, 1], dt, path, floor)
-    t_a, t_b = fit_variance(errors[:, 2], dt, turn, floor)
+    x_a, x_b, x_c = fit_variance(errors[:, 0], dt, path, floor)
+    y_a, y_b, y_c = fit_variance(errors[:, 1], dt, path, floor)
+    t_a, t_b, t_c = fit_variance(errors[:, 2], dt, turn, floor)
     range_bias, bearing_bias = float(np.median(range_residuals)), float(np.median(bearing_residuals))
     noise = MrclamNoise(
         x_per_s=x_a,
-        x_per_m2=x_b,
+        x_per_m=x_b,
+        x_per_m2=x_c,
         y_per_s=y_a,
-        y_per_m2=y_b,
+        y_per_m=y_b,
+        y_per_m2=y_c,
         theta_per_s=t_a,
-        theta_per_rad2=t_b,
+        theta_per_rad=t_b,
+        theta_per_rad2=t_c,
         floor=floor,
         range_sigma=MAD_TO_SIGMA * float(np.median(np.abs(range_residuals - range_bias))),
         bearing_sigma=MAD_TO_SIGMA * float(np.median(np.abs(bearing_residuals - bearing_bias))),
