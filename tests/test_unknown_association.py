@@ -147,6 +147,27 @@ def test_cli_association_flag_and_table(tmp_path: Path) -> None:
         assert association["accuracy"] > 0.9
 
 
+def test_cli_new_density_option(tmp_path: Path) -> None:
+    stream = tmp_path / "grid.jsonl"
+    write_stream(stream, grid_world(replace(SMALL, poses=80)))
+    out = tmp_path / "r.json"
+    base = [sys.executable, "-m", "online_slam", "replay", str(stream), "--association", "jcbb", "--quiet"]
+    proc = subprocess.run(
+        [*base, "--estimators", "ekf,smoother", "--new-density", "0.05", "--json", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    document = json.loads(out.read_text())
+    for name in ("ekf", "smoother"):
+        association = document["estimators"][name]["association"]
+        assert association["unlikely_pairings"] >= 0 and association["accuracy"] > 0.9, association
+    bad = subprocess.run([*base, "--new-density", "-1"], capture_output=True, text=True, timeout=300)
+    assert bad.returncode != 0 and "new_density" in bad.stderr and "Traceback" not in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])
 def test_api_without_ids_save_load_continue_equals_uninterrupted(tmp_path: Path, estimator: str) -> None:
     events = list(without_ids(grid_world(replace(SMALL, poses=160))))

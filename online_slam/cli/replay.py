@@ -11,7 +11,7 @@ from pathlib import Path
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig
-from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
+from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES, AssociationConfig
 from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.robust import RobustLoss
@@ -170,6 +170,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
         "each online estimator against its own belief, new landmarks tentative until confirmed, the stream's ids "
         "only score it; default auto: known when the first sighting has an id, else jcbb",
     )
+    p.add_argument(
+        "--new-density",
+        type=float,
+        default=AssociationConfig.new_density,
+        metavar="D",
+        help="nn/jcbb: a pairing less likely than a sighting of an unmapped landmark at D per m^2 starts a new "
+        "landmark instead (default 0: off; see the README for what it does on MRCLAM and Victoria Park)",
+    )
     p.add_argument("--format", choices=DATASET_FORMATS, help="dataset format (default: detected)")
     p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
     p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
@@ -226,8 +234,12 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
         )
     names = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
     try:
+        association = AssociationConfig(new_density=args.new_density)
         ekf = EkfConfig(
-            gate_probability=args.gate_probability, gate_persistence=args.gate_persistence, update=args.ekf_update
+            gate_probability=args.gate_probability,
+            gate_persistence=args.gate_persistence,
+            update=args.ekf_update,
+            association=association,
         )
         window = getattr(args, "window", SmootherConfig.window)  # compare sets W and K lists of its own
         every = getattr(args, "relinearize_every", SmootherConfig.relinearize_every)
@@ -241,6 +253,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
                 global_delay=args.global_delay,
                 window_distance=args.window_distance,
                 window_max=args.window_max,
+                association=association,
             ),
             BatchConfig(solver=SolverConfig(max_iterations=args.max_iterations), initial=args.batch_init),
         )
