@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.estimators.protocol import Snapshot
-from online_slam.factors.graph import FactorGraph
+from online_slam.factors.graph import FactorGraph, sqrt_information
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
 from online_slam.models.range_bearing import landmark_from_observation
@@ -45,6 +46,47 @@ class ProblemLog:
         self._obs_landmark: list[Array] = []
         self._obs_z: list[Array] = []
         self._obs_cov: list[Array] = []
+        self._reset_cache()
+
+    def _reset_cache(self) -> None:
+        """Forget the concatenated factor arrays (rebuilt on demand)."""
+        # The chunk lists only grow and their arrays never change, so the concatenations (and the square-root
+        # information, computed per matrix) are extended with the chunks added since, never recomputed.
+        self._cached_obs = 0  # chunks covered
+        self._cat_obs: tuple[NDArray[np.int64], NDArray[np.int64], Array, Array, Array] | None = None
+        self._cached_odo = 0
+        self._cat_odo: tuple[Array, Array, Array] | None = None
+
+    def _observation_arrays(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array, Array]:
+        """Every sighting's pose, landmark index, z, covariance and square-root information, concatenated."""
+        n = len(self._obs_pose)
+        if self._cat_obs is None or self._cached_obs < n:
+            new = slice(self._cached_obs, n)
+            cov = _concat(self._obs_cov[new], (2, 2), float)
+            parts = (
+                _concat(self._obs_pose[new], (), np.int64).astype(np.int64),
+                _concat(self._obs_landmark[new], (), np.int64).astype(np.int64),
+                _concat(self._obs_z[new], (2,), float),
+                cov,
+                sqrt_information(cov) if len(cov) else np.zeros((0, 2, 2)),
+            )
+            if self._cat_obs is not None:
+                parts = tuple(np.concatenate([a, b]) for a, b in zip(self._cat_obs, parts))  # type: ignore[assignment]
+            self._cat_obs, self._cached_obs = parts, n
+        return self._cat_obs
+
+    def _odometry_arrays(self) -> tuple[Array, Array, Array]:
+        """Every odometry increment, its covariance and square-root information, shapes (K, 3), (K, 3, 3) x 2."""
+        n = len(self._odo_delta)
+        if self._cat_odo is None or self._cached_odo < n:
+            new = slice(self._cached_odo, n)
+            delta = np.array(self._odo_delta[new], dtype=float).reshape(-1, 3)
+            cov = np.array(self._odo_cov[new], dtype=float).reshape(-1, 3, 3)
+            parts = (delta, cov, sqrt_information(cov) if len(cov) else np.zeros((0, 3, 3)))
+            if self._cat_odo is not None:
+                parts = tuple(np.concatenate([a, b]) for a, b in zip(self._cat_odo, parts))  # type: ignore[assignment]
+            self._cat_odo, self._cached_odo = parts, n
+        return self._cat_odo
 
     @property
     def landmarks(self) -> Array:
@@ -116,6 +158,8 @@ class ProblemLog:
         copy.prior = self.prior
         for name in ("_odo_delta", "_odo_cov", "_obs_pose", "_obs_landmark", "_obs_z", "_obs_cov"):
             setattr(copy, name, list(getattr(self, name)))
+        copy._cached_obs, copy._cat_obs = self._cached_obs, self._cat_obs
+        copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
         return copy
 
     def state_dict(self) -> dict[str, Any]:
@@ -159,16 +203,11 @@ class ProblemLog:
         self._obs_landmark = split("obs_landmark", (), np.int64)
         self._obs_z = split("obs_z", (2,), float)
         self._obs_cov = split("obs_cov", (2, 2), float)
+        self._reset_cache()
 
     def sightings(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
         """Every sighting recorded, in order: (pose, landmark index or -1 without id, z (k, 2), cov (k, 2, 2))."""
-        cat = np.concatenate
-        return (
-            cat(self._obs_pose).astype(np.int64) if self._obs_pose else np.zeros(0, dtype=np.int64),
-            cat(self._obs_landmark) if self._obs_landmark else np.zeros(0, dtype=np.int64),
-            cat(self._obs_z) if self._obs_z else np.zeros((0, 2)),
-            cat(self._obs_cov) if self._obs_cov else np.zeros((0, 2, 2)),
-        )
+        return self._observation_arrays()[:4]
 
     def graph(self, labels: NDArray[np.int64] | None = None, n_landmarks: int | None = None) -> FactorGraph:
         """All factors recorded so far as one graph (start pose fixed, or a prior on it).
@@ -188,26 +227,27 @@ class ProblemLog:
                 fixed = [0]
             else:
                 prior_args = {"prior_pose": [0], "prior_mean": mean[None], "prior_cov": cov[None]}
-        obs_pose, obs_landmark, obs_z, obs_cov = self.sightings()
+        obs_pose, obs_landmark, obs_z, _, obs_sqrt = self._observation_arrays()
+        odo_delta, _, odo_sqrt = self._odometry_arrays()
         if labels is not None:
             obs_landmark = np.asarray(labels, dtype=np.int64)
         used = obs_landmark >= 0
         if len(obs_pose) > 1 and np.any(np.diff(obs_pose) < 0):  # sightings added at earlier poses: pose order
             used = np.flatnonzero(used)
             used = used[np.argsort(obs_pose[used], kind="stable")]
-        return FactorGraph.build(
-            n,
-            len(self.landmark_ids) if n_landmarks is None else n_landmarks,
-            fixed_poses=fixed,
-            **prior_args,  # type: ignore[arg-type]
-            odo_from=np.arange(n - 1),
-            odo_to=np.arange(1, n),
-            odo_delta=np.array(self._odo_delta).reshape(-1, 3),
-            odo_cov=np.array(self._odo_cov).reshape(-1, 3, 3),
+        base = FactorGraph.build(
+            n, len(self.landmark_ids) if n_landmarks is None else n_landmarks, fixed_poses=fixed, **prior_args
+        )
+        return replace(
+            base,
+            odo_from=np.arange(n - 1, dtype=np.int64),
+            odo_to=np.arange(1, n, dtype=np.int64),
+            odo_delta=odo_delta,
+            odo_sqrt_info=odo_sqrt,
             obs_pose=obs_pose[used],
             obs_landmark=obs_landmark[used],
             obs_z=obs_z[used],
-            obs_cov=obs_cov[used],
+            obs_sqrt_info=obs_sqrt[used],
         )
 
 

@@ -248,12 +248,24 @@ class _GlobalJob:
 
 
 def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]]) -> NDArray[np.bool_]:
-    """The graph's sightings judged outliers when their pose left the window (graph sightings in pose order)."""
+    """The graph's sightings judged outliers when their pose left the window (graph sightings in pose order).
+
+    A decision applies where the graph holds exactly as many sightings of its pose as it judged.
+    """
     drop = np.zeros(len(graph.obs_pose), dtype=bool)
-    for g, mask in decisions:
-        a, b = np.searchsorted(graph.obs_pose, [g, g + 1])
-        if b - a == len(mask):
-            drop[a:b] = mask
+    if not decisions:
+        return drop
+    poses = np.fromiter((g for g, _ in decisions), dtype=np.int64, count=len(decisions))
+    sizes = np.fromiter((len(m) for _, m in decisions), dtype=np.int64, count=len(decisions))
+    start = np.searchsorted(graph.obs_pose, poses)
+    applies = np.searchsorted(graph.obs_pose, poses + 1) - start == sizes
+    if not applies.any():
+        return drop
+    masks = np.concatenate([m for (_, m), ok in zip(decisions, applies.tolist()) if ok])
+    sizes, start = sizes[applies], start[applies]
+    # position of every judged sighting: its decision's start plus its rank within the decision
+    offsets = np.repeat(start - (np.cumsum(sizes) - sizes), sizes)
+    drop[np.arange(len(masks)) + offsets] = masks
     return drop
 
 
