@@ -171,3 +171,7 @@ def test_bench_prints_ratio_against_gtsam() -> None:
     sections = ("library API overhead", "checkpoint overhead", "compare --rrd: square", "association without ids")
     for section in (*sections, "fuzzing:", "robustness:"):
         assert section in done.stdout
+    # the latency ratios come from the smoother and iSAM2 run back to back (one round with --repeats 1)
+    assert "back to back, 1 rounds" in done.stdout
+    for line in ("ratio smoother default / iSAM2 median: ", "ratio smoother default / iSAM2 p99: "):
+        assert re.search(re.escape(line) + r"\d+\.\d\dx \(rounds: \d+\.\d\d\)", done.stdout), line

@@ -165,3 +165,46 @@ def time_smoother(config: GridConfig, windows: tuple[int, ...] = (10, 20, 50)) -
         seconds, poses, truth, _ = _drive(SlidingWindowSmoother(SmootherConfig(window=window, global_every=0)), events)
         rows.append(_latency(f"smoother W={window}", seconds, poses, truth))
     return rows
+
+
+@dataclass(frozen=True)
+class PairedRound:
+    """One round of the default smoother and iSAM2 run back to back on the same steps."""
+
+    smoother_median_ms: float
+    """The smoother's median step time."""
+    peer_median_ms: float
+    """iSAM2's median step time."""
+    smoother_p99_ms: float
+    """The smoother's 99th percentile."""
+    peer_p99_ms: float
+    """iSAM2's 99th percentile."""
+
+
+def paired_rounds(config: GridConfig, rounds: int = 3) -> list[PairedRound]:
+    """The default smoother and iSAM2, back to back, ``rounds`` times (the first of the pair alternates).
+
+    This machine's speed drifts by tens of per cent within minutes: a ratio of two runs taken minutes apart
+    measures the drift as much as the estimators, one of two runs taken back to back (in alternating order,
+    so a steady drift cancels over rounds) much less. Empty without GTSAM.
+    """
+    from online_slam.estimators.smoother import SlidingWindowSmoother
+
+    if not gtsam_peer.available():
+        return []
+    events = list(grid_world(config))
+    steps: list = []
+    out = []
+    for k in range(rounds):
+        figures: dict[str, tuple[float, float]] = {}
+        for who in ("smoother", "peer") if k % 2 == 0 else ("peer", "smoother"):
+            if who == "smoother":
+                seconds, _, steps, _ = drive(SlidingWindowSmoother(), events)
+            else:
+                if not steps:
+                    _, _, steps, _ = drive(SlidingWindowSmoother(), events)
+                seconds = gtsam_peer.isam2_online(steps).step_s
+            ms = np.asarray(seconds) * 1e3
+            figures[who] = (float(np.median(ms)), float(np.percentile(ms, 99)))
+        out.append(PairedRound(figures["smoother"][0], figures["peer"][0], figures["smoother"][1], figures["peer"][1]))
+    return out
