@@ -193,7 +193,7 @@ def paired_rounds(config: GridConfig, rounds: int = 3) -> list[PairedRound]:
     if not gtsam_peer.available():
         return []
     events = list(grid_world(config))
-    steps: list = []
+    steps: list = []  # from the first round's smoother run, which comes first
     out = []
     for k in range(rounds):
         figures: dict[str, tuple[float, float]] = {}
@@ -201,8 +201,6 @@ def paired_rounds(config: GridConfig, rounds: int = 3) -> list[PairedRound]:
             if who == "smoother":
                 seconds, _, steps, _ = drive(SlidingWindowSmoother(), events)
             else:
-                if not steps:
-                    _, _, steps, _ = drive(SlidingWindowSmoother(), events)
                 seconds = gtsam_peer.isam2_online(steps).step_s
             ms = np.asarray(seconds) * 1e3
             figures[who] = (float(np.median(ms)), float(np.percentile(ms, 99)))

@@ -22,6 +22,11 @@ def _concat(chunks: list[np.ndarray], shape: tuple[int, ...], dtype: type) -> np
     return np.concatenate(chunks) if chunks else np.zeros((0, *shape), dtype=dtype)
 
 
+def _extended(cached: tuple[np.ndarray, ...], new: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """Cached concatenations with the arrays of the chunks added since appended (``new`` when nothing cached)."""
+    return tuple(np.concatenate([a, b]) for a, b in zip(cached, new)) if cached else new
+
+
 class ProblemLog:
     """Every factor seen so far, plus initial values: poses by composed odometry, landmarks by first sight.
 
@@ -53,14 +58,14 @@ class ProblemLog:
         # The chunk lists only grow and their arrays never change, so the concatenations (and the square-root
         # information, computed per matrix) are extended with the chunks added since, never recomputed.
         self._cached_obs = 0  # chunks covered
-        self._cat_obs: tuple[NDArray[np.int64], NDArray[np.int64], Array, Array, Array] | None = None
+        self._cat_obs: tuple[Array, ...] = ()
         self._cached_odo = 0
-        self._cat_odo: tuple[Array, Array, Array] | None = None
+        self._cat_odo: tuple[Array, ...] = ()
 
-    def _observation_arrays(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array, Array]:
+    def _observation_arrays(self) -> tuple[Array, ...]:
         """Every sighting's pose, landmark index, z, covariance and square-root information, concatenated."""
         n = len(self._obs_pose)
-        if self._cat_obs is None or self._cached_obs < n:
+        if not self._cat_obs or self._cached_obs < n:
             new = slice(self._cached_obs, n)
             cov = _concat(self._obs_cov[new], (2, 2), float)
             parts = (
@@ -70,22 +75,20 @@ class ProblemLog:
                 cov,
                 sqrt_information(cov) if len(cov) else np.zeros((0, 2, 2)),
             )
-            if self._cat_obs is not None:
-                parts = tuple(np.concatenate([a, b]) for a, b in zip(self._cat_obs, parts))  # type: ignore[assignment]
-            self._cat_obs, self._cached_obs = parts, n
+            self._cat_obs, self._cached_obs = _extended(self._cat_obs, parts), n
         return self._cat_obs
 
-    def _odometry_arrays(self) -> tuple[Array, Array, Array]:
-        """Every odometry increment, its covariance and square-root information, shapes (K, 3), (K, 3, 3) x 2."""
+    def _odometry_arrays(self) -> tuple[Array, ...]:
+        """Every odometry increment and its square-root information, shapes (K, 3) and (K, 3, 3)."""
         n = len(self._odo_delta)
-        if self._cat_odo is None or self._cached_odo < n:
+        if not self._cat_odo or self._cached_odo < n:
             new = slice(self._cached_odo, n)
-            delta = np.array(self._odo_delta[new], dtype=float).reshape(-1, 3)
             cov = np.array(self._odo_cov[new], dtype=float).reshape(-1, 3, 3)
-            parts = (delta, cov, sqrt_information(cov) if len(cov) else np.zeros((0, 3, 3)))
-            if self._cat_odo is not None:
-                parts = tuple(np.concatenate([a, b]) for a, b in zip(self._cat_odo, parts))  # type: ignore[assignment]
-            self._cat_odo, self._cached_odo = parts, n
+            parts = (
+                np.array(self._odo_delta[new], dtype=float).reshape(-1, 3),
+                sqrt_information(cov) if len(cov) else np.zeros((0, 3, 3)),
+            )
+            self._cat_odo, self._cached_odo = _extended(self._cat_odo, parts), n
         return self._cat_odo
 
     @property
@@ -228,7 +231,7 @@ class ProblemLog:
             else:
                 prior_args = {"prior_pose": [0], "prior_mean": mean[None], "prior_cov": cov[None]}
         obs_pose, obs_landmark, obs_z, _, obs_sqrt = self._observation_arrays()
-        odo_delta, _, odo_sqrt = self._odometry_arrays()
+        odo_delta, odo_sqrt = self._odometry_arrays()
         if labels is not None:
             obs_landmark = np.asarray(labels, dtype=np.int64)
         used = obs_landmark >= 0
