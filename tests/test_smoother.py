@@ -190,6 +190,40 @@ def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> 
     assert np.max(np.abs(smoother.landmarks[order] - batch.landmarks)) < 1e-6
 
 
+def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estimate() -> None:
+    """``global_information_max``: re-anchoring replaces the prior's covariance by the exact marginal of the
+    history's factors at the revised estimate (checked against a dense elimination); without it the covariance
+    keeps the fold-in linearization, which differs."""
+    from online_slam.estimators.relinearize import history_graph
+    from online_slam.estimators.smoother import inlier_graph
+
+    events = list(grid_world(GridConfig(poses=120, seed=5)))
+    covariances = {}
+    for cap in (0, 10**6):
+        config = SmootherConfig(window=5, window_distance=0.0, global_every=10**6, global_information_max=cap)
+        _, smoother, _, _, _, _ = run(events, config)
+        with smoother._blas.limit(limits=1, user_api="blas"):
+            assert "global_rejected" not in smoother._relinearize_globally()
+        covariances[cap] = smoother.prior.Sigma
+    p = smoother.prior
+    past = history_graph(inlier_graph(smoother.log, smoother._decisions), p.pose)
+    poses = np.vstack([smoother.history.view(), smoother.poses[p.pose][None]])
+    sparse = layout(past)
+    _, J = linearize(past, sparse, poses, smoother.landmarks, smoother.config.loss)
+    H = (J.T @ J).toarray()
+    k = np.r_[
+        (sparse.landmark_column[p.landmarks][:, None] + np.arange(2)).reshape(-1),
+        sparse.pose_column[p.pose] + np.arange(3),
+    ]
+    rest = np.setdiff1d(np.flatnonzero(np.diag(H) > 0), k)  # landmarks only the window sees have no column
+    marginal = H[np.ix_(k, k)] - H[np.ix_(k, rest)] @ np.linalg.solve(H[np.ix_(rest, rest)], H[np.ix_(rest, k)])
+    assert len(k) > 20
+    np.testing.assert_allclose(np.linalg.inv(covariances[10**6]), marginal, rtol=1e-7, atol=1e-6 * np.abs(H).max())
+    difference = np.abs(np.linalg.inv(covariances[0]) - marginal).max() / np.abs(marginal).max()
+    print(f"fold-in covariance vs relinearized marginal: largest difference {difference:.2e} of the largest entry")
+    assert difference > 1e-6
+
+
 def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
     events = list(grid_world(GridConfig(poses=600, seed=5)))
     fe, _, frozen, _, batch, _ = run(events, SmootherConfig(window=10, global_every=0))

@@ -163,6 +163,14 @@ def add_options(p: argparse.ArgumentParser) -> None:
         f"later (deterministic; default {SmootherConfig.global_delay}; 0 = solve at once, inside the step)",
     )
     p.add_argument(
+        "--global-information-max",
+        type=int,
+        default=SmootherConfig.global_information_max,
+        metavar="L",
+        help="smoother: at each re-anchoring also relinearize the prior's covariance (the history's exact marginal) "
+        f"while it holds at most L landmarks (default {SmootherConfig.global_information_max}: never)",
+    )
+    p.add_argument(
         "--association",
         choices=("auto", *ASSOCIATION_CHOICES),
         default="auto",
@@ -251,6 +259,7 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
                 relinearize_every=every,
                 global_every=args.global_every,
                 global_delay=args.global_delay,
+                global_information_max=args.global_information_max,
                 window_distance=args.window_distance,
                 window_max=args.window_max,
                 association=association,

@@ -12,9 +12,10 @@ where ``g`` and ``H = J^T J`` are the gradient and Gauss-Newton matrix of the hi
 the oldest window pose, the history poses' sightings, the start prior) at the revised values, ``m`` the history
 poses and ``k`` the prior's variables (its landmarks, then the oldest window pose): ``g'`` is the gradient of the
 history's cost with the history poses eliminated (a Schur complement, computed with one sparse solve of the
-history poses' block — odometry chains make it banded). The prior keeps its covariance ``Sigma``: the same
-information, linearized at the earlier estimate (recomputing it costs a sparse solve per prior variable and a
-dense inverse over every landmark; tried on MRCLAM, it did not improve the online error).
+history poses' block — odometry chains make it banded). Where the prior is small, its information is
+relinearized too (:func:`prior_marginal`): ``H' = H_kk - H_km H_mm^-1 H_mk`` at the revised values, the same
+factorization with ``2 L + 3`` right-hand sides and a dense inverse; otherwise the prior keeps its covariance
+``Sigma``, the same information linearized where each factor was folded in.
 """
 
 from __future__ import annotations
@@ -75,6 +76,32 @@ def prior_gradient(
     Returns:
         g', shape (2 L + 3,).
     """
+    return prior_marginal(history, poses, landmarks, prior_landmarks, loss, information=False)[0]
+
+
+def prior_marginal(
+    history: FactorGraph,
+    poses: Array,
+    landmarks: Array,
+    prior_landmarks: Index,
+    loss: RobustLoss | None = None,
+    information: bool = True,
+) -> tuple[Array, Array | None]:
+    """The history's cost with the history poses eliminated, as a quadratic over ``[prior landmarks..., oldest
+    pose]``: its gradient and (Gauss-Newton) information at the given values.
+
+    Args:
+        history: :func:`history_graph` (poses ``0..oldest``; the last one is the oldest window pose).
+        poses: Values of poses ``0..oldest``, shape (oldest + 1, 3).
+        landmarks: Values of every landmark, shape (M, 2).
+        prior_landmarks: Landmark indices the prior holds, in its order, shape (L,).
+        loss: The smoother's robust loss on sightings (IRLS weights at these values).
+        information: Also compute ``H'`` (else None is returned in its place); landmarks the history sees that
+            the prior does not hold are then eliminated with the poses (else held at their values).
+
+    Returns:
+        (g', shape (2 L + 3,); H', shape (2 L + 3, 2 L + 3), or None).
+    """
     sparse = layout(history)
     r, J = linearize(history, sparse, poses, landmarks, loss)
     g = J.T @ r
@@ -85,11 +112,23 @@ def prior_gradient(
         (sparse.landmark_column[prior_landmarks][:, None] + np.arange(2)).reshape(-1),
         sparse.pose_column[oldest] + np.arange(3),
     ]
+    if information:  # landmarks the history sees but the prior does not hold (released) are eliminated too
+        others = np.setdiff1d(np.unique(history.obs_landmark), prior_landmarks)
+        columns = sparse.landmark_column[others]
+        m = np.r_[m, (columns[columns >= 0][:, None] + np.arange(2)).reshape(-1)].astype(np.int64)
+    Jk = J[:, k].tocsc()
+    H = (Jk.T @ Jk).toarray() if information else None
     if not len(m):
-        return g[k]
-    Jm, Jk = J[:, m].tocsc(), J[:, k].tocsc()
+        return g[k], H
+    Jm = J[:, m].tocsc()
     H_mm = (Jm.T @ Jm).tocsc() + sp.identity(len(m), format="csc") * 1e-12  # the start fixes the chain
-    return g[k] - Jk.T @ (Jm @ spla.splu(H_mm).solve(g[m]))
+    lu = spla.splu(H_mm)
+    g_k = g[k] - Jk.T @ (Jm @ lu.solve(g[m]))
+    if H is not None:
+        H_mk = (Jm.T @ Jk).toarray()
+        H = H - H_mk.T @ lu.solve(H_mk)
+        H = 0.5 * (H + H.T)
+    return g_k, H
 
 
 def refine_recent(

@@ -46,7 +46,7 @@ from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
-from online_slam.estimators.relinearize import history_graph, prior_gradient, refine_recent
+from online_slam.estimators.relinearize import history_graph, prior_marginal, refine_recent
 from online_slam.factors.graph import (
     FactorGraph,
     layout,
@@ -127,6 +127,12 @@ class SmootherConfig:
     """Steps between starting a global relinearization (in a background thread, from a copy of the state) and
     handing its result over; the hand-over waits for the solve if it is not done, so results never depend on
     timing. 0 solves at once, inside the step."""
+    global_information_max: int = 0
+    """Re-anchoring also relinearizes the prior's information (its covariance: the history's exact marginal at
+    the revised estimate) while the prior holds at most this many landmarks (one sparse solve with 2 L + 3
+    right-hand sides and a dense inverse of that size); otherwise only its mean moves and its covariance keeps
+    the linearization of each fold-in. Default 0 (never): measured, it helps MRCLAM's online error, but makes
+    cityTrees' worse and costs up to 0.5 s per hand-over there (see the README)."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     smoother's own belief (the window's information linearized at the current estimate, the prior for landmarks
@@ -135,6 +141,8 @@ class SmootherConfig:
     def __post_init__(self) -> None:
         if self.global_every < 0 or self.global_iterations < 1 or self.global_delay < 0:
             raise ValueError("global_every and global_delay must be >= 0, global_iterations >= 1")
+        if self.global_information_max < 0:
+            raise ValueError("global_information_max must be >= 0")
         if self.window < 1:
             raise ValueError("window must be >= 1")
         if not 0.0 <= self.window_distance < math.inf or self.window_max < 1:
@@ -167,6 +175,18 @@ def _grow_buffer(Sigma: Array, size: int) -> Array:
     n = len(Sigma)
     grown[:n, :n] = Sigma
     return grown[:size, :size]
+
+
+def _covariance(information: Array, fallback: Array) -> Array:
+    """The inverse of a relinearized prior information, or ``fallback`` where it is not positive definite
+    (a direction the history no longer constrains at the new values)."""
+    try:
+        L = np.linalg.cholesky(information)
+    except np.linalg.LinAlgError:
+        return fallback
+    inverse = np.linalg.inv(L)  # Sigma = L^-T L^-1
+    Sigma = inverse.T @ inverse
+    return 0.5 * (Sigma + Sigma.T)
 
 
 def _fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array, Array]:
@@ -931,8 +951,9 @@ class SlidingWindowSmoother:
                     past, n_poses, values, landmarks, self._global_solver, self.config.loss
                 )
                 history, oldest_value = values[:-1], values[-1]
-            g_k = prior_gradient(past, values, landmarks, p.landmarks, self.config.loss)
-            Sigma = p.Sigma
+            relinearized = len(p.landmarks) <= self.config.global_information_max
+            g_k, H_k = prior_marginal(past, values, landmarks, p.landmarks, self.config.loss, relinearized)
+            Sigma = p.Sigma if H_k is None else _covariance(H_k, p.Sigma)
             # The history's pull on the prior's variables, in its own metric: an inlier-consistent history gives
             # a chi-square value; a larger one means the solve did not reconcile it (a poor minimum): keep all.
             if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):
