@@ -22,7 +22,7 @@ from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sinks.protocol import ReplaySink
-from online_slam.sources.worlds import GridConfig, grid_world, square_world
+from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, square_world, waypoint_world
 
 Array = NDArray[np.float64]
 
@@ -178,7 +178,9 @@ def _world(source: str, seed: int) -> Any:
         return square_world(seed)
     if source == "grid":
         return grid_world(GridConfig(seed=seed))
-    raise OnlineSlamError(f"Monte Carlo runs need a simulated world (square, grid), not {source!r}")
+    if source == "waypoint":
+        return waypoint_world(WaypointConfig(seed=seed))
+    raise OnlineSlamError(f"Monte Carlo runs need a simulated world (square, grid, waypoint), not {source!r}")
 
 
 def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict[str, Array]]:
@@ -216,7 +218,7 @@ def compare(
     monte_carlo = None
     if cfg.runs > 1:
         name = str(source)
-        base_seed = 1616 if name == "square" else GridConfig.seed
+        base_seed = 1616 if name == "square" else GridConfig.seed if name == "grid" else WaypointConfig.seed
         seeds = tuple(base_seed + k for k in range(cfg.runs))
         _world(name, seeds[0])  # fail early on a non-simulated source
         jobs = [(name, seed, one_replay) for seed in seeds]

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from online_slam.sources import square_world, write_stream
@@ -83,6 +84,30 @@ def test_simulate_grid_options(tmp_path: Path) -> None:
     replayed = json.loads(cli("replay", str(path), "--json", "-", "--quiet").stdout)
     assert replayed["poses"] == 120 and replayed["estimators"]["batch"]["converged"]
     assert cli("simulate", "grid", "--sensor-range", "-1", "-o", str(path)).returncode == 2
+
+
+def test_simulate_waypoint_world(tmp_path: Path) -> None:
+    """The random-waypoint world: steps of the given length, turns within the limit, sightings within range
+    (checked on the written stream's truth), bad settings a one-line error."""
+    path = tmp_path / "w.jsonl"
+    args = ("--poses", "300", "--landmarks", "150", "--size", "40", "--step", "0.5", "--max-turn", "0.2")
+    done = cli("simulate", "waypoint", *args, "-o", str(path))
+    assert done.returncode == 0, done.stderr
+    events = [json.loads(line) for line in path.read_text().splitlines()]
+    truth = np.array([e["pose"] for e in events if e["type"] == "truth"])
+    landmarks = {e["landmark"]: e["position"] for e in events if e["type"] == "landmark_truth"}
+    assert len(truth) == 300 and len(landmarks) == 150
+    np.testing.assert_allclose(np.linalg.norm(np.diff(truth[:, :2], axis=0), axis=1), 0.5, atol=1e-9)
+    turns = np.abs(np.angle(np.exp(1j * np.diff(truth[:, 2]))))
+    assert turns.max() <= 0.2 + 1e-9 and turns.max() > 0.1  # it does turn
+    pose_at = dict(zip([e["t"] for e in events if e["type"] == "truth"], truth))
+    sightings = [e for e in events if e["type"] == "observation"]
+    assert len(sightings) > 300
+    assert all(np.hypot(*(np.array(landmarks[e["landmark"]]) - pose_at[e["t"]][:2])) <= 6.0 for e in sightings)
+    replayed = json.loads(cli("replay", str(path), "--json", "-", "--quiet").stdout)
+    assert replayed["poses"] == 300 and replayed["estimators"]["batch"]["converged"]
+    bad = cli("simulate", "waypoint", "--size", "10", "-o", str(path))
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "size" in bad.stderr
 
 
 GOOD = [

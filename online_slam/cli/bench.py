@@ -15,11 +15,11 @@ from online_slam.sources.worlds import GridConfig
 
 SECTIONS = (
     "batch", "ekf-update", "online", "api", "checkpoint", "recording", "association", "fuzz", "robust", "big",
-    "mrclam", "sweep", "soak",
+    "waypoint", "mrclam", "sweep", "soak",
 )  # fmt: skip
-DEFAULT_SECTIONS = SECTIONS[:-4]
-"""The big world (5000 poses beside iSAM2, minutes), MRCLAM and the sweep (MRCLAM data) and the soak (100,000
-poses, minutes) run only when asked for (``--only``)."""
+DEFAULT_SECTIONS = SECTIONS[:-5]
+"""The big and waypoint worlds (5000 poses beside iSAM2, minutes), MRCLAM and the sweep (MRCLAM data) and the soak
+(100,000 poses, minutes) run only when asked for (``--only``)."""
 
 
 def _repeats(args: argparse.Namespace, default: int = 3) -> int:
@@ -127,13 +127,20 @@ def _met(ok: bool) -> str:
     return "met" if ok else "NOT met"
 
 
-def _big(args: argparse.Namespace) -> None:
-    from online_slam.bench.big import BIG_WORLD, run_big_world
+def _big(args: argparse.Namespace, waypoint: bool = False) -> None:
+    from online_slam.bench.big import BIG_WORLD, WAYPOINT_WORLD, run_big_world
 
-    rows, batch = run_big_world(BIG_WORLD)
-    c = BIG_WORLD
-    print(f"big world: grid {c.blocks}x{c.blocks} blocks of {c.block_size:g} m, {c.poses} poses, {c.landmarks} "
-          f"landmarks placed, seed {c.seed}; batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
+    if waypoint:
+        w = WAYPOINT_WORLD
+        rows, batch = run_big_world(w)
+        print(f"waypoint world: {w.poses} poses {w.step:g} m apart towards random goals, {w.landmarks} landmarks "
+              f"over {w.size:g} m, range {w.sensor_range:g} m, seed {w.seed}; batch final {batch[0]:.4f} m, "
+              f"landmarks {batch[1]:.4f} m")  # fmt: skip
+    else:
+        c = BIG_WORLD
+        rows, batch = run_big_world(c)
+        print(f"big world: grid {c.blocks}x{c.blocks} blocks of {c.block_size:g} m, {c.poses} poses, {c.landmarks} "
+              f"landmarks placed, seed {c.seed}; batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
     print(f"{'estimator':<18}{'online m':>10}{'final m':>9}{'landm. m':>10}{'median ms':>11}{'p95':>8}{'p99':>8}"
           f"{'max':>9}{'total s':>9}")  # fmt: skip
     for r in rows:
@@ -335,6 +342,8 @@ def run(args: argparse.Namespace) -> int:
             _robust(args, world)
         elif section == "big":
             _big(args)
+        elif section == "waypoint":
+            _big(args, waypoint=True)
         elif section == "mrclam":
             _mrclam(args)
         elif section == "sweep":

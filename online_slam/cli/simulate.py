@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
+from dataclasses import replace
 
 import numpy as np
 
@@ -13,9 +15,11 @@ from online_slam.sources.worlds import (
     WORLDS,
     Contamination,
     GridConfig,
+    WaypointConfig,
     contaminate,
     grid_world,
     square_world,
+    waypoint_world,
     without_ids,
 )
 
@@ -25,29 +29,33 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "simulate",
         help="write a simulated world as a stream file",
-        description="Write a built-in world as stream v1 (truth included). Grid options apply to 'grid'.",
+        description="Write a built-in world as stream v1 (truth included). Options name the worlds they apply to.",
     )
-    p.add_argument("world", choices=sorted(WORLDS), help="square (the article's) or grid")
+    p.add_argument("world", choices=sorted(WORLDS), help="square (the article's), grid or waypoint")
     p.add_argument("-o", "--output", default="-", help="output path (.gz compresses; '-' for stdout, the default)")
-    p.add_argument("--seed", type=int, help="random seed (square: 1616, grid: 7)")
-    g = GridConfig()
-    p.add_argument("--poses", type=int, default=g.poses, help=f"grid: number of poses (default {g.poses})")
-    p.add_argument("--landmarks", type=int, default=g.landmarks, help=f"grid: landmarks (default {g.landmarks})")
+    p.add_argument("--seed", type=int, help="random seed (square: 1616, grid and waypoint: 7)")
+    g, w = GridConfig(), WaypointConfig()
+
+    def both(flag: str, field: str, what: str, **kw: object) -> None:
+        p.add_argument(flag, default=None, help=f"grid, waypoint: {what} (default {getattr(g, field)}, "
+                       f"{getattr(w, field)})", **kw)  # fmt: skip
+
+    both("--poses", "poses", "number of poses", type=int)
+    both("--landmarks", "landmarks", "landmarks", type=int)
+    both("--step", "step", "metres per pose", type=float)
+    both("--sensor-range", "sensor_range", "range limit m", type=float)
+    both("--odometry-sigma", "odometry_sigma", "odometry noise (m, m, rad)", type=float, nargs=3,
+         metavar=("SX", "SY", "STH"))  # fmt: skip
+    both("--sensor-sigma", "sensor_sigma", "range (m) and bearing (rad) noise", type=float, nargs=2,
+         metavar=("SR", "SB"))  # fmt: skip
     p.add_argument("--blocks", type=int, default=g.blocks, help=f"grid: blocks per side (default {g.blocks})")
     p.add_argument(
         "--block-size", type=float, default=g.block_size, help=f"grid: block edge m (default {g.block_size})"
     )
-    p.add_argument("--step", type=float, default=g.step, help=f"grid: metres per pose (default {g.step})")
+    p.add_argument("--size", type=float, default=w.size, help=f"waypoint: field edge m (default {w.size:g})")
     p.add_argument(
-        "--sensor-range",
-        type=float,
-        default=g.sensor_range,
-        help=f"grid: range limit m (default {g.sensor_range})",
+        "--max-turn", type=float, default=w.max_turn, help=f"waypoint: most turn per pose, rad (default {w.max_turn})"
     )
-    p.add_argument(
-        "--odometry-sigma", type=float, nargs=3, default=g.odometry_sigma, metavar=("SX", "SY", "STH"),
-        help="grid: odometry noise (m, m, rad)",
-    )  # fmt: skip
     p.add_argument("--wrong-ids", type=float, default=0.0, metavar="F", help="fraction of sightings given a wrong id")
     p.add_argument(
         "--range-spikes", type=float, default=0.0, metavar="F", help="fraction of sightings with a range spike"
@@ -59,10 +67,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-ids", action="store_true", help="write sightings without landmark ids (unknown data association)"
     )
-    p.add_argument(
-        "--sensor-sigma", type=float, nargs=2, default=g.sensor_sigma, metavar=("SR", "SB"),
-        help="grid: range (m) and bearing (rad) noise",
-    )  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -70,21 +74,33 @@ def run(args: argparse.Namespace) -> int:
     if args.world == "square":
         events = square_world(1616 if args.seed is None else args.seed)
     else:
-        config = GridConfig(
-            poses=args.poses,
-            landmarks=args.landmarks,
-            blocks=args.blocks,
-            block_size=args.block_size,
-            step=args.step,
-            sensor_range=args.sensor_range,
-            odometry_sigma=tuple(args.odometry_sigma),
-            sensor_sigma=tuple(args.sensor_sigma),
-            seed=7 if args.seed is None else args.seed,
-        )
+        base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
+        given = {
+            k: tuple(v) if isinstance(v, list) else v
+            for k, v in {
+                "poses": args.poses,
+                "landmarks": args.landmarks,
+                "step": args.step,
+                "sensor_range": args.sensor_range,
+                "odometry_sigma": args.odometry_sigma,
+                "sensor_sigma": args.sensor_sigma,
+                "seed": args.seed,
+            }.items()
+            if v is not None
+        }
+        if isinstance(base, GridConfig):
+            config: GridConfig | WaypointConfig = replace(base, blocks=args.blocks, block_size=args.block_size, **given)
+        else:
+            config = replace(base, size=args.size, max_turn=args.max_turn, **given)
         values = [*config.odometry_sigma, *config.sensor_sigma]
         if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
             raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")
-        events = grid_world(config)
+        try:
+            events = grid_world(config) if isinstance(config, GridConfig) else waypoint_world(config)
+            first = next(events)  # the world's own checks run on the first draw
+        except ValueError as exc:
+            raise OnlineSlamError(f"simulate: {exc}") from None
+        events = itertools.chain([first], events)
     try:
         contamination = Contamination(args.wrong_ids, args.range_spikes, args.clutter, args.outlier_seed)
     except ValueError as exc:

@@ -11,12 +11,13 @@ from online_slam.sources.events import (
     Truth,
 )
 from online_slam.sources.stream import read_stream, write_stream
-from online_slam.sources.worlds import WORLDS, GridConfig, grid_world, square_world
+from online_slam.sources.worlds import WORLDS, GridConfig, WaypointConfig, grid_world, square_world, waypoint_world
 
 __all__ = [
     "WORLDS",
     "Event",
     "GridConfig",
+    "WaypointConfig",
     "Header",
     "LandmarkId",
     "LandmarkTruth",
@@ -25,6 +26,7 @@ __all__ = [
     "Start",
     "Truth",
     "grid_world",
+    "waypoint_world",
     "read_stream",
     "square_world",
     "write_stream",

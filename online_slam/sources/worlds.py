@@ -2,7 +2,8 @@
 
 ``square`` reproduces the article's worked example exactly: the same generator (``default_rng(1616)``), the
 same draws in the same order, the same landmark selection, so its numbers match the article's table.
-``grid`` is a configurable Manhattan-street world for scale tests.
+``grid`` is a configurable Manhattan-street world for scale tests; ``waypoint`` a robot wandering towards random
+goals over a field of scattered landmarks (slower, with random revisits).
 """
 
 from __future__ import annotations
@@ -185,6 +186,78 @@ def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
 
 
 @dataclass(frozen=True)
+class WaypointConfig:
+    """A random-waypoint world: the robot drives towards random goals over a square field of scattered
+    landmarks, turning at a bounded rate, so its path wanders, crosses itself and revisits places at random."""
+
+    poses: int = 5000
+    """Number of poses (odometry steps + 1)."""
+    size: float = 150.0
+    """Edge of the square field, metres (landmarks anywhere in it; the goals keep ``sensor_range`` inside)."""
+    landmarks: int = 1500
+    """Number of landmarks, uniform over the field."""
+    step: float = 0.5
+    """Distance driven between poses, metres."""
+    max_turn: float = 0.2
+    """Largest heading change per pose, radians."""
+    sensor_range: float = 6.0
+    """Landmarks within this distance are observed at every pose, metres."""
+    odometry_sigma: tuple[float, float, float] = (0.05, 0.05, 0.01)
+    """Standard deviations of each odometry increment (dx m, dy m, dtheta rad)."""
+    sensor_sigma: tuple[float, float] = (0.05, float(np.deg2rad(0.5)))
+    """Standard deviations of range (m) and bearing (rad)."""
+    seed: int = 7
+    """Seed of ``numpy.random.default_rng``."""
+    dt: float = 1.0
+    """Time between poses, seconds."""
+
+
+def waypoint_world(config: WaypointConfig | None = None) -> Iterator[Event]:
+    """A random-waypoint world (defaults: 5000 poses, 1500 landmarks over 150 m, 0.5 m steps, 6 m range).
+
+    Args:
+        config: World settings.
+
+    Yields:
+        Stream-v1 events, truth included.
+    """
+    c = config or WaypointConfig()
+    if c.poses < 1 or c.step <= 0 or c.max_turn <= 0 or c.size <= 2 * c.sensor_range or c.sensor_range <= 0:
+        raise ValueError("waypoint world needs poses >= 1, step and max_turn > 0, size > 2 x sensor range > 0")
+    rng = np.random.default_rng(c.seed)
+    landmarks = rng.uniform(0.0, c.size, size=(c.landmarks, 2))
+    goals = rng.uniform(c.sensor_range, c.size - c.sensor_range, size=(c.poses, 2))
+    truth = np.empty((c.poses, 3))
+    position, heading, goal = np.full(2, c.size / 2), 0.0, 0
+    for i in range(c.poses):
+        truth[i] = [position[0], position[1], heading]
+        to_goal = goals[goal] - position
+        if np.hypot(*to_goal) < 2 * c.step:  # reached: the next goal
+            goal += 1
+            to_goal = goals[goal] - position
+        turn = float(np.clip(wrap(np.arctan2(to_goal[1], to_goal[0]) - heading), -c.max_turn, c.max_turn))
+        heading = float(wrap(heading + turn))
+        position = position + c.step * np.array([np.cos(heading), np.sin(heading)])
+    odometry_sigma = np.array(c.odometry_sigma, dtype=float)
+    sensor_sigma = np.array(c.sensor_sigma, dtype=float)
+    odometry = between(truth[:-1], truth[1:])
+    odometry = odometry + rng.normal(size=odometry.shape) * odometry_sigma
+    distances = np.linalg.norm(landmarks[None, :, :] - truth[:, None, :2], axis=2)
+    observed_pose, observed_landmark = np.nonzero(distances <= c.sensor_range)
+    z = range_bearing(truth[observed_pose], landmarks[observed_landmark])
+    z = z + rng.normal(size=z.shape) * sensor_sigma
+    z[:, 0] = np.abs(z[:, 0])
+    z[:, 1] = wrap(z[:, 1])
+    meta = {"generator": "online-slam simulate waypoint", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
+    meta["odometry_sigma"] = list(c.odometry_sigma)
+    meta["sensor_sigma"] = list(c.sensor_sigma)
+    yield from _events(
+        "waypoint", meta, truth, landmarks, odometry, odometry_sigma,
+        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
 class Contamination:
     """Outliers to add to a simulated stream, each sighting marked for evaluation (``truth_outlier``)."""
 
@@ -250,7 +323,11 @@ def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
             )
 
 
-WORLDS: dict[str, Callable[[], Iterator[Event]]] = {"square": square_world, "grid": grid_world}
+WORLDS: dict[str, Callable[[], Iterator[Event]]] = {
+    "square": square_world,
+    "grid": grid_world,
+    "waypoint": waypoint_world,
+}
 """Built-in worlds by name, each with its default settings."""
 
 
