@@ -64,18 +64,8 @@ def prior_gradient(
     prior_landmarks: Index,
     loss: RobustLoss | None = None,
 ) -> Array:
-    """Gradient of the history's cost with the history poses eliminated, over ``[prior landmarks..., oldest pose]``.
-
-    Args:
-        history: :func:`history_graph` (poses ``0..oldest``; the last one is the oldest window pose).
-        poses: Values of poses ``0..oldest``, shape (oldest + 1, 3).
-        landmarks: Values of every landmark, shape (M, 2).
-        prior_landmarks: Landmark indices the prior holds, in its order, shape (L,).
-        loss: The smoother's robust loss on sightings (IRLS weights at these values).
-
-    Returns:
-        g', shape (2 L + 3,).
-    """
+    """The gradient g' of :func:`prior_marginal` (same arguments), shape (2 L + 3,); landmarks the prior does not
+    hold are held at their values."""
     return prior_marginal(history, poses, landmarks, prior_landmarks, loss, information=False)[0]
 
 

@@ -166,23 +166,7 @@ def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
                        if 0 <= cell[0] + moves[d][0] * per_block <= limit
                        and 0 <= cell[1] + moves[d][1] * per_block <= limit]  # fmt: skip
             direction = options[turns[i] % len(options)]
-    odometry_sigma = np.array(c.odometry_sigma, dtype=float)
-    sensor_sigma = np.array(c.sensor_sigma, dtype=float)
-    odometry = between(truth[:-1], truth[1:])
-    odometry = odometry + rng.normal(size=odometry.shape) * odometry_sigma
-    distances = np.linalg.norm(landmarks[None, :, :] - truth[:, None, :2], axis=2)
-    observed_pose, observed_landmark = np.nonzero(distances <= c.sensor_range)
-    z = range_bearing(truth[observed_pose], landmarks[observed_landmark])
-    z = z + rng.normal(size=z.shape) * sensor_sigma
-    z[:, 0] = np.abs(z[:, 0])
-    z[:, 1] = wrap(z[:, 1])
-    meta = {"generator": "online-slam simulate grid", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
-    meta["odometry_sigma"] = list(c.odometry_sigma)
-    meta["sensor_sigma"] = list(c.sensor_sigma)
-    yield from _events(
-        "grid", meta, truth, landmarks, odometry, odometry_sigma,
-        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
-    )  # fmt: skip
+    yield from _sensed("grid", c, rng, truth, landmarks)
 
 
 @dataclass(frozen=True)
@@ -238,6 +222,14 @@ def waypoint_world(config: WaypointConfig | None = None) -> Iterator[Event]:
         turn = float(np.clip(wrap(np.arctan2(to_goal[1], to_goal[0]) - heading), -c.max_turn, c.max_turn))
         heading = float(wrap(heading + turn))
         position = position + c.step * np.array([np.cos(heading), np.sin(heading)])
+    yield from _sensed("waypoint", c, rng, truth, landmarks)
+
+
+def _sensed(
+    name: str, c: GridConfig | WaypointConfig, rng: np.random.Generator, truth: Array, landmarks: Array
+) -> Iterator[Event]:
+    """Noisy odometry, then a noisy sighting of every landmark within range of every pose, as events (the draws
+    in this order, after the world's own)."""
     odometry_sigma = np.array(c.odometry_sigma, dtype=float)
     sensor_sigma = np.array(c.sensor_sigma, dtype=float)
     odometry = between(truth[:-1], truth[1:])
@@ -248,11 +240,11 @@ def waypoint_world(config: WaypointConfig | None = None) -> Iterator[Event]:
     z = z + rng.normal(size=z.shape) * sensor_sigma
     z[:, 0] = np.abs(z[:, 0])
     z[:, 1] = wrap(z[:, 1])
-    meta = {"generator": "online-slam simulate waypoint", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
+    meta = {"generator": f"online-slam simulate {name}", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
     meta["odometry_sigma"] = list(c.odometry_sigma)
     meta["sensor_sigma"] = list(c.sensor_sigma)
     yield from _events(
-        "waypoint", meta, truth, landmarks, odometry, odometry_sigma,
+        name, meta, truth, landmarks, odometry, odometry_sigma,
         observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
     )  # fmt: skip
 
