@@ -57,18 +57,6 @@ def history_graph(graph: FactorGraph, oldest: int) -> FactorGraph:
     )
 
 
-def prior_gradient(
-    history: FactorGraph,
-    poses: Array,
-    landmarks: Array,
-    prior_landmarks: Index,
-    loss: RobustLoss | None = None,
-) -> Array:
-    """The gradient g' of :func:`prior_marginal` (same arguments), shape (2 L + 3,); landmarks the prior does not
-    hold are held at their values."""
-    return prior_marginal(history, poses, landmarks, prior_landmarks, loss, information=False)[0]
-
-
 def prior_marginal(
     history: FactorGraph,
     poses: Array,

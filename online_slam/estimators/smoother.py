@@ -82,8 +82,8 @@ class SmootherConfig:
     window: int = 20
     """W: poses kept as variables at least (>= 1); older ones are marginalized once the window is full (below)."""
     window_distance: float = 18.0
-    """The window also keeps poses beyond W until the path after its two oldest poses is at least this long
-    (metres, by odometry; up to ``window_max`` poses): sized by motion, it spans W poses where the robot moves
+    """The window also keeps poses beyond W until the path from its second-oldest pose to its newest is at least
+    this long (metres, by odometry; up to ``window_max`` poses): sized by motion, it spans W poses where the robot moves
     far per pose and more where it creeps, so that the poses it freezes have seen enough geometry. Default 18 m:
     what W=20 spans at 1 m per pose (grid, the 5000-pose world, cityTrees keep 20 poses); it keeps 38 poses of
     the 0.5 m-per-pose waypoint world and up to ``window_max`` on MRCLAM. 0: W poses."""
