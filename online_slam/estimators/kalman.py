@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg import blas
 
 Array = NDArray[np.float64]
+
+SYRK_MIN = 64
+"""Below this size :func:`downdate` uses numpy (exactly symmetric; the temporary is small)."""
 
 
 def stacked_jacobian(J_pose: Array, J_landmark: Array, pose_first: bool = True) -> Array:
@@ -28,19 +32,50 @@ def stacked_jacobian(J_pose: Array, J_landmark: Array, pose_first: bool = True) 
     return H
 
 
-def apply_update(cov: Array, PHt: Array, S: Array, y: Array) -> tuple[Array, Array, Array]:
-    """``cov -= K S K^T`` in place with ``K = P H^T S^-1``, through the Cholesky factor of S (exactly symmetric).
+def downdate(cov: Array, W: Array) -> None:
+    """``cov -= W W^T`` in place, without an n x n temporary (BLAS syrk on each triangle) when cov is contiguous.
+
+    Memory traffic, not arithmetic, is the cost of a low-rank update of a large covariance: numpy's
+    ``cov -= W @ W.T`` writes the product to a temporary and reads it back (measured: 25 ms for n = 1771, m = 16,
+    one thread), two in-place syrk calls 4.7 ms. Each triangle comes from its own syrk, so the two can differ
+    in the last bits (relative 1e-15): symmetric to rounding, not bit for bit.
+
+    Args:
+        cov: Symmetric matrix, shape (n, n), C- or Fortran-contiguous for the fast path; updated in place.
+        W: Shape (n, m).
+    """
+    F = cov.T if cov.flags.c_contiguous else cov  # the Fortran-ordered view BLAS updates in place
+    if len(cov) < SYRK_MIN or not F.flags.f_contiguous or cov.dtype != np.float64:
+        cov -= W @ W.T
+        return
+    Wf = np.asfortranarray(W, dtype=np.float64)
+    upper = blas.dsyrk(-1.0, Wf, beta=1.0, c=F, overwrite_c=1, lower=0)
+    assert np.shares_memory(upper, cov), "syrk did not update in place"
+    diagonal = np.diagonal(F).copy()
+    blas.dsyrk(-1.0, Wf, beta=1.0, c=F, overwrite_c=1, lower=1)
+    np.fill_diagonal(F, diagonal)  # the second call subtracted the diagonal again
+
+
+def apply_update(
+    cov: Array, PHt: Array, S: Array, y: Array, exactly_symmetric: bool = True
+) -> tuple[Array, Array, Array]:
+    """``cov -= K S K^T`` in place with ``K = P H^T S^-1``, through the Cholesky factor of S.
 
     Args:
         cov: Covariance, shape (n, n); updated in place.
         PHt: ``P H^T``, shape (n, m).
         S: Innovation covariance, shape (m, m).
         y: Innovation, shape (m,).
+        exactly_symmetric: True: numpy's ``W @ W.T`` (syrk, then mirrored), so cov stays symmetric bit for bit;
+            False: :func:`downdate` (symmetric to rounding, several times faster on large contiguous cov).
 
     Returns:
         (state correction K y (n,), W = P H^T L^-T (n, m), L^-1 (m, m)) with ``S = L L^T``.
     """
     L_inv = np.linalg.inv(np.linalg.cholesky(S))  # S is small (m x m); raises LinAlgError, cov untouched
     W = PHt @ L_inv.T
-    cov -= W @ W.T  # numpy computes W W^T with syrk: exactly symmetric, so cov stays symmetric bit for bit
+    if exactly_symmetric:
+        cov -= W @ W.T
+    else:
+        downdate(cov, W)
     return W @ (L_inv @ y), W, L_inv

@@ -165,18 +165,17 @@ class _Prior:
     x_lin: Array
     mu: Array
     Sigma: Array
-    """A view of the top-left n x n of a larger buffer, so that the prior can grow without copying."""
+    """Contiguous (n, n), so that Kalman updates run in place (:func:`~online_slam.estimators.kalman.downdate`)."""
 
 
-def _grow_buffer(Sigma: Array, size: int) -> Array:
-    """A view of size x size whose top-left block holds Sigma; reallocates (doubling) only when needed."""
-    base = Sigma.base if Sigma.base is not None else Sigma
-    if base.shape[0] >= size:
-        return base[:size, :size]
-    grown = np.empty((max(size, 2 * base.shape[0]),) * 2)
-    n = len(Sigma)
-    grown[:n, :n] = Sigma
-    return grown[:size, :size]
+def _grow_buffer(Sigma: Array, size: int, keep: int) -> Array:
+    """Sigma itself when the size does not change, else a new contiguous size x size array whose top-left
+    ``keep`` x ``keep`` block holds Sigma's (the rest uninitialized)."""
+    if len(Sigma) == size:
+        return Sigma
+    grown = np.empty((size, size))
+    grown[:keep, :keep] = Sigma[:keep, :keep]
+    return grown
 
 
 def _covariance(information: Array, fallback: Array) -> Array:
@@ -659,12 +658,8 @@ class SlidingWindowSmoother:
         slots = np.flatnonzero(np.isin(p.landmarks, stale))
         drop = (2 * slots[:, None] + np.arange(2)).reshape(-1)
         keep = np.setdiff1d(np.arange(len(p.mu)), drop)
-        m = len(keep)
-        base = p.Sigma.base if p.Sigma.base is not None else p.Sigma
-        size = max(base.shape[0], m)
-        buffer = np.empty((size, size))
-        buffer[:m, :m] = p.Sigma[np.ix_(keep, keep)]
-        self.prior = _Prior(p.pose, np.delete(p.landmarks, slots), p.x_lin[keep], p.mu[keep], buffer[:m, :m])
+        Sigma = np.ascontiguousarray(p.Sigma[np.ix_(keep, keep)])
+        self.prior = _Prior(p.pose, np.delete(p.landmarks, slots), p.x_lin[keep], p.mu[keep], Sigma)
         self.released += len(slots)
 
     def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
@@ -769,7 +764,7 @@ class SlidingWindowSmoother:
         x_lin = self.poses[index].copy()
         mu = mean - x_lin
         mu[2] = wrap(mu[2])
-        Sigma = np.zeros((64, 64))[:3, :3]
+        Sigma = np.zeros((3, 3))
         if cov is not None:
             Sigma[:] = cov
         return _Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
@@ -837,7 +832,8 @@ class SlidingWindowSmoother:
                 S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
                 # in place: the prior owns its buffer (untouched if S is not positive definite in floating point)
                 with contextlib.suppress(np.linalg.LinAlgError):
-                    dmu, _, _ = apply_update(Sigma, PHt, S, -(r0[update].reshape(-1) + J_s @ mu[cols]))
+                    innovation = -(r0[update].reshape(-1) + J_s @ mu[cols])
+                    dmu, _, _ = apply_update(Sigma, PHt, S, innovation, exactly_symmetric=False)
                     mu = mu + dmu
             appended += [(r0[k], Jp[k], Jl[k], lin_l[k]) for k in np.flatnonzero(first)]
         delta, _, W = self._odometry[n1]
@@ -852,7 +848,7 @@ class SlidingWindowSmoother:
         q = len(M)
         cross = M @ Sigma[:keep, keep:].T  # (q, keep): read o's rows before they are overwritten
         block = M @ Sigma[keep:, keep:] @ M.T + noise
-        grown = _grow_buffer(Sigma, keep + q)  # o's rows and columns are reused in place
+        grown = _grow_buffer(Sigma, keep + q, keep)  # o's rows and columns are reused when the size holds
         grown[keep:, :keep] = cross
         grown[:keep, keep:] = cross.T
         grown[keep:, keep:] = 0.5 * (block + block.T)
@@ -1066,7 +1062,7 @@ class SlidingWindowSmoother:
                 "x_lin": p.x_lin,
                 "mu": p.mu,
                 "Sigma": p.Sigma.copy(),
-                "capacity": (p.Sigma.base if p.Sigma.base is not None else p.Sigma).shape[0],
+                "capacity": len(p.Sigma),  # read by versions that kept a larger buffer
             },
             "pose_cov": self._pose_cov,
             "since_solve": self._since_solve,
@@ -1133,14 +1129,12 @@ class SlidingWindowSmoother:
         self.prior = None
         if prior is not None:
             n = len(prior["mu"])
-            buffer = np.empty((max(int(prior["capacity"]), n),) * 2)
-            buffer[:n, :n] = prior["Sigma"]
             self.prior = _Prior(
                 int(prior["pose"]),
                 np.array(prior["landmarks"], dtype=np.int64),
                 as_float(prior["x_lin"]),
                 as_float(prior["mu"]),
-                buffer[:n, :n],
+                np.ascontiguousarray(as_float(prior["Sigma"]).reshape(n, n)),
             )
         self._pose_cov = as_float(state["pose_cov"])
         self._since_solve = int(state["since_solve"])
