@@ -288,3 +288,29 @@ def test_window_sized_by_motion_keeps_poses_until_its_path_is_long_enough() -> N
     _, smoother, final, _, batch, snapshots = run(events, SmootherConfig(window=3, window_distance=1.0, window_max=8))
     assert [len(s.info["window"]) for s in snapshots][7:] == [8] * 13  # standing still: capped at window_max
     assert np.max(np.abs(final.poses)) < 1e-9
+
+
+@pytest.mark.parametrize("layout_", ["C", "F", "view"])
+@pytest.mark.parametrize("n, m", [(5, 3), (64, 2), (300, 16), (301, 40)])
+def test_in_place_downdate_equals_numpy_to_rounding(layout_: str, n: int, m: int) -> None:
+    """The prior's Kalman update (``cov -= W W^T`` through syrk in place): the same matrix as numpy's to
+    rounding, symmetric to rounding, written into the caller's array (a non-contiguous view falls back)."""
+    from online_slam.estimators.kalman import downdate
+
+    rng = np.random.default_rng(n * m)
+    A = rng.standard_normal((n, n + 3))
+    cov = A @ A.T
+    W = 0.3 * rng.standard_normal((n, m))
+    expected = cov - W @ W.T
+    if layout_ == "view":
+        buffer = np.zeros((n + 7, n + 7))
+        buffer[:n, :n] = cov
+        target = buffer[:n, :n]
+    else:
+        target = np.array(cov, order=layout_)
+    downdate(target, W)
+    scale = np.abs(expected).max()
+    assert np.abs(target - expected).max() <= 1e-14 * scale
+    assert np.abs(target - target.T).max() <= 1e-14 * scale
+    if layout_ == "view":
+        assert np.array_equal(buffer[n:], np.zeros((7, n + 7)))
