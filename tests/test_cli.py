@@ -87,10 +87,11 @@ def test_simulate_grid_options(tmp_path: Path) -> None:
 
 
 def test_simulate_waypoint_world(tmp_path: Path) -> None:
-    """The random-waypoint world: steps of the given length, turns within the limit, sightings within range
-    (checked on the written stream's truth), bad settings a one-line error."""
+    """The random-waypoint world: steps of the given length, turns within the limit, sightings within range and
+    outside the blind zone (checked on the written stream's truth), bad settings a one-line error."""
     path = tmp_path / "w.jsonl"
     args = ("--poses", "300", "--landmarks", "150", "--size", "40", "--step", "0.5", "--max-turn", "0.2")
+    args += ("--min-range", "0.8")
     done = cli("simulate", "waypoint", *args, "-o", str(path))
     assert done.returncode == 0, done.stderr
     events = [json.loads(line) for line in path.read_text().splitlines()]
@@ -103,11 +104,14 @@ def test_simulate_waypoint_world(tmp_path: Path) -> None:
     pose_at = dict(zip([e["t"] for e in events if e["type"] == "truth"], truth))
     sightings = [e for e in events if e["type"] == "observation"]
     assert len(sightings) > 300
-    assert all(np.hypot(*(np.array(landmarks[e["landmark"]]) - pose_at[e["t"]][:2])) <= 6.0 for e in sightings)
+    distances = [np.hypot(*(np.array(landmarks[e["landmark"]]) - pose_at[e["t"]][:2])) for e in sightings]
+    assert min(distances) >= 0.8 and max(distances) <= 6.0
     replayed = json.loads(cli("replay", str(path), "--json", "-", "--quiet").stdout)
     assert replayed["poses"] == 300 and replayed["estimators"]["batch"]["converged"]
     bad = cli("simulate", "waypoint", "--size", "10", "-o", str(path))
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "size" in bad.stderr
+    bad = cli("simulate", "waypoint", "--min-range", "7", "-o", str(path))
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "min range" in bad.stderr
 
 
 GOOD = [

@@ -134,8 +134,8 @@ def _big(args: argparse.Namespace, waypoint: bool = False) -> None:
         w = WAYPOINT_WORLD
         rows, batch = run_big_world(w)
         print(f"waypoint world: {w.poses} poses {w.step:g} m apart towards random goals, {w.landmarks} landmarks "
-              f"over {w.size:g} m, range {w.sensor_range:g} m, seed {w.seed}; batch final {batch[0]:.4f} m, "
-              f"landmarks {batch[1]:.4f} m")  # fmt: skip
+              f"over {w.size:g} m, range {w.min_range:g}-{w.sensor_range:g} m, seed {w.seed}; "
+              f"batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
     else:
         c = BIG_WORLD
         rows, batch = run_big_world(c)

@@ -56,6 +56,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--max-turn", type=float, default=w.max_turn, help=f"waypoint: most turn per pose, rad (default {w.max_turn})"
     )
+    p.add_argument(
+        "--min-range", type=float, default=w.min_range, help=f"waypoint: blind zone, m (default {w.min_range})"
+    )
     p.add_argument("--wrong-ids", type=float, default=0.0, metavar="F", help="fraction of sightings given a wrong id")
     p.add_argument(
         "--range-spikes", type=float, default=0.0, metavar="F", help="fraction of sightings with a range spike"
@@ -91,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(base, GridConfig):
             config: GridConfig | WaypointConfig = replace(base, blocks=args.blocks, block_size=args.block_size, **given)
         else:
-            config = replace(base, size=args.size, max_turn=args.max_turn, **given)
+            config = replace(base, size=args.size, max_turn=args.max_turn, min_range=args.min_range, **given)
         values = [*config.odometry_sigma, *config.sensor_sigma]
         if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
             raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")
