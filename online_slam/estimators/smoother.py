@@ -70,6 +70,10 @@ Index = NDArray[np.int64]
 GLOBAL_GROWTH = 20
 """Global relinearizations start at most every N / 20 steps after N steps: each costs O(N), so this keeps their
 amortized cost per step bounded on long runs."""
+GLOBAL_DELAY_GROWTH = 50
+"""A background global solve is handed over at least N / 50 steps after it starts at step N: its cost grows with N
+while a step's does not (measured on the 5000-pose grid world with 15 ms steps: the last solves took ~1.3 s, so a
+hand-over 50 steps later waited up to 0.5 s for them)."""
 GLOBAL_FALSE_ALARM = 1e-3
 """A global relinearization is kept unless the history's pull on the re-anchored prior exceeds the chi-square
 bound a consistent history exceeds with this probability."""
@@ -127,8 +131,9 @@ class SmootherConfig:
     """Levenberg-Marquardt iterations of each global relinearization (warm-started: few are needed)."""
     global_delay: int = 50
     """Steps between starting a global relinearization (in a background thread, from a copy of the state) and
-    handing its result over; the hand-over waits for the solve if it is not done, so results never depend on
-    timing. 0 solves at once, inside the step."""
+    handing its result over, or N / 50 steps after N steps if that is longer (the solve's cost grows with N, a
+    step's does not); the hand-over waits for the solve if it is not done, so results never depend on timing.
+    0 solves at once, inside the step."""
     global_information_max: int = 0
     """Re-anchoring also relinearizes the prior's information (its covariance: the history's exact marginal at
     the revised estimate) while the prior holds at most this many landmarks (one sparse solve with 2 L + 3
@@ -893,7 +898,8 @@ class SlidingWindowSmoother:
         if inputs is None:
             return
         solver = self._global_solver
-        job = _GlobalJob(handover=self._steps + self.config.global_delay, n_poses=len(inputs[2]))
+        delay = max(self.config.global_delay, self._steps // GLOBAL_DELAY_GROWTH)
+        job = _GlobalJob(handover=self._steps + delay, n_poses=len(inputs[2]))
 
         def work() -> None:
             try:
