@@ -46,7 +46,7 @@ OPTIONS: dict[str, tuple[type, str]] = {
     "window_distance": (float, "smoother: keep poses beyond W until the window's path is this long (m; 0 = W poses)"),
     "window_max": (int, "smoother: most poses the window keeps for window_distance (>= 1)"),
     "global_every": (int, "smoother: re-solve the whole history every N steps (0 = never)"),
-    "global_delay": (int, "smoother: hand a background global solve over D steps after it starts (0 = at once)"),
+    "global_delay": (int, "smoother: hand a global solve over D (or N/50 after step N) steps later (0: at once)"),
     "global_information_max": (int, "smoother: relinearize the prior's covariance too while it holds <= L landmarks"),
     "robust": (str, "smoother: outliers 'auto' (default), 'none', 'huber' or 'cauchy'"),
     "robust_scale": (float, "smoother: robust loss threshold in sigmas (> 0)"),

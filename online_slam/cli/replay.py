@@ -160,7 +160,8 @@ def add_options(p: argparse.ArgumentParser) -> None:
         default=SmootherConfig.global_delay,
         metavar="D",
         help="smoother: run each global relinearization in a background thread and hand its result over D steps "
-        f"later (deterministic; default {SmootherConfig.global_delay}; 0 = solve at once, inside the step)",
+        f"later, or N/50 steps after step N if longer (deterministic; default {SmootherConfig.global_delay}; "
+        "0 = solve at once, inside the step)",
     )
     p.add_argument(
         "--global-information-max",
