@@ -162,7 +162,7 @@ class SmootherConfig:
 class _Prior:
     """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[landmarks..., pose]``.
 
-    The pose comes last so that dropping it is a slice, not a copy.
+    The pose comes last, so that its rows and columns are the ones the next pose reuses.
     """
 
     pose: int
@@ -173,7 +173,7 @@ class _Prior:
     """Contiguous (n, n), so that Kalman updates run in place (:func:`~online_slam.estimators.kalman.downdate`)."""
 
 
-def _grow_buffer(Sigma: Array, size: int, keep: int) -> Array:
+def _resized(Sigma: Array, size: int, keep: int) -> Array:
     """Sigma itself when the size does not change, else a new contiguous size x size array whose top-left
     ``keep`` x ``keep`` block holds Sigma's (the rest uninitialized)."""
     if len(Sigma) == size:
@@ -835,7 +835,7 @@ class SlidingWindowSmoother:
                 J_s = stacked_jacobian(Jp[update], Jl[update], pose_first=False)
                 PHt = Sigma[:, cols] @ J_s.T
                 S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
-                # in place: the prior owns its buffer (untouched if S is not positive definite in floating point)
+                # in place: the prior owns its covariance (untouched if S is not positive definite in floating point)
                 with contextlib.suppress(np.linalg.LinAlgError):
                     innovation = -(r0[update].reshape(-1) + J_s @ mu[cols])
                     dmu, _, _ = apply_update(Sigma, PHt, S, innovation, exactly_symmetric=False)
@@ -853,7 +853,7 @@ class SlidingWindowSmoother:
         q = len(M)
         cross = M @ Sigma[:keep, keep:].T  # (q, keep): read o's rows before they are overwritten
         block = M @ Sigma[keep:, keep:] @ M.T + noise
-        grown = _grow_buffer(Sigma, keep + q, keep)  # o's rows and columns are reused when the size holds
+        grown = _resized(Sigma, keep + q, keep)  # o's rows and columns are reused when the size holds
         grown[keep:, :keep] = cross
         grown[:keep, keep:] = cross.T
         grown[keep:, keep:] = 0.5 * (block + block.T)
