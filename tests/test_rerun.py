@@ -6,6 +6,7 @@ import json
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -175,7 +176,6 @@ def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path, processes) 
     if rerun_cli is None:
         pytest.skip("the rerun command is not installed")
     import socket
-    import time
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -201,9 +201,14 @@ def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path, processes) 
 
 
 def test_unreachable_viewer_is_one_line_and_results_survive(tmp_path: Path) -> None:
-    out = tmp_path / "r.json"
-    done = cli("replay", "square", "--connect", "rerun+http://127.0.0.1:9/proxy", "--json", str(out))
+    out, rrd = tmp_path / "r.json", tmp_path / "r.rrd"
+    started = time.perf_counter()
+    done = cli("replay", "square", "--connect", "rerun+http://127.0.0.1:9/proxy", "--json", str(out), "--rrd", str(rrd))
+    elapsed = time.perf_counter() - started
     assert done.returncode == 2 and "Traceback" not in done.stderr
     ours = [line for line in done.stderr.splitlines() if line.startswith("online-slam:")]
-    assert len(ours) == 1 and "could not deliver" in ours[0]
+    assert len(ours) == 1 and "could not deliver" in ours[0] and "127.0.0.1:9" in ours[0]
     assert "Position RMSE" in done.stdout and json.loads(out.read_text())["poses"] == 25
+    with Recording(rrd) as recording:  # the file is still written whole
+        assert recording.summary().steps == 25
+    assert elapsed < 15  # told at once, not after rerun's flush and disconnect timeouts (30 s before)

@@ -25,7 +25,9 @@ from __future__ import annotations
 import functools
 import json
 import math
+import socket
 import time
+import urllib.parse
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -50,6 +52,10 @@ Array = NDArray[np.float64]
 
 VIEWER_FLUSH_S = 15.0
 """When streaming to a viewer, wait at most this long at the end for the recording to be delivered."""
+VIEWER_PROBE_S = 2.0
+"""Before streaming to a viewer, wait at most this long for its port to accept a connection."""
+DEFAULT_VIEWER = "rerun+http://127.0.0.1:9876/proxy"
+"""Where rerun's gRPC sink connects when no address is given."""
 EPOCH = 1e9
 """Stream times at or above this many seconds are taken as Unix timestamps, below as durations."""
 
@@ -73,6 +79,24 @@ class _Path:
         if n - self.sent >= max(50, int(math.sqrt(n))):  # whole resends ~n^2/2T points, tails ~nT/2: T ~ sqrt(n)
             whole, self.sent = np.array(self.points), n
         return whole, np.array(self.points[max(self.sent - 1, 0) :])
+
+
+def viewer_unreachable(address: str, timeout_s: float = VIEWER_PROBE_S) -> str | None:
+    """Why the viewer at a ``rerun+http://host:port/...`` address cannot be reached, or None if its port answers.
+
+    rerun's gRPC sink retries an absent viewer silently and gives up only at the end of the run (15 s to flush,
+    then 5-15 s more to disconnect); one TCP connection up front tells the user at once and costs nothing.
+    """
+    parts = urllib.parse.urlsplit(address.removeprefix("rerun+"))
+    try:
+        host, port = parts.hostname or "127.0.0.1", parts.port or 9876
+    except ValueError as exc:  # a port that is not a number
+        return str(exc)
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            return None
+    except OSError as exc:
+        return exc.strerror or type(exc).__name__
 
 
 @dataclass(frozen=True)
@@ -174,11 +198,25 @@ class RerunSink:
         self.rec = rr.RecordingStream("online-slam", recording_id=str(uuid.uuid4()))
         self.rec.set_log_tick_enabled(False)
         self.rec.set_log_time_enabled(False)
+        self.error: str | None = None
+        """Set when the recording could not be delivered (the replay itself is not affected)."""
         sinks: list[Any] = []
         if config.path is not None:
             sinks.append(rr.FileSink(str(config.path)))
+        self.live = False
+        """Whether the recording streams to a viewer (one was given and its port answered)."""
         if config.connect is not None:
-            sinks.append(rr.GrpcSink(config.connect) if config.connect != "default" else rr.GrpcSink())
+            address = config.connect if config.connect != "default" else DEFAULT_VIEWER
+            problem = viewer_unreachable(address)
+            if problem is None:
+                sinks.append(rr.GrpcSink(address))
+                self.live = True
+            else:  # the replay goes on (and still writes --rrd): the CLI reports this line at the end
+                self.error = f"rerun: could not deliver the recording to the viewer at {self._where()} ({problem})"
+        self.off = not sinks
+        """Nothing to log to (the only destination was an unreachable viewer): steps are not logged."""
+        if self.off:
+            return
         try:
             self.rec.set_sinks(*sinks, default_blueprint=blueprint(layout))
         except Exception as exc:  # noqa: BLE001 - rerun raises several kinds; one message for the user
@@ -192,13 +230,14 @@ class RerunSink:
         self._last_flush = time.perf_counter()
         self._buffered = 0
         self._last_step: Step | None = None
-        self.error: str | None = None
-        """Set when the recording could not be delivered (the replay itself is not affected)."""
         estimated = [n for n in layout.online if n != "odometry"]
         self._rays_from = next((n for n in estimated if n.startswith("smoother")), None) or (
             estimated[0] if estimated else "odometry"
         )
         self._appearance()
+
+    def _where(self) -> str:
+        return self.config.connect if self.config.connect != "default" else f"the default address {DEFAULT_VIEWER}"
 
     def _appearance(self) -> None:
         """Colours, sizes and names, once and for all time."""
@@ -276,6 +315,8 @@ class RerunSink:
 
     def on_step(self, step: Step, snapshots: Mapping[str, Snapshot], truth: GroundTruth) -> None:
         """Buffer one step: poses, paths, maps, observation rays, scalars; log its events."""
+        if self.off:
+            return
         add = self.columns.add
         if len(truth.landmarks) != self.truth_landmarks:
             self.truth_landmarks = len(truth.landmarks)
@@ -306,7 +347,7 @@ class RerunSink:
         self._last_step = step
         self._buffered += 1
         now = time.perf_counter()
-        live = self.config.connect is not None and now - self._last_flush > 0.25
+        live = self.live and now - self._last_flush > 0.25
         if live or self._buffered >= self.config.flush_every:
             self.columns.flush()
             self._last_flush, self._buffered = now, 0
@@ -350,6 +391,8 @@ class RerunSink:
     # -- end ---------------------------------------------------------------------------------------
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
         """Send what is buffered, the batch solution at the last step, the summary; close the file."""
+        if self.off:
+            return
         rec = self.rec
         # Errors and NEES as the table computes them (same frame and alignment: known only at the end).
         for name, series in results.series.items():
@@ -386,8 +429,7 @@ class RerunSink:
         summary = dict(results.to_json(), recording=self.layout.to_json())
         rec.log("summary", rr.TextDocument(json.dumps(summary, indent=2), media_type="text/plain"), static=True)
         try:  # a viewer that never answers must not hang the run (rerun-sdk 0.41 can wait for it forever)
-            rec.flush(timeout_sec=VIEWER_FLUSH_S) if self.config.connect is not None else rec.flush()
+            rec.flush(timeout_sec=VIEWER_FLUSH_S) if self.live else rec.flush()
         except RuntimeError as exc:  # e.g. no viewer at the address: the results must not be lost over it
-            where = self.config.connect if self.config.connect != "default" else "the default address"
-            self.error = f"rerun: could not deliver the recording to the viewer at {where} ({exc})"
+            self.error = f"rerun: could not deliver the recording to the viewer at {self._where()} ({exc})"
         rec.disconnect()
