@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.linalg as la
 
 from online_slam import Slam
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
@@ -256,3 +257,46 @@ def test_square_world_with_large_odometry_noise_confirms_the_smoothers_landmarks
     score = jcbb.estimators["smoother"].association
     assert score.accuracy >= 0.8 and score.landmarks_mapped >= 10
     assert jcbb.estimators["smoother"].final_rmse_m <= 1.5 * known.estimators["smoother"].final_rmse_m
+
+
+def test_association_covariance_from_the_last_solve_equals_relinearizing_the_window() -> None:
+    """The joint covariance association reads from the last solve's factor, carried through the newest odometry
+    and the prior's conditional for landmarks only the prior holds, is the one a relinearization of the window
+    at the same point gives (the solve's factor is taken at the solution here so that the two meet to rounding;
+    in a run it is one converged step before it)."""
+    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig, _Solved
+    from online_slam.frontend import FrontEnd
+
+    compared: list[tuple[float, bool]] = []
+
+    class Checked(SlidingWindowSmoother):
+        def _solve(self, final: bool = False, depth: int = 0) -> dict[str, float]:
+            report = super()._solve(final, depth)
+            if self._solved is not None:
+                active, sparse, _, H = self._linearized_window()
+                assert H is not None
+                factor = la.cho_factor(H, lower=False)[0]
+                window = np.array(self.window, dtype=np.int64)
+                columns = sparse.pose_column[: len(window)].copy(), sparse.landmark_column[: len(active)].copy()
+                self._solved = _Solved(window, columns[0], active, columns[1], factor)
+            return report
+
+        def _association_covariance(self, indices: np.ndarray) -> np.ndarray:
+            fast = self._propagated_covariance(indices)
+            saved, self._solved = self._solved, None
+            full = super()._association_covariance(indices)
+            self._solved = saved
+            if fast is not None:
+                passive = bool(np.any(~np.isin(indices, saved.active)))
+                compared.append((float(np.abs(fast - full).max() / np.abs(full).max()), passive))
+            return full
+
+    config = SmootherConfig(window=6, association=AssociationConfig(method="jcbb"))
+    smoother = Checked(config)
+    world = contaminate(grid_world(replace(SMALL, poses=200)), Contamination(clutter=0.1))
+    for step in FrontEnd().steps(without_ids(world)):
+        smoother.step(step)
+    errors = np.array([e for e, _ in compared])
+    passive = np.array([p for _, p in compared])
+    assert len(errors) > 150 and passive.sum() > 30 and (~passive).sum() > 30, (len(errors), passive.sum())
+    assert errors.max() < 1e-9, errors.max()

@@ -260,6 +260,29 @@ def _unpack_observations(state: dict[str, Any]) -> dict[int, tuple[Index, Array,
     }
 
 
+@dataclass(frozen=True)
+class _Solved:
+    """The last window solve's factored information, for association covariances until the state moves."""
+
+    window: Index
+    """The window poses it solved, shape (P,)."""
+    pose_column: Index
+    """Column of each window pose in its system (-1: fixed), shape (P,)."""
+    active: Index
+    """The landmarks it solved (sorted), shape (A,)."""
+    landmark_column: Index
+    """Column of each active landmark, shape (A,)."""
+    factor: Array
+    """``scipy.linalg.cho_factor`` of its information (upper triangle), shape (n, n)."""
+
+    def columns(self, landmarks: Index) -> Index | None:
+        """The columns of these landmarks (k,), shape (2k,); None if one was not solved."""
+        position = np.searchsorted(self.active, landmarks)
+        if len(landmarks) and (position.max() >= len(self.active) or np.any(self.active[position] != landmarks)):
+            return None
+        return (self.landmark_column[position][:, None] + np.arange(2)).reshape(-1)
+
+
 @dataclass
 class _GlobalJob:
     """A global solve running in the background (or finished, or restored from a checkpoint)."""
@@ -356,6 +379,7 @@ class SlidingWindowSmoother:
         """Global relinearizations not kept (the solve did not reconcile the history)."""
         self.book = LandmarkBook(self.config.association, inside=False)
         self._resolved: Step | None = None  # the newest step with associated ids, when association changed it
+        self._solved: _Solved | None = None  # the last solve's factored information, while the state has not moved
 
     @property
     def landmarks(self) -> Array:
@@ -435,10 +459,15 @@ class SlidingWindowSmoother:
     def _association_covariance(self, indices: Index) -> Array:
         """Joint covariance of the newest pose and landmarks ``indices`` (c,), shape (3 + 2c, 3 + 2c).
 
-        The window (without the newest pose's sightings, still being associated) and the reduced prior are
-        linearized at the current estimate; landmarks the window observes read the inverse information;
-        landmarks only the prior holds are its conditional given the part the window shares, propagated.
+        Usually the last solve's factored information, carried through the newest odometry (see
+        :meth:`_propagated_covariance`). Otherwise the window (without the newest pose's sightings, still being
+        associated) and the reduced prior are linearized at the current estimate; landmarks the window observes
+        read the inverse information; landmarks only the prior holds are its conditional given the part the
+        window shares, propagated.
         """
+        propagated = self._propagated_covariance(indices)
+        if propagated is not None:
+            return propagated
         c = len(indices)
         active, sparse, quadratic, H = self._linearized_window()
         rows = 3 + 2 * c
@@ -482,6 +511,74 @@ class SlidingWindowSmoother:
             return fallback
         joint = L @ X + N
         return 0.5 * (joint + joint.T)
+
+    def _propagated_covariance(self, indices: Index) -> Array | None:
+        """The association covariance from the last solve's factored information, or None if it does not apply.
+
+        It applies while nothing moved since that solve but the newest pose's odometry: the newest pose is then
+        the solved one composed with it, and its joint covariance with the landmarks is the solved one carried
+        through the composition's Jacobians. Marginalizing old poses since does not change the remaining
+        variables' marginal (exact for the linearized system). A landmark only the prior holds is, given the
+        prior's part that the solve saw (its pose and solved landmarks), independent of the rest: its covariance
+        is the prior's conditional plus that part's solved covariance carried through the regression. This
+        saves linearizing and factoring the window per scan. None when the state moved otherwise (a sighting
+        was added, a global solve handed over, judged outliers dropped from a marginalized pose).
+        """
+        s, newest = self._solved, self.window[-1]
+        if s is None:
+            return None
+        if newest == s.window[-1] and not self._unsolved:
+            carry = None
+        elif len(self.window) > 1 and self.window[-2] == s.window[-1] and self._unsolved == {newest}:
+            if newest in self._observations:
+                return None
+            delta, Q, _ = self._odometry[newest]
+            _, F, G = compose_with_jacobians(self.poses[s.window[-1]], delta)
+            carry = (F, G @ Q @ G.T)
+        else:
+            return None
+        c = len(indices)
+        is_solved = np.isin(indices, s.active)
+        passive = np.flatnonzero(~is_solved)
+        # The joint is R^T H^-1 R (+ the prior's conditional), R mapping it onto the solved system's columns.
+        R = np.zeros((len(s.factor), 3 + 2 * c))
+        R[s.pose_column[-1] + np.arange(3), np.arange(3)] = 1.0
+        known = 3 + (2 * np.flatnonzero(is_solved)[:, None] + np.arange(2)).reshape(-1)
+        R[s.columns(indices[is_solved]), known] = 1.0
+        conditional = None
+        if len(passive):
+            p = self.prior
+            prior_pose = int(np.searchsorted(s.window, p.pose)) if p is not None else len(s.window)
+            if p is None or not len(p.landmarks) or prior_pose == len(s.window) or s.window[prior_pose] != p.pose:
+                return None
+            if s.pose_column[prior_pose] < 0:  # the prior's pose was fixed in that solve
+                return None
+            slot = np.searchsorted(p.landmarks, indices[passive], sorter=(by_id := np.argsort(p.landmarks)))
+            slot = by_id[np.minimum(slot, len(by_id) - 1)]
+            if np.any(p.landmarks[slot] != indices[passive]):  # not in the prior either (inconsistent state)
+                return None
+            is_held = np.isin(p.landmarks, s.active)
+            n = len(p.mu)
+            order = np.r_[(2 * np.flatnonzero(is_held)[:, None] + np.arange(2)).reshape(-1), np.arange(n - 3, n)]
+            rows = (2 * slot[:, None] + np.arange(2)).reshape(-1)
+            S_pa = p.Sigma[np.ix_(rows, order)]
+            try:  # the regression of the passive landmarks on the held part: d_p = B d_a + noise
+                B = la.cho_solve(la.cho_factor(p.Sigma[np.ix_(order, order)]), S_pa.T).T  # (2k, q)
+            except (la.LinAlgError, ValueError):
+                return None
+            a_columns = np.r_[s.columns(p.landmarks[is_held]), s.pose_column[prior_pose] + np.arange(3)]
+            out = 3 + (2 * passive[:, None] + np.arange(2)).reshape(-1)
+            R[np.ix_(a_columns, out)] = B.T
+            conditional = (out, p.Sigma[np.ix_(rows, rows)] - B @ S_pa.T)
+        P = R.T @ la.cho_solve((s.factor, False), R)
+        if conditional is not None:
+            P[np.ix_(conditional[0], conditional[0])] += conditional[1]
+        if carry is not None:
+            F, noise = carry
+            P[:3] = F @ P[:3]
+            P[:, :3] = P[:, :3] @ F.T
+            P[:3, :3] += noise
+        return 0.5 * (P + P.T)
 
     def _add_observations(self, step: Step, start: int) -> None:
         """Factors for the newest pose's observations ``start:``; new landmarks from their first sight."""
@@ -564,15 +661,24 @@ class SlidingWindowSmoother:
         if recover is not None:
             recover(result.poses[0], result.landmarks)
         newest = sparse.pose_column[len(self.window) - 1]
+        self._solved = None
         if newest >= 0 and result.information is not None:
             H = result.information
             H = H.toarray() if hasattr(H, "toarray") else H
             unit = np.zeros((H.shape[0], 3))
             unit[newest + np.arange(3), np.arange(3)] = 1.0
             try:
-                cov = la.cho_solve(la.cho_factor(H), unit)[newest : newest + 3]
+                factor, _ = la.cho_factor(H, lower=False)
+                cov = la.cho_solve((factor, False), unit)[newest : newest + 3]
                 self._pose_cov = 0.5 * (cov + cov.T)
-            except la.LinAlgError:
+                self._solved = _Solved(
+                    np.array(self.window, dtype=np.int64),
+                    sparse.pose_column[: len(self.window)].copy(),
+                    active,
+                    sparse.landmark_column[: len(active)].copy(),
+                    factor,
+                )
+            except (la.LinAlgError, ValueError):  # singular, or not finite
                 self._pose_cov = np.full((3, 3), np.nan)
         self._since_solve = 0
         self._unsolved.clear()
@@ -666,6 +772,7 @@ class SlidingWindowSmoother:
         Sigma = np.ascontiguousarray(p.Sigma[np.ix_(keep, keep)])
         self.prior = _Prior(p.pose, np.delete(p.landmarks, slots), p.x_lin[keep], p.mu[keep], Sigma)
         self.released += len(slots)
+        self._solved = None
 
     def _reduced_prior(self, active: Index, pose_column: int, landmark_column: Index) -> tuple:
         """The prior's marginal on its pose and the active landmarks, and a function recovering the others."""
@@ -803,6 +910,7 @@ class SlidingWindowSmoother:
             keep = ~self._judge(o)
             self._decisions.append((o, ~keep))
             if not keep.all():  # judged outliers are never folded into the prior
+                self._solved = None  # the solved information holds them
                 obs = tuple(a[keep] for a in obs) if keep.any() else None
         if obs is not None:
             indices, z, z_cov = _fuse_repeats(*obs[:3])
@@ -966,6 +1074,7 @@ class SlidingWindowSmoother:
             x_lin = np.r_[landmarks[p.landmarks].reshape(-1), oldest_value]
             anchored = _Prior(oldest, p.landmarks, x_lin, -(Sigma @ g_k), Sigma)
         self.history.replace(history)
+        self._solved = None
         if at_once:
             for g in self.window:
                 self.poses[g] = result.poses[g].copy()
@@ -1091,6 +1200,16 @@ class SlidingWindowSmoother:
             "resolved": None
             if self._resolved is None
             else {"landmarks": list(self._resolved.landmarks), "z": self._resolved.z, "z_cov": self._resolved.z_cov},
+            "solved": None
+            if self._solved is None
+            else {
+                "window": self._solved.window,
+                "pose_column": self._solved.pose_column,
+                "active": self._solved.active,
+                "landmark_column": self._solved.landmark_column,
+                "factor": self._solved.factor,
+                "size": len(self._solved.factor),
+            },
         }
 
     def _job_state(self) -> dict[str, Any] | None:
@@ -1185,6 +1304,19 @@ class SlidingWindowSmoother:
                 landmarks=tuple(resolved["landmarks"]),
                 z=as_float(resolved["z"]).reshape(-1, 2),
                 z_cov=as_float(resolved["z_cov"]).reshape(-1, 2, 2),
+            )
+        )
+
+        solved = state.get("solved")  # absent from checkpoints of versions before it
+        self._solved = (
+            None
+            if solved is None
+            else _Solved(
+                np.array(solved["window"], dtype=np.int64),
+                np.array(solved["pose_column"], dtype=np.int64),
+                np.array(solved["active"], dtype=np.int64),
+                np.array(solved["landmark_column"], dtype=np.int64),
+                np.array(solved["factor"], dtype=float).reshape(int(solved["size"]), int(solved["size"])),
             )
         )
 
