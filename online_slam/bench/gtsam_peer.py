@@ -158,7 +158,9 @@ def levenberg_marquardt(
         poses: Initial poses, shape (n_poses, 3).
         landmarks: Initial landmarks, shape (n_landmarks, 2).
         exact: Reproduce our cost exactly (custom factors) instead of GTSAM's native factors.
-        tight: Iterate to convergence (tolerances 1e-15) instead of GTSAM's defaults.
+        tight: Iterate to convergence (relative decrease 1e-10, absolute 1e-15) instead of GTSAM's defaults. A
+            tighter relative tolerance adds no digits, only a last iteration in which LM raises lambda ten
+            times at the minimum before giving up (measured on the 2000-pose grid: 25 s more, the same cost).
 
     Returns:
         GTSAM's solution and timing.
@@ -166,7 +168,7 @@ def levenberg_marquardt(
     fg, values = to_gtsam(graph, poses, landmarks, exact=exact)
     params = gtsam.LevenbergMarquardtParams()
     if tight:
-        params.setRelativeErrorTol(1e-15)
+        params.setRelativeErrorTol(1e-10)
         params.setAbsoluteErrorTol(1e-15)
         params.setMaxIterations(200)
     started = time.perf_counter()

@@ -142,8 +142,8 @@ class SmootherConfig:
     cityTrees' worse and costs up to 0.5 s per hand-over there (see the README)."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
-    smoother's own belief (the window's information linearized at the current estimate, the prior for landmarks
-    the window does not see), with tentative landmarks. Associations are not revised later."""
+    smoother's own belief (the window's information from the last solve, carried to the newest pose; the prior
+    for landmarks the window does not see), with tentative landmarks. Associations are not revised later."""
 
     def __post_init__(self) -> None:
         if self.global_every < 0 or self.global_iterations < 1 or self.global_delay < 0:
