@@ -222,6 +222,9 @@ def test_scoring_counts_majorities_and_clutter() -> None:
     assert score.sightings_scored == 5
     assert score.accuracy == pytest.approx(3 / 5)  # the two of 1 and the one of 2 in "b" (b's majority: tie -> first)
     assert (score.landmarks_mapped, score.landmarks_true) == (2, 2)
+    # a stream without ids that marks its clutter: nothing to score pairings against (not "0 true landmarks")
+    blind = score_association("jcbb", ["a", None, "a"], true_labels([None, None, None], {1: "clutter"}), ("a",))
+    assert (blind.accuracy, blind.landmarks_true, blind.sightings_scored) == (None, None, 0)
 
 
 def test_association_config_is_validated() -> None:

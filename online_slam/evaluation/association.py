@@ -19,7 +19,7 @@ class AssociationScore:
     accuracy: float | None
     """Share of scored sightings paired right: a sighting of true landmark ``l`` is right when it went to a mapped
     landmark most of whose sightings are of ``l``; a clutter sighting is right when it went to no mapped landmark.
-    None when nothing could be scored (no ids in the stream)."""
+    None when nothing could be scored (no ids in the stream, even if it marks its clutter)."""
     landmarks_mapped: int
     """Landmarks in the estimator's final map."""
     landmarks_true: int | None
@@ -92,6 +92,8 @@ def score_association(
         else:
             seen_true.add(true)
             right += mapped_label and owner.get(label) == true
+    if not seen_true:  # no sighting carries an id (clutter marks alone): pairing cannot be scored
+        scored = right = 0
     return AssociationScore(
         method=method,
         accuracy=right / scored if scored else None,
