@@ -34,13 +34,15 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
 
 
-# Heaviest modules first (measured CPU seconds per module, largest first): `--dist loadfile` hands whole modules to
-# the two workers in collection order as they free up, so long modules collected last left one worker running alone
-# for over a minute at the end.
+# Heaviest modules first (measured seconds per module, largest first): `--dist loadfile` hands whole modules to the
+# two workers in collection order as they free up (with `--no-loadscope-reorder`, see pyproject.toml: by default
+# pytest-xdist 3.8 reorders modules by their number of tests, which put the 156 s MRCLAM module last), so long
+# modules collected last would leave one worker running alone at the end.
 HEAVY_FIRST = (
-    "test_real_datasets.py", "test_cli.py", "test_rerun.py", "test_smoother.py", "test_resume.py",
-    "test_shipped_replays.py", "test_gtsam_crosscheck.py", "test_unknown_association.py", "test_web_viewer.py",
-    "test_sweep.py", "test_slam_api.py", "test_compare.py", "test_importers.py", "test_ekf.py", "test_acfr.py",
+    "test_real_datasets.py", "test_cli.py", "test_resume.py", "test_shipped_replays.py", "test_rerun.py",
+    "test_smoother.py", "test_sweep.py", "test_unknown_association.py", "test_importers.py", "test_web_viewer.py",
+    "test_compare.py", "test_slam_api.py", "test_gtsam_crosscheck.py", "test_acfr.py", "test_ekf.py",
+    "test_on_error.py", "test_outliers.py", "test_fuzz.py", "test_tum.py",
 )  # fmt: skip
 
 

@@ -8,8 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-from online_slam.bench.batch import run_batch_bench
-from online_slam.bench.ekf import paired_rounds, time_smoother, time_steps, time_updates
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
@@ -66,6 +64,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _batch(args: argparse.Namespace, world: GridConfig) -> None:
+    from online_slam.bench.batch import run_batch_bench  # with GTSAM: imported when a section needs it
+
     bench = run_batch_bench(world, repeats=_repeats(args))
     print(
         f"batch solve: grid world, {bench.poses} poses, {bench.landmarks} landmarks, "
@@ -81,6 +81,8 @@ def _batch(args: argparse.Namespace, world: GridConfig) -> None:
 
 
 def _ekf_update(args: argparse.Namespace) -> None:
+    from online_slam.bench.ekf import time_updates
+
     try:
         counts = tuple(int(v) for v in args.landmarks.split(",") if v.strip())
     except ValueError:
@@ -94,6 +96,8 @@ def _ekf_update(args: argparse.Namespace) -> None:
 
 
 def _online_steps(args: argparse.Namespace, world: GridConfig) -> None:
+    from online_slam.bench.ekf import paired_rounds, time_smoother, time_steps
+
     n, rows = time_steps(world)
     windows = tuple(int(w) for w in args.windows.split(",") if w.strip())
     rows[1:1] = time_smoother(world, windows)

@@ -333,8 +333,13 @@ def solve_all(
     solver: SolverConfig,
     loss: RobustLoss | None,
 ) -> SolveResult:
-    """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread)."""
-    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss)
+    """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread).
+
+    Always by the sparse factorization (plain C, no threaded BLAS): the dense one's LAPACK runs on as many
+    threads as the process allows at the moment, which the stepping thread changes (it limits BLAS to one thread
+    per step), so a small problem solved in the background could differ in the last bits from run to run.
+    """
+    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss, dense=False)
 
 
 class SlidingWindowSmoother:
