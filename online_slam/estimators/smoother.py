@@ -523,11 +523,13 @@ class SlidingWindowSmoother:
         It applies while nothing moved since that solve but the newest pose's odometry: the newest pose is then
         the solved one composed with it, and its joint covariance with the landmarks is the solved one carried
         through the composition's Jacobians. Marginalizing old poses since does not change the remaining
-        variables' marginal (exact for the linearized system). A landmark only the prior holds is, given the
-        prior's part that the solve saw (its pose and solved landmarks), independent of the rest: its covariance
-        is the prior's conditional plus that part's solved covariance carried through the regression. This
-        saves linearizing and factoring the window per scan. None when the state moved otherwise (a sighting
-        was added, a global solve handed over, judged outliers dropped from a marginalized pose).
+        variables' marginal (exact for the linearized system with the default re-centred marginalization; with
+        ``first_estimate_jacobians`` up to the prior's older linearization points). A landmark only the prior
+        holds is, given the prior's part that the solve saw (its pose and solved landmarks), independent of the
+        rest: its covariance is the prior's conditional plus that part's solved covariance carried through the
+        regression. This saves linearizing and factoring the window per scan. None when the state moved
+        otherwise (a sighting was added, a global solve handed over, judged outliers dropped from a marginalized
+        pose, a landmark released from the prior).
         """
         s, newest = self._solved, self.window[-1]
         if s is None:
