@@ -22,6 +22,16 @@ def test_wrap_is_in_range_and_idempotent(a: float) -> None:
     assert np.isclose(np.cos(w), np.cos(a), atol=1e-9) and np.isclose(np.sin(w), np.sin(a), atol=1e-9)
 
 
+@given(st.one_of(st.floats(-1e6, 1e6, allow_nan=False), st.sampled_from([np.pi, -np.pi, 3 * np.pi, -0.0, -1e-20])))
+def test_wrap_of_one_number_is_wrap_of_an_array_to_the_bit(a: float) -> None:
+    """Numbers take a scalar path (Python float arithmetic): the same bits, sign of zero included."""
+    expected = wrap(np.array([a]))[0]
+    for number in (a, np.float64(a)):
+        w = wrap(number)
+        assert isinstance(w, np.float64) and w == expected and np.signbit(w) == np.signbit(expected)
+    assert wrap(np.array(a)).shape == ()  # a 0-d array stays an array
+
+
 def test_wrap_near_pi_boundaries() -> None:
     assert wrap(np.pi) == -np.pi
     assert wrap(-np.pi) == -np.pi
