@@ -260,6 +260,15 @@ def _unpack_observations(state: dict[str, Any]) -> dict[int, tuple[Index, Array,
     }
 
 
+def _locate(ids: Index, wanted: Index) -> tuple[Index, NDArray[np.bool_]]:
+    """Where each of ``wanted`` (k,) is in ``ids`` (distinct, any order), and whether it is there; shapes (k,)."""
+    if not len(ids):
+        return np.zeros(len(wanted), dtype=np.int64), np.zeros(len(wanted), dtype=bool)
+    order = np.argsort(ids, kind="stable")
+    where = order[np.minimum(np.searchsorted(ids, wanted, sorter=order), len(ids) - 1)]
+    return where, ids[where] == wanted
+
+
 @dataclass(frozen=True)
 class _Solved:
     """The last window solve's factored information, for association covariances until the state moves."""
@@ -275,12 +284,9 @@ class _Solved:
     factor: Array
     """``scipy.linalg.cho_factor`` of its information (upper triangle), shape (n, n)."""
 
-    def columns(self, landmarks: Index) -> Index | None:
-        """The columns of these landmarks (k,), shape (2k,); None if one was not solved."""
-        position = np.searchsorted(self.active, landmarks)
-        if len(landmarks) and (position.max() >= len(self.active) or np.any(self.active[position] != landmarks)):
-            return None
-        return (self.landmark_column[position][:, None] + np.arange(2)).reshape(-1)
+    def columns(self, landmarks: Index) -> Index:
+        """The columns of these solved landmarks (k,), shape (2k,)."""
+        return (self.landmark_column[_locate(self.active, landmarks)[0]][:, None] + np.arange(2)).reshape(-1)
 
 
 @dataclass
@@ -485,12 +491,7 @@ class SlidingWindowSmoother:
         newest = sparse.pose_column[len(self.window) - 1]
         if newest >= 0:
             L[np.arange(3), newest + np.arange(3)] = 1.0
-        position = np.searchsorted(active, indices)
-        is_active = (
-            (position < len(active)) & (active[np.minimum(position, len(active) - 1)] == indices)
-            if len(active)
-            else np.zeros(c, dtype=bool)
-        )
+        position, is_active = _locate(active, indices)
         for k in np.flatnonzero(is_active):
             column = sparse.landmark_column[position[k]]
             L[3 + 2 * k + np.arange(2), column + np.arange(2)] = 1.0
@@ -499,12 +500,11 @@ class SlidingWindowSmoother:
             p = self.prior
             if p is None or quadratic is None:
                 return fallback
-            slot_of = {int(j): slot for slot, j in enumerate(p.landmarks)}
-            slots = [slot_of.get(int(indices[k]), -1) for k in passive_k]
-            if min(slots) < 0:
+            slots, held = _locate(p.landmarks, indices[passive_k])
+            if not held.all():
                 return fallback
             order, _, _, A = self._prior_split(active)
-            state_rows = (2 * np.array(slots)[:, None] + np.arange(2)).reshape(-1)
+            state_rows = (2 * slots[:, None] + np.arange(2)).reshape(-1)
             S_pa = p.Sigma[np.ix_(state_rows, order)]
             B = S_pa @ A
             out_rows = (3 + 2 * passive_k[:, None] + np.arange(2)).reshape(-1)
@@ -545,7 +545,7 @@ class SlidingWindowSmoother:
         else:
             return None
         c = len(indices)
-        is_solved = np.isin(indices, s.active)
+        _, is_solved = _locate(s.active, indices)
         passive = np.flatnonzero(~is_solved)
         # The joint is R^T H^-1 R (+ the prior's conditional), R mapping it onto the solved system's columns.
         R = np.zeros((len(s.factor), 3 + 2 * c))
@@ -560,9 +560,8 @@ class SlidingWindowSmoother:
                 return None
             if s.pose_column[prior_pose] < 0:  # the prior's pose was fixed in that solve
                 return None
-            slot = np.searchsorted(p.landmarks, indices[passive], sorter=(by_id := np.argsort(p.landmarks)))
-            slot = by_id[np.minimum(slot, len(by_id) - 1)]
-            if np.any(p.landmarks[slot] != indices[passive]):  # not in the prior either (inconsistent state)
+            slot, held = _locate(p.landmarks, indices[passive])
+            if not held.all():  # not in the prior either (inconsistent state)
                 return None
             is_held = np.isin(p.landmarks, s.active)
             n = len(p.mu)
