@@ -33,3 +33,9 @@ def test_shipped_stream_replays(path: Path) -> None:
     if results.odometry.rmse_m is not None:  # with truth, every estimator beats dead reckoning
         for name, result in results.estimators.items():
             assert result.final_rmse_m < results.odometry.rmse_m, name
+    if path.name.startswith("victoria_park"):
+        # No truth: the batch's minimum is checked instead. GTSAM's best on the same data is chi-square 4,678
+        # (LM started from iSAM2's result; ANCHORS.md); issue 12 asks for <= 4,700. LM from composed odometry
+        # stops at 210,199.
+        chi2 = 2.0 * results.estimators["batch"].details["final_cost"]
+        assert chi2 <= 4700.0, chi2
