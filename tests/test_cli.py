@@ -53,6 +53,17 @@ def test_no_command_means_replay() -> None:
     assert done.returncode == 0 and "1.338 m" in done.stdout
 
 
+def test_json_to_stdout_keeps_stdout_pure_and_the_table_on_stderr() -> None:
+    done = cli("replay", "--json", "-")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["estimators"]["batch"]["final_rmse_m"] > 0.0  # the whole of stdout parses
+    assert parse_table(done.stderr)["Position RMSE over the path"]["Odometry only"] == "1.338 m"
+    done = cli("compare", "square", "--window", "5", "--json", "-")
+    assert done.returncode == 0, done.stderr
+    assert "smoother W=5 K=1" in json.loads(done.stdout)["estimators"]
+    assert "smoother W=5 K=1" in done.stderr
+
+
 def test_first_observation_only_and_json(tmp_path: Path) -> None:
     out = tmp_path / "r.json"
     done = cli("replay", "--first-observation-only", "--json", str(out))

@@ -79,8 +79,8 @@ def run(args: argparse.Namespace) -> int:
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     sinks = sinks_from(args, replay_config(config))  # one recording holds every configuration
     comparison = compare(args.source, config, on_skip=report_skip, sinks=sinks)
-    if not args.quiet:
-        print(format_comparison(comparison))
+    if not args.quiet:  # with --json - stdout is the JSON's: the table goes to stderr
+        print(format_comparison(comparison), file=sys.stderr if args.json == "-" else sys.stdout)
     if args.json:
         write_json(args.json, comparison.to_json())
     if args.plot:

@@ -75,7 +75,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def add_options(p: argparse.ArgumentParser) -> None:
     """The options shared by replay and compare: source, output, front-end and estimator settings."""
     p.add_argument("source", nargs="?", default="square", help="stream file (.jsonl/.gz), '-', or world (square, grid)")
-    p.add_argument("--json", metavar="PATH", help="write the results as JSON ('-' for stdout)")
+    p.add_argument("--json", metavar="PATH", help="write the results as JSON ('-': stdout, the table then on stderr)")
     p.add_argument(
         "--estimators",
         default=",".join(ESTIMATORS),
@@ -319,8 +319,8 @@ def run(args: argparse.Namespace) -> int:
     checkpoint = Checkpointing(Path(args.checkpoint), args.checkpoint_every) if args.checkpoint else None
     sinks = sinks_from(args, config)
     results = replay(args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume)
-    if not args.quiet:
-        print(format_results(results))
+    if not args.quiet:  # with --json - stdout is the JSON's: the table goes to stderr
+        print(format_results(results), file=sys.stderr if args.json == "-" else sys.stdout)
     if args.json:
         write_json(args.json, results.to_json())
     if args.tum:
