@@ -42,6 +42,12 @@ class CompareConfig:
     workers: int | None = None
     """Processes for Monte Carlo runs (default: all cores)."""
 
+    def __post_init__(self) -> None:
+        if any(w < 1 for w in self.windows) or any(k < 1 for k in self.relinearize_every):
+            raise ValueError("windows and relinearize_every must be >= 1")
+        if self.runs < 1 or (self.workers is not None and self.workers < 1):
+            raise ValueError("runs and workers must be >= 1")
+
 
 @dataclass(frozen=True)
 class Row:
@@ -207,11 +213,7 @@ def compare(
     Returns:
         The comparison (table rows, per-step series through ``results``, Monte Carlo figures).
     """
-    cfg = config or CompareConfig()
-    if cfg.runs < 1:
-        raise OnlineSlamError("--runs must be >= 1")
-    if any(w < 1 for w in cfg.windows) or any(k < 1 for k in cfg.relinearize_every):
-        raise OnlineSlamError("smoother windows and relinearization periods must be >= 1")
+    cfg = config or CompareConfig()  # validated when made (windows, periods, runs, workers >= 1)
     one_replay = replay_config(cfg)
     results = replay(source, one_replay, on_skip=on_skip, sinks=sinks)
     rows = rows_of(results)

@@ -184,6 +184,10 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
     [
         (["replay", "/nonexistent/stream.jsonl"], "no such file"),
         (["replay", "--estimators", "magic"], "unknown estimator"),
+        (["compare", "square", "--window", "0"], "windows and relinearize_every must be >= 1"),  # was a traceback
+        (["replay", "--keyframe-distance", "-1"], "keyframe limits"),
+        (["replay", "--dt", "-1"], "--dt"),
+        (["replay", "--robust-scale", "-1"], "--robust-scale"),
     ],
 )
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:

@@ -68,13 +68,16 @@ def run(args: argparse.Namespace) -> int:
     names = tuple(n for n in base.estimators if n != "smoother")
     if len(names) == len(base.estimators):  # no smoother asked for
         windows, ks = (), ()
-    config = CompareConfig(
-        windows=windows,
-        relinearize_every=ks,
-        replay=replace(base, estimators=names),
-        runs=args.runs,
-        workers=args.workers,
-    )
+    try:
+        config = CompareConfig(
+            windows=windows,
+            relinearize_every=ks,
+            replay=replace(base, estimators=names),
+            runs=args.runs,
+            workers=args.workers,
+        )
+    except ValueError as exc:
+        raise OnlineSlamError(f"compare: {exc}") from None
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     sinks = sinks_from(args, replay_config(config))  # one recording holds every configuration

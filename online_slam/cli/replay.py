@@ -233,16 +233,20 @@ def write_json(destination: str, document: dict) -> None:
 
 def config_from(args: argparse.Namespace) -> ReplayConfig:
     """The replay configuration that the parsed options ask for."""
-    keyframing = None
-    if any(v is not None for v in (args.keyframe_distance, args.keyframe_angle, args.keyframe_time)):
-        defaults = KeyframeConfig()
-        keyframing = KeyframeConfig(
-            max_distance=args.keyframe_distance if args.keyframe_distance is not None else defaults.max_distance,
-            max_angle=args.keyframe_angle if args.keyframe_angle is not None else defaults.max_angle,
-            max_time=args.keyframe_time if args.keyframe_time is not None else math.inf,
-        )
     names = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
+    if args.dt is not None and not args.dt > 0.0:
+        raise OnlineSlamError(f"--dt: seconds per pose must be > 0, got {args.dt}")
+    if not args.robust_scale > 0.0:
+        raise OnlineSlamError(f"--robust-scale: must be > 0 sigmas, got {args.robust_scale}")
     try:
+        keyframing = None
+        if any(v is not None for v in (args.keyframe_distance, args.keyframe_angle, args.keyframe_time)):
+            defaults = KeyframeConfig()
+            keyframing = KeyframeConfig(
+                max_distance=args.keyframe_distance if args.keyframe_distance is not None else defaults.max_distance,
+                max_angle=args.keyframe_angle if args.keyframe_angle is not None else defaults.max_angle,
+                max_time=args.keyframe_time if args.keyframe_time is not None else math.inf,
+            )
         association = AssociationConfig(new_density=args.new_density)
         ekf = EkfConfig(
             gate_probability=args.gate_probability,

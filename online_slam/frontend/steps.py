@@ -45,6 +45,10 @@ class KeyframeConfig:
     max_time: float = math.inf
     """Largest time span of a merged increment, seconds."""
 
+    def __post_init__(self) -> None:
+        if not (self.max_distance >= 0.0 and self.max_angle >= 0.0 and self.max_time >= 0.0):  # NaN fails too
+            raise ValueError("keyframe limits (distance, angle, time) must be >= 0")
+
 
 @dataclass(frozen=True)
 class FrontEndConfig:
