@@ -188,12 +188,25 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--keyframe-distance", "-1"], "keyframe limits"),
         (["replay", "--dt", "-1"], "--dt"),
         (["replay", "--robust-scale", "-1"], "--robust-scale"),
+        (["replay", "--rrd", "/nonexistent/dir/a.rrd"], "cannot write the recording"),  # rerun warned too
     ],
 )
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:
     done = cli(*args)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and message in done.stderr
+
+
+def test_a_failed_convert_writes_nothing_and_keeps_an_existing_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.g2o"  # the second line is cut short: the reader stops there
+    bad.write_text("EDGE_SE2 0 1 1.0 0.0 0.0 100 0 0 100 0 100\nEDGE_SE2 1 2 1.0 0.0 0.0\n")
+    out = tmp_path / "out.jsonl"
+    done = cli("convert", "g2o", str(bad), "-o", str(out))
+    assert done.returncode == 2 and f"{bad}:2:" in done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.g2o"]  # no output, no .part left behind
+    out.write_text("kept\n")
+    assert cli("convert", "g2o", str(bad), "-o", str(out)).returncode == 2
+    assert out.read_text() == "kept\n"
 
 
 def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import gzip
 import io
 import json
+import os
 import sys
 import zlib
 from collections.abc import Callable, Iterable, Iterator
@@ -92,15 +93,26 @@ def write_stream(destination: str | Path | IO[str], events: Iterable[Event]) -> 
 
     Returns:
         Number of lines written.
+
+    A path is written whole or not at all: the lines go to ``<path>.part`` first, renamed to the path at the
+    end; if reading the events fails (a missing or bad input file), the partial file is removed and an existing
+    file at the path is left as it was.
     """
     if hasattr(destination, "write"):
         return _write_lines(destination, events)  # type: ignore[arg-type]
     if str(destination) == "-":
         return _write_lines(sys.stdout, events)
     p = Path(destination)
+    part = p.with_name(p.name + ".part")
     opener = gzip.open if p.suffix == ".gz" else open
-    with opener(p, "wt", encoding="utf-8") as handle:  # type: ignore[operator]
-        return _write_lines(handle, events)
+    try:
+        with opener(part, "wt", encoding="utf-8") as handle:  # type: ignore[operator]
+            count = _write_lines(handle, events)
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
+    os.replace(part, p)
+    return count
 
 
 def _write_lines(handle: IO[str], events: Iterable[Event]) -> int:

@@ -195,6 +195,12 @@ class RerunSink:
             raise ValueError("RerunSink needs a path or a viewer to connect to")
         self.config = config
         self.layout = layout
+        if config.path is not None:  # told here in one line: rerun's own failure also logs a warning of its own
+            try:
+                with open(config.path, "ab"):
+                    pass
+            except OSError as exc:
+                raise OnlineSlamError(f"{config.path}: cannot write the recording ({exc.strerror or exc})") from None
         self.rec = rr.RecordingStream("online-slam", recording_id=str(uuid.uuid4()))
         self.rec.set_log_tick_enabled(False)
         self.rec.set_log_time_enabled(False)
