@@ -189,6 +189,9 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--dt", "-1"], "--dt"),
         (["replay", "--robust-scale", "-1"], "--robust-scale"),
         (["replay", "--rrd", "/nonexistent/dir/a.rrd"], "cannot write the recording"),  # rerun warned too
+        (["replay", "--json", "/nonexistent/dir/r.json"], "--json: cannot write"),  # told before the run
+        (["replay", "--tum", str(Path(__file__))], "--tum: "),
+        (["compare", "square", "--plot", "figure.jpg"], "ending in .png"),
     ],
 )
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:

@@ -6,7 +6,7 @@ import argparse
 import sys
 from dataclasses import replace
 
-from online_slam.cli.replay import config_from, report_skip, sinks_from, write_json
+from online_slam.cli.replay import check_outputs, config_from, report_skip, sinks_from, write_json
 from online_slam.compare import CompareConfig, compare, replay_config
 from online_slam.errors import OnlineSlamError
 from online_slam.reports.compare_table import format_comparison
@@ -78,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise OnlineSlamError(f"compare: {exc}") from None
+    check_outputs(args.json, plot=args.plot)
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     sinks = sinks_from(args, replay_config(config))  # one recording holds every configuration
@@ -89,8 +90,6 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from online_slam.reports.plots import plot_comparison
 
-        if not str(args.plot).endswith(".png"):
-            raise OnlineSlamError(f"--plot: expected a path ending in .png, got {args.plot!r}")
         plot_comparison(comparison, args.plot)
     failures = [comparison.results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):

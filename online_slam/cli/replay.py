@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -231,6 +232,23 @@ def write_json(destination: str, document: dict) -> None:
         raise OnlineSlamError(f"{destination}: cannot write ({exc.strerror or exc})") from None
 
 
+def check_outputs(json_path: str | None = None, tum: str | None = None, plot: str | None = None) -> None:
+    """Refuse output paths that cannot be written before any work is done (a long run would be lost)."""
+    if plot is not None and not str(plot).endswith(".png"):
+        raise OnlineSlamError(f"--plot: expected a path ending in .png, got {plot!r}")
+    for option, path in (("--json", None if json_path == "-" else json_path), ("--plot", plot)):
+        if path is None:
+            continue
+        target = Path(path)
+        if target.is_dir():
+            raise OnlineSlamError(f"{option}: {path} is a folder, expected a file path")
+        folder = target.parent
+        if not folder.is_dir() or not os.access(folder, os.W_OK):
+            raise OnlineSlamError(f"{option}: cannot write {path} (no writable folder {str(folder)!r})")
+    if tum is not None and Path(tum).exists() and not Path(tum).is_dir():
+        raise OnlineSlamError(f"--tum: {tum} exists and is not a folder")
+
+
 def config_from(args: argparse.Namespace) -> ReplayConfig:
     """The replay configuration that the parsed options ask for."""
     names = tuple(n.strip() for n in args.estimators.split(",") if n.strip())
@@ -316,6 +334,7 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
 def run(args: argparse.Namespace) -> int:
     """Replay, print the table, write JSON; exit 2 if the input turned bad part-way."""
     config = config_from(args)
+    check_outputs(args.json, args.tum)
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     if args.resume and (args.rrd or args.connect):
