@@ -192,6 +192,8 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--json", "/nonexistent/dir/r.json"], "--json: cannot write"),  # told before the run
         (["replay", "--tum", str(Path(__file__))], "--tum: "),
         (["compare", "square", "--plot", "figure.jpg"], "ending in .png"),
+        (["sweep", "/nonexistent/stream.jsonl", "--quiet"], "no such file"),  # was a failed row and exit 1
+        (["sweep", "square", "--out", "/nonexistent/dir/rows.csv", "--quiet"], "--out: cannot write"),  # traceback
     ],
 )
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:
