@@ -232,19 +232,23 @@ def write_json(destination: str, document: dict) -> None:
         raise OnlineSlamError(f"{destination}: cannot write ({exc.strerror or exc})") from None
 
 
+def check_writable(option: str, path: str | Path) -> None:
+    """Refuse a file path that cannot be written (a folder, or no writable folder to hold it)."""
+    target = Path(path)
+    if target.is_dir():
+        raise OnlineSlamError(f"{option}: {path} is a folder, expected a file path")
+    folder = target.parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise OnlineSlamError(f"{option}: cannot write {path} (no writable folder {str(folder)!r})")
+
+
 def check_outputs(json_path: str | None = None, tum: str | None = None, plot: str | None = None) -> None:
     """Refuse output paths that cannot be written before any work is done (a long run would be lost)."""
     if plot is not None and not str(plot).endswith(".png"):
         raise OnlineSlamError(f"--plot: expected a path ending in .png, got {plot!r}")
     for option, path in (("--json", None if json_path == "-" else json_path), ("--plot", plot)):
-        if path is None:
-            continue
-        target = Path(path)
-        if target.is_dir():
-            raise OnlineSlamError(f"{option}: {path} is a folder, expected a file path")
-        folder = target.parent
-        if not folder.is_dir() or not os.access(folder, os.W_OK):
-            raise OnlineSlamError(f"{option}: cannot write {path} (no writable folder {str(folder)!r})")
+        if path is not None:
+            check_writable(option, path)
     if tum is not None and Path(tum).exists() and not Path(tum).is_dir():
         raise OnlineSlamError(f"--tum: {tum} exists and is not a folder")
 

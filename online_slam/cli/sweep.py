@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.presets import ROBUST_CHOICES
@@ -64,13 +63,13 @@ def run(args: argparse.Namespace) -> int:
     estimators = _list(args.estimators, str, "--estimators")
     if not set(estimators) <= set(ESTIMATORS):
         raise OnlineSlamError(f"--estimators: expected some of {', '.join(ESTIMATORS)}")
-    from online_slam.sources.worlds import WORLDS
+    from online_slam.cli.replay import check_writable
+    from online_slam.importers.resolve import check_source
 
-    missing = [s for s in args.sources if s not in WORLDS and s != "-" and not Path(s).exists()]
-    if missing:  # a usage error, told before any cluster starts (a failing replay is a row, not this)
-        raise OnlineSlamError(f"{missing[0]}: no such file (and not a built-in world: {', '.join(sorted(WORLDS))})")
-    if args.out is not None and not Path(args.out).resolve().parent.is_dir():
-        raise OnlineSlamError(f"--out: cannot write {args.out} (no folder {str(Path(args.out).parent)!r})")
+    for source in args.sources:  # usage errors, told before any cluster starts (a failing replay is a row)
+        check_source(source)
+    if args.out is not None:
+        check_writable("--out", args.out)
     cells = make_cells(
         args.sources,
         windows=_list(args.window, int, "--window"),

@@ -42,6 +42,16 @@ def open_source(
         options = {k: v for k, v in dataset_options.items() if v is not None}
         return text, open_dataset(text, kind, **options)
     if text != "-" and not Path(text).is_file():
-        worlds = ", ".join(sorted(WORLDS))
-        raise InputError(text, 0, "", f"no such file (and not a built-in world: {worlds})")
+        raise _not_found(text)
     return source_name(text), read_stream(text, on_error)
+
+
+def check_source(spec: str | Path) -> None:
+    """Raise :class:`InputError` at once when ``spec`` is neither ``-``, a built-in world nor an existing path."""
+    text = str(spec)
+    if text != "-" and text not in WORLDS and not Path(text).exists():
+        raise _not_found(text)
+
+
+def _not_found(text: str) -> InputError:
+    return InputError(text, 0, "", f"no such file (and not a built-in world: {', '.join(sorted(WORLDS))})")
