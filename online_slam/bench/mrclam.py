@@ -1,5 +1,8 @@
 """MRCLAM Dataset 6, each robot: the default smoother's online and final ATE beside GTSAM iSAM2 + Huber.
 
+iSAM2 also runs without a kernel (plain least squares, the core of our default cost): the difference between its
+two figures is what the loss does, apart from the back-end.
+
 Both run on the same front-end steps of our conversion (poses at sighting times, odometry integrated from the
 commands, its noise along the axes of the pose reached). iSAM2: relinearization threshold 0.01 every step, a
 Huber kernel of 1.345 sigmas on the sightings; its between factors take our odometry covariance rotated into their
@@ -44,6 +47,10 @@ class RobotRow:
     """iSAM2 + Huber: final RMSE."""
     peer_median_ms: float | None
     """iSAM2 + Huber: median step time."""
+    plain_online_m: float | None
+    """iSAM2 without a kernel (plain least squares): online RMSE."""
+    plain_final_m: float | None
+    """iSAM2 without a kernel: final RMSE."""
 
 
 def _rmse(poses: np.ndarray, truth: np.ndarray, rows: list[int]) -> float:
@@ -59,6 +66,7 @@ def run_robot(folder: str | Path, robot: int) -> RobotRow:
     rows = [k for k, s in enumerate(steps) if s.index in truth_by_index]
     truth = np.array([truth_by_index[steps[k].index] for k in rows])
     peer = gtsam_peer.isam2_online(steps, huber=HUBER) if gtsam_peer.available() else None
+    plain = gtsam_peer.isam2_online(steps) if gtsam_peer.available() else None
     return RobotRow(
         robot,
         len(steps),
@@ -68,4 +76,6 @@ def run_robot(folder: str | Path, robot: int) -> RobotRow:
         None if peer is None else _rmse(peer.poses, truth, rows),
         None if peer is None else _rmse(peer.final_poses, truth, rows),
         None if peer is None else 1e3 * float(np.median(peer.step_s)),
+        None if plain is None else _rmse(plain.poses, truth, rows),
+        None if plain is None else _rmse(plain.final_poses, truth, rows),
     )
