@@ -16,6 +16,9 @@ history poses' block — odometry chains make it banded). Where the prior is sma
 relinearized too (:func:`prior_marginal`): ``H' = H_kk - H_km H_mm^-1 H_mk`` at the revised values, the same
 factorization with ``2 L + 3`` right-hand sides and a dense inverse; otherwise the prior keeps its covariance
 ``Sigma``, the same information linearized where each factor was folded in.
+
+The whole-history solve itself (:func:`solve_all`) drops the sightings the smoother judged outliers when their
+pose left the window (:func:`outlier_mask`).
 """
 
 from __future__ import annotations
@@ -25,9 +28,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from online_slam.factors.graph import FactorGraph, layout, linearize
+from online_slam.estimators.problem import ProblemLog
+from online_slam.factors.graph import FactorGraph, layout, linearize, without_observations
 from online_slam.factors.robust import RobustLoss
-from online_slam.solvers.least_squares import SolverConfig, solve
+from online_slam.solvers.least_squares import SolverConfig, SolveResult, solve
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -160,3 +164,61 @@ def refine_recent(
     poses[first:] = result.poses[first:]
     landmarks[seen] = result.landmarks
     return poses, landmarks
+
+
+def prior_covariance(information: Array, fallback: Array) -> Array:
+    """The inverse of a relinearized prior information, or ``fallback`` where it is not positive definite
+    (a direction the history no longer constrains at the new values)."""
+    try:
+        L = np.linalg.cholesky(information)
+    except np.linalg.LinAlgError:
+        return fallback
+    inverse = np.linalg.inv(L)  # Sigma = L^-T L^-1
+    Sigma = inverse.T @ inverse
+    return 0.5 * (Sigma + Sigma.T)
+
+
+def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]]) -> NDArray[np.bool_]:
+    """The graph's sightings judged outliers when their pose left the window (graph sightings in pose order).
+
+    A decision applies where the graph holds exactly as many sightings of its pose as it judged.
+    """
+    drop = np.zeros(len(graph.obs_pose), dtype=bool)
+    if not decisions:
+        return drop
+    poses = np.fromiter((g for g, _ in decisions), dtype=np.int64, count=len(decisions))
+    sizes = np.fromiter((len(m) for _, m in decisions), dtype=np.int64, count=len(decisions))
+    start = np.searchsorted(graph.obs_pose, poses)
+    applies = np.searchsorted(graph.obs_pose, poses + 1) - start == sizes
+    if not applies.any():
+        return drop
+    masks = np.concatenate([m for (_, m), ok in zip(decisions, applies.tolist()) if ok])
+    sizes, start = sizes[applies], start[applies]
+    # position of every judged sighting: its decision's start plus its rank within the decision
+    offsets = np.repeat(start - (np.cumsum(sizes) - sizes), sizes)
+    drop[np.arange(len(masks)) + offsets] = masks
+    return drop
+
+
+def inlier_graph(log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]]) -> FactorGraph:
+    """Every factor of the log but the sightings judged outliers."""
+    graph = log.graph()
+    drop = outlier_mask(graph, decisions)
+    return without_observations(graph, drop) if drop.any() else graph
+
+
+def solve_all(
+    log: ProblemLog,
+    decisions: list[tuple[int, NDArray[np.bool_]]],
+    poses: Array,
+    landmarks: Array,
+    solver: SolverConfig,
+    loss: RobustLoss | None,
+) -> SolveResult:
+    """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread).
+
+    Always by the sparse factorization (plain C, no threaded BLAS): the dense one's LAPACK runs on as many
+    threads as the process allows at the moment, which the stepping thread changes (it limits BLAS to one thread
+    per step), so a small problem solved in the background could differ in the last bits from run to run.
+    """
+    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss, dense=False)

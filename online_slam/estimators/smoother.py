@@ -46,14 +46,26 @@ from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
-from online_slam.estimators.relinearize import history_graph, prior_marginal, refine_recent
+from online_slam.estimators.relinearize import (
+    history_graph,
+    inlier_graph,
+    prior_covariance,
+    prior_marginal,
+    refine_recent,
+    solve_all,
+)
+from online_slam.estimators.window_state import (
+    pack_observations,
+    pack_odometry,
+    unpack_observations,
+    unpack_odometry,
+)
 from online_slam.factors.graph import (
     FactorGraph,
     layout,
     observation_chi2,
     range_bearing_chi2,
     sqrt_information,
-    without_observations,
 )
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.frontend.steps import Step
@@ -183,18 +195,6 @@ def _resized(Sigma: Array, size: int, keep: int) -> Array:
     return grown
 
 
-def _covariance(information: Array, fallback: Array) -> Array:
-    """The inverse of a relinearized prior information, or ``fallback`` where it is not positive definite
-    (a direction the history no longer constrains at the new values)."""
-    try:
-        L = np.linalg.cholesky(information)
-    except np.linalg.LinAlgError:
-        return fallback
-    inverse = np.linalg.inv(L)  # Sigma = L^-T L^-1
-    Sigma = inverse.T @ inverse
-    return 0.5 * (Sigma + Sigma.T)
-
-
 def _fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array, Array]:
     """Merge repeated observations of one landmark from one pose into a single equivalent observation.
 
@@ -216,48 +216,6 @@ def _fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array,
         keep_z.append(mean)
         keep_c.append(0.5 * (cov + cov.T))
     return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c)
-
-
-def _pack_odometry(factors: dict[int, tuple[Array, Array, Array]]) -> dict[str, Any]:
-    """Window odometry factors (delta, cov, sqrt-information) as stacked arrays (for checkpoints)."""
-    rows = list(factors.values())
-    return {
-        "poses": np.array(list(factors), dtype=np.int64),
-        "delta": np.array([r[0] for r in rows]).reshape(-1, 3),
-        "cov": np.array([r[1] for r in rows]).reshape(-1, 3, 3),
-        "sqrt_info": np.array([r[2] for r in rows]).reshape(-1, 3, 3),
-    }
-
-
-def _unpack_odometry(state: dict[str, Any]) -> dict[int, tuple[Array, Array, Array]]:
-    parts = [np.array(state[k], dtype=float) for k in ("delta", "cov", "sqrt_info")]
-    return {int(i): (parts[0][k].copy(), parts[1][k].copy(), parts[2][k].copy()) for k, i in enumerate(state["poses"])}
-
-
-def _pack_observations(factors: dict[int, tuple[Index, Array, Array, Array]]) -> dict[str, Any]:
-    """Window observation factors (landmarks, z, cov, sqrt-information) concatenated (for checkpoints)."""
-    rows = list(factors.values())
-
-    def cat(k: int, shape: tuple[int, ...], dtype: type) -> np.ndarray:
-        return np.concatenate([r[k] for r in rows]) if rows else np.zeros((0, *shape), dtype=dtype)
-
-    return {
-        "poses": np.array(list(factors), dtype=np.int64),
-        "sizes": np.array([len(r[0]) for r in rows], dtype=np.int64),
-        "landmarks": cat(0, (), np.int64),
-        "z": cat(1, (2,), float),
-        "cov": cat(2, (2, 2), float),
-        "sqrt_info": cat(3, (2, 2), float),
-    }
-
-
-def _unpack_observations(state: dict[str, Any]) -> dict[int, tuple[Index, Array, Array, Array]]:
-    cuts = np.cumsum(np.array(state["sizes"], dtype=np.int64))[:-1]
-    landmarks = np.split(np.array(state["landmarks"], dtype=np.int64), cuts)
-    z, cov, w = (np.split(np.array(state[k], dtype=float), cuts) for k in ("z", "cov", "sqrt_info"))
-    return {
-        int(i): (landmarks[k].copy(), z[k].copy(), cov[k].copy(), w[k].copy()) for k, i in enumerate(state["poses"])
-    }
 
 
 def _locate(ids: Index, wanted: Index) -> tuple[Index, NDArray[np.bool_]]:
@@ -300,52 +258,6 @@ class _GlobalJob:
     thread: threading.Thread | None = None
     result: SolveResult | None = None
     error: str | None = None
-
-
-def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]]) -> NDArray[np.bool_]:
-    """The graph's sightings judged outliers when their pose left the window (graph sightings in pose order).
-
-    A decision applies where the graph holds exactly as many sightings of its pose as it judged.
-    """
-    drop = np.zeros(len(graph.obs_pose), dtype=bool)
-    if not decisions:
-        return drop
-    poses = np.fromiter((g for g, _ in decisions), dtype=np.int64, count=len(decisions))
-    sizes = np.fromiter((len(m) for _, m in decisions), dtype=np.int64, count=len(decisions))
-    start = np.searchsorted(graph.obs_pose, poses)
-    applies = np.searchsorted(graph.obs_pose, poses + 1) - start == sizes
-    if not applies.any():
-        return drop
-    masks = np.concatenate([m for (_, m), ok in zip(decisions, applies.tolist()) if ok])
-    sizes, start = sizes[applies], start[applies]
-    # position of every judged sighting: its decision's start plus its rank within the decision
-    offsets = np.repeat(start - (np.cumsum(sizes) - sizes), sizes)
-    drop[np.arange(len(masks)) + offsets] = masks
-    return drop
-
-
-def inlier_graph(log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]]) -> FactorGraph:
-    """Every factor of the log but the sightings judged outliers."""
-    graph = log.graph()
-    drop = outlier_mask(graph, decisions)
-    return without_observations(graph, drop) if drop.any() else graph
-
-
-def solve_all(
-    log: ProblemLog,
-    decisions: list[tuple[int, NDArray[np.bool_]]],
-    poses: Array,
-    landmarks: Array,
-    solver: SolverConfig,
-    loss: RobustLoss | None,
-) -> SolveResult:
-    """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread).
-
-    Always by the sparse factorization (plain C, no threaded BLAS): the dense one's LAPACK runs on as many
-    threads as the process allows at the moment, which the stepping thread changes (it limits BLAS to one thread
-    per step), so a small problem solved in the background could differ in the last bits from run to run.
-    """
-    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss, dense=False)
 
 
 class SlidingWindowSmoother:
@@ -1071,7 +983,7 @@ class SlidingWindowSmoother:
                 history, oldest_value = values[:-1], values[-1]
             relinearized = len(p.landmarks) <= self.config.global_information_max
             g_k, H_k = prior_marginal(past, values, landmarks, p.landmarks, self.config.loss, relinearized)
-            Sigma = p.Sigma if H_k is None else _covariance(H_k, p.Sigma)
+            Sigma = p.Sigma if H_k is None else prior_covariance(H_k, p.Sigma)
             # The history's pull on the prior's variables, in its own metric: an inlier-consistent history gives
             # a chi-square value; a larger one means the solve did not reconcile it (a poor minimum): keep all.
             if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):
@@ -1172,8 +1084,8 @@ class SlidingWindowSmoother:
             "final_poses": self.trajectory(),
             "landmark_ids": list(self.landmark_ids),
             "landmarks": self._landmarks.copy(),
-            "odometry": _pack_odometry(self._odometry),
-            "observations": _pack_observations(self._observations),
+            "odometry": pack_odometry(self._odometry),
+            "observations": pack_observations(self._observations),
             "start": None if self._start is None else list(self._start),
             "prior": None
             if p is None
@@ -1248,8 +1160,8 @@ class SlidingWindowSmoother:
         self.landmark_ids = list(state["landmark_ids"])
         self._index = {lid: j for j, lid in enumerate(self.landmark_ids)}
         self._landmarks = as_float(state["landmarks"]).reshape(-1, 2)
-        self._odometry = _unpack_odometry(state["odometry"])
-        self._observations = _unpack_observations(state["observations"])
+        self._odometry = unpack_odometry(state["odometry"])
+        self._observations = unpack_observations(state["observations"])
         start = state["start"]
         self._start = (
             None
