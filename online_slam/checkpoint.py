@@ -8,7 +8,9 @@ altered file, a file of another kind or of another format version raises
 round-trip repr), so a run continued from a checkpoint equals the run that never stopped.
 
 Writing is atomic: the archive is written to a temporary file beside the target, flushed to disk, and renamed
-over it, so a crash mid-write leaves the previous checkpoint intact.
+over it, so a crash mid-write leaves the previous checkpoint intact. A file that cannot be written (a folder in
+the way, no permission, a full disk) raises :class:`~online_slam.errors.OnlineSlamError` naming it, and leaves the
+previous checkpoint as it was.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from online_slam.errors import InputError
+from online_slam.errors import InputError, OnlineSlamError
 from online_slam.version import __version__
 
 FORMAT_VERSION = 1
@@ -96,8 +98,13 @@ def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:
         "sha256": {name: hashlib.sha256(data).hexdigest() for name, data in members.items()},
     }
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    if target.is_dir():
+        raise OnlineSlamError(f"cannot write checkpoint {path}: it is a folder, expected a file path")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise OnlineSlamError(f"cannot write checkpoint {path}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(handle, "wb") as raw:
             with zipfile.ZipFile(raw, "w", compression=zipfile.ZIP_STORED) as archive:
@@ -108,6 +115,9 @@ def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:
             os.fsync(raw.fileno())
         os.chmod(temporary, 0o644)
         os.replace(temporary, target)
+    except OSError as exc:
+        Path(temporary).unlink(missing_ok=True)
+        raise OnlineSlamError(f"cannot write checkpoint {path}: {exc.strerror or exc}") from None
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
@@ -153,8 +163,10 @@ def read_checkpoint(path: str | Path, kind: str) -> Any:
                 data[member] = content
     except InputError:
         raise
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         raise InputError(name, 0, "", "no such checkpoint file") from None
+    except (IsADirectoryError, PermissionError) as exc:
+        raise InputError(name, 0, "", f"cannot read the checkpoint ({exc.strerror})") from None
     except (zipfile.BadZipFile, zipfile.LargeZipFile, KeyError, EOFError, OSError, ValueError) as exc:
         raise bad(f"damaged or truncated ({exc})") from None
     arrays: dict[int, np.ndarray] = {}

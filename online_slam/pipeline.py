@@ -186,6 +186,10 @@ class Checkpointing:
             raise OnlineSlamError("--checkpoint-every must be >= 1")
 
 
+class _CheckpointFailure(OnlineSlamError):
+    """A checkpoint could not be written: the replay stops there and reports what it estimated."""
+
+
 CHECKPOINT_FILE = "replay.ckpt"
 """Name of the checkpoint file inside a checkpoint folder."""
 _FINGERPRINT_EVENTS = 1000
@@ -263,8 +267,8 @@ def replay(
             against its fingerprint); the figures equal those of a run that never stopped (timings aside).
 
     Returns:
-        The results. When the input turns bad part-way, the results cover every step before the bad line
-        and ``Results.error`` holds the message.
+        The results. When the input turns bad part-way, or a checkpoint cannot be written, the results cover
+        every step before that and ``Results.error`` holds the message (the last checkpoint written stays).
 
     Raises:
         InputError: When the input is bad before the first step is complete (nothing to report); a damaged
@@ -332,7 +336,10 @@ def replay(
             "step_times": np.array(step_times, dtype=float),
             "sighting_ids": list(sighting_ids),
         }
-        write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
+        try:
+            write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
+        except OnlineSlamError as exc:  # stop here as at a bad line: report what was estimated
+            raise _CheckpointFailure(str(exc)) from None
 
     def take(record: StepRecord | None) -> None:
         if record is None:
@@ -361,11 +368,16 @@ def replay(
         for event in events:
             position.take(event)
             take(engine.push(event))
-    except InputError as exc:
-        if engine.steps == 0 and engine.frontend.pending is None:
+    except (InputError, _CheckpointFailure) as exc:
+        if isinstance(exc, InputError) and engine.steps == 0 and engine.frontend.pending is None:
             raise
         error = str(exc)
-    take(engine.close())
+        if isinstance(exc, _CheckpointFailure):
+            checkpoint = None
+    try:
+        take(engine.close())
+    except _CheckpointFailure as exc:
+        error = str(exc)
     steps = engine.steps
     if steps == 0:
         raise InputError(label, 0, "", "the stream holds no pose")

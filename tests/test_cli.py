@@ -191,6 +191,9 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--rrd", "/nonexistent/dir/a.rrd"], "cannot write the recording"),  # rerun warned too
         (["replay", "--json", "/nonexistent/dir/r.json"], "--json: cannot write"),  # told before the run
         (["replay", "--tum", str(Path(__file__))], "--tum: "),
+        (["replay", "--tum", str(Path(__file__) / "out")], "is a file, expected a folder"),  # was after the run
+        (["replay", "--checkpoint", str(Path(__file__)), "--checkpoint-every", "5"], "--checkpoint: "),  # traceback
+        (["replay", "--checkpoint", str(Path(__file__) / "ck"), "--checkpoint-every", "5"], "--checkpoint: "),
         (["compare", "square", "--plot", "figure.jpg"], "ending in .png"),
         (["sweep", "/nonexistent/stream.jsonl", "--quiet"], "no such file"),  # was a failed row and exit 1
         (["sweep", "square", "--out", "/nonexistent/dir/rows.csv", "--quiet"], "--out: cannot write"),  # traceback

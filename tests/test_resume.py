@@ -160,3 +160,29 @@ def test_checkpoint_files_are_written_atomically(tmp_path: Path) -> None:
     assert back["x"].tolist() == [0.0, 1.0, 2.0] and back["x"].flags.writeable
     digest = hashlib.sha256(io.BytesIO(target.read_bytes()).getvalue()).hexdigest()
     assert len(digest) == 64
+
+
+def test_a_checkpoint_that_cannot_be_written_stops_the_replay_and_keeps_the_last_one(
+    stream, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk at the third write (step 150): the figures so far, the error, step 100's checkpoint."""
+    from online_slam import pipeline
+    from online_slam.errors import OnlineSlamError
+
+    path, _ = stream
+    folder = tmp_path / "ck"
+    written: list[int] = []
+    real = pipeline.write_checkpoint
+
+    def disk_full(target: Path, kind: str, state: dict) -> None:
+        if len(written) == 2:
+            raise OnlineSlamError(f"cannot write checkpoint {target}: No space left on device")
+        written.append(state["engine"]["steps"])
+        real(target, kind, state)
+
+    monkeypatch.setattr(pipeline, "write_checkpoint", disk_full)
+    results = pipeline.replay(str(path), checkpoint=pipeline.Checkpointing(folder, 50))
+    assert results.error is not None and "No space left on device" in results.error
+    assert results.poses == 151 and written == [50, 100]  # the pose pending at the failure is kept
+    assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"] == 100
+    assert sorted(p.name for p in folder.iterdir()) == ["replay.ckpt"]

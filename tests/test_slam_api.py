@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import online_slam
-from online_slam import ConfigError, InputError, ReplayConfig, Slam
+from online_slam import ConfigError, InputError, OnlineSlamError, ReplayConfig, Slam
 from online_slam.sources.events import Observation, Odometry, Start
 from online_slam.sources.worlds import GridConfig, grid_world, square_world
 
@@ -377,3 +377,24 @@ def test_a_bad_sighting_rejects_the_whole_scan() -> None:
     assert _fingerprint(slam) == before
     slam.add_observations(100.0, [1, "new"], [1.0, 2.0], [0.1, 0.2], cov=np.diag([0.01, 1e-4]))
     assert "new" in slam.estimate().landmarks
+
+
+def test_a_checkpoint_that_cannot_be_written_is_an_error_of_ours_and_keeps_the_previous_one(tmp_path: Path) -> None:
+    slam = Slam("ekf")
+    for event in square_world():
+        slam.add(event)
+    path = tmp_path / "run.ckpt"
+    slam.save(path)
+    kept = path.read_bytes()
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    for bad in (tmp_path, blocker / "run.ckpt"):  # a folder in the way; a file where a folder should be
+        with pytest.raises(OnlineSlamError, match="cannot write checkpoint"):
+            slam.save(bad)
+    assert path.read_bytes() == kept
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "run.ckpt"]  # no temporary left behind
+    with pytest.raises(InputError, match="cannot read the checkpoint"):
+        Slam.load(tmp_path)
+    with pytest.raises(InputError, match="no such checkpoint file"):
+        Slam.load(blocker / "run.ckpt")
+    np.testing.assert_array_equal(Slam.load(path).estimate().pose, slam.estimate().pose)  # the engine goes on

@@ -242,6 +242,16 @@ def check_writable(option: str, path: str | Path) -> None:
         raise OnlineSlamError(f"{option}: cannot write {path} (no writable folder {str(folder)!r})")
 
 
+def check_folder(option: str, path: str | Path) -> None:
+    """Refuse a folder path that cannot be made or written (a file in the way, no writable parent)."""
+    target = Path(path)
+    existing = next((p for p in (target, *target.parents) if p.exists()), Path("."))
+    if not existing.is_dir():
+        raise OnlineSlamError(f"{option}: {existing} is a file, expected a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OnlineSlamError(f"{option}: cannot write in {existing}")
+
+
 def check_outputs(json_path: str | None = None, tum: str | None = None, plot: str | None = None) -> None:
     """Refuse output paths that cannot be written before any work is done (a long run would be lost)."""
     if plot is not None and not str(plot).endswith(".png"):
@@ -249,8 +259,8 @@ def check_outputs(json_path: str | None = None, tum: str | None = None, plot: st
     for option, path in (("--json", None if json_path == "-" else json_path), ("--plot", plot)):
         if path is not None:
             check_writable(option, path)
-    if tum is not None and Path(tum).exists() and not Path(tum).is_dir():
-        raise OnlineSlamError(f"--tum: {tum} exists and is not a folder")
+    if tum is not None:
+        check_folder("--tum", tum)
 
 
 def config_from(args: argparse.Namespace) -> ReplayConfig:
@@ -343,6 +353,8 @@ def run(args: argparse.Namespace) -> int:
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     if args.resume and (args.rrd or args.connect):
         raise OnlineSlamError("--resume: a Rerun recording cannot be continued; resume without --rrd/--connect")
+    if args.checkpoint:
+        check_folder("--checkpoint", args.checkpoint)
     checkpoint = Checkpointing(Path(args.checkpoint), args.checkpoint_every) if args.checkpoint else None
     sinks = sinks_from(args, config)
     results = replay(args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume)

@@ -175,7 +175,8 @@ class Results:
     truth_landmarks: dict[Any, Array] = field(default_factory=dict, repr=False)
     """True landmark positions by id."""
     error: str | None = None
-    """The input error that ended the stream early, or None; the figures cover what came before it."""
+    """The input error (or failed checkpoint write) that ended the replay early, or None; the figures cover what
+    came before it."""
     input: InputReport = field(default_factory=InputReport)
     """Lines skipped by the reader (``--on-error skip``)."""
     step_times: Array | None = field(default=None, repr=False)
