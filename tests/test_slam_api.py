@@ -212,12 +212,18 @@ def test_estimate_right_after_loading_a_checkpoint_taken_after_a_query(tmp_path:
     assert after.landmark_ids == before.landmark_ids
 
 
-def test_damaged_checkpoints_raise_input_error(tmp_path: Path) -> None:
+def saved_square(tmp_path: Path) -> tuple[Slam, Path]:
+    """An EKF engine fed the whole square world, and its checkpoint ``run.ckpt`` in ``tmp_path``."""
     slam = Slam("ekf")
     for event in square_world():
         slam.add(event)
     path = tmp_path / "run.ckpt"
     slam.save(path)
+    return slam, path
+
+
+def test_damaged_checkpoints_raise_input_error(tmp_path: Path) -> None:
+    _, path = saved_square(tmp_path)
     data = path.read_bytes()
     (tmp_path / "cut.ckpt").write_bytes(data[: len(data) // 2])
     with pytest.raises(InputError, match="not a usable checkpoint"):
@@ -380,11 +386,7 @@ def test_a_bad_sighting_rejects_the_whole_scan() -> None:
 
 
 def test_a_checkpoint_that_cannot_be_written_is_an_error_of_ours_and_keeps_the_previous_one(tmp_path: Path) -> None:
-    slam = Slam("ekf")
-    for event in square_world():
-        slam.add(event)
-    path = tmp_path / "run.ckpt"
-    slam.save(path)
+    slam, path = saved_square(tmp_path)
     kept = path.read_bytes()
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")
