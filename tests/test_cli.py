@@ -230,7 +230,10 @@ def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:
 
 def test_bench_prints_ratio_against_gtsam() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-    done = cli("bench", "--poses", "100", "--repeats", "1", "--fuzz-cases", "20", "--recording-source", "square")
+    done = cli(
+        "bench", "--poses", "100", "--repeats", "1", "--fuzz-cases", "20", "--recording-source", "square",
+        "--landmarks", "50,500", "--windows", "20",
+    )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "online-slam LM" in done.stdout and "GTSAM LM" in done.stdout and "ratio online-slam / GTSAM" in done.stdout
     sections = ("library API overhead", "checkpoint overhead", "compare --rrd: square", "association without ids")

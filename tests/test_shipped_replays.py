@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -28,6 +29,10 @@ def test_shipped_stream_replays(path: Path) -> None:
     # What is checked here does not depend on the window's size; sized by motion (the default) it keeps ~33 poses
     # of Victoria Park, which doubles this test's time: a 20-pose window keeps the suite within its budget.
     config = ReplayConfig(batch=BatchConfig(initial="ekf"), smoother=SmootherConfig(window_distance=0.0))
+    if path.name.startswith("victoria_park"):
+        # The smoother is two thirds of this replay's time (33 of 49 s) and is not what is checked on this stream
+        # (the batch's minimum, started from the EKF); the shipped MRCLAM and cityTrees streams replay it.
+        config = replace(config, estimators=("ekf", "batch"))
     results = online_slam.replay(path, config)
     assert results.error is None and results.poses > 1
     if results.odometry.rmse_m is not None:  # with truth, every estimator beats dead reckoning
