@@ -34,6 +34,7 @@ from online_slam.frontend.steps import FrontEndConfig
 from online_slam.importers.resolve import open_source
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event, Observation, Scan
+from online_slam.sources.validate import validate_events
 
 Array = NDArray[np.float64]
 
@@ -251,6 +252,7 @@ def replay(
     on_skip: Callable[[InputError], None] | None = None,
     checkpoint: Checkpointing | None = None,
     resume: str | Path | None = None,
+    validate: bool = True,
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -265,6 +267,9 @@ def replay(
         resume: A checkpoint folder: continue the same source, with the same settings, from there. The source
             is read again from its start and the events the checkpoint had consumed are skipped (and checked
             against its fingerprint); the figures equal those of a run that never stopped (timings aside).
+        validate: Check events given as an iterable (objects or ``dict`` records) by the stream's rules, as a
+            file's lines are (an item's position stands for its line). False trusts them: for events this package
+            generates (its worlds), whose checks would only cost time.
 
     Returns:
         The results. When the input turns bad part-way, or a checkpoint cannot be written, the results cover
@@ -289,7 +294,8 @@ def replay(
     if isinstance(source, (str, Path)):
         label, events = open_source(source, skip if cfg.on_error == "skip" else None, **dict(cfg.dataset))
     else:
-        label, events = "<events>", iter(source)
+        events = validate_events(source, skip if cfg.on_error == "skip" else None) if validate else iter(source)
+        label = "<events>"
     label = name or label
     method = cfg.association
     if method == "auto":

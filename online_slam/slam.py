@@ -33,7 +33,7 @@ from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfi
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.sources.events import Event, LandmarkId
-from online_slam.sources.validate import EventValidator, ValidatorState
+from online_slam.sources.validate import EventValidator, ValidatorState, plain
 
 Array = NDArray[np.float64]
 
@@ -154,25 +154,6 @@ def _locked(array: Array) -> Array:
     return array
 
 
-_SCALARS = frozenset({float, int, str, bool, type(None)})
-
-
-def _plain(value: Any) -> Any:
-    """numpy arrays and scalars, and tuples, as the JSON-like values the validator checks."""
-    kind = type(value)
-    if kind in _SCALARS:
-        return value
-    if (kind is tuple or kind is list) and (not value or type(value[0]) in _SCALARS):
-        return value if kind is list else list(value)  # flat: the validator checks every element
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value
-
-
 def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | SmootherConfig, FrontEndConfig]:
     """Check the options and build the estimator's and the front-end's configurations."""
     if estimator not in ESTIMATORS:
@@ -283,7 +264,7 @@ class Slam:
             cov: Full 3x3 covariance, or None when ``sigma`` is given.
         """
         self._validator.name = "Slam.add_odometry"
-        self._engine.push(self._validator.parse_odometry(_plain(t), _plain(delta), _plain(sigma), _plain(cov)))
+        self._engine.push(self._validator.parse_odometry(plain(t), plain(delta), plain(sigma), plain(cov)))
 
     def add_observation(
         self, t: float, landmark: LandmarkId | None, range: float, bearing: float, sigma: Any = None, cov: Any = None
@@ -328,7 +309,7 @@ class Slam:
         if landmarks is None and isinstance(ranges, (list, tuple, np.ndarray)):
             landmarks = [None] * len(ranges)
         scan = self._validator.parse_scan(
-            _plain(t), _plain(landmarks), _plain(ranges), _plain(bearings), _plain(sigma), _plain(cov)
+            plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov)
         )
         self._engine.push(scan)
 
@@ -341,11 +322,11 @@ class Slam:
         self._push(f"add({record['type']})", record, None, None)
 
     def _push(self, method: str, record: dict[str, Any], sigma: Any, cov: Any) -> None:
-        record = {key: _plain(value) for key, value in record.items()}
+        record = {key: plain(value) for key, value in record.items()}
         if sigma is not None:
-            record["sigma"] = _plain(sigma)
+            record["sigma"] = plain(sigma)
         if cov is not None:
-            record["cov"] = _plain(cov)
+            record["cov"] = plain(cov)
         self._validator.name = f"Slam.{method}"
         event: Event = self._validator.parse_record(record)
         self._engine.push(event)

@@ -196,3 +196,24 @@ def test_gzip_text_equals_plain(tmp_path: Path) -> None:
     write_stream(plain, square_world())
     write_stream(packed, square_world())
     assert gzip.decompress(packed.read_bytes()).decode() == plain.read_text()
+
+
+def test_events_given_as_an_iterable_are_checked_like_a_files_lines() -> None:
+    """``replay(iterable)``: objects and dict records pass the stream's rules; a bad one ends or is skipped."""
+    from online_slam.pipeline import ReplayConfig, replay
+    from online_slam.sources.events import Observation, Odometry, Start
+
+    odo = {"sigma": (0.1, 0.1, 0.01)}
+    seen = {"sigma": (0.1, 0.01)}
+    good = [Start(0.0, (0.0, 0.0, 0.0)), Odometry(1.0, (1.0, 0.0, 0.0), **odo), Observation(1.0, 1, 2.0, 0.1, **seen)]
+    good.append(Odometry(2.0, (1.0, 0.0, 0.0), **odo))
+    bad = Observation(2.0, 1, float("nan"), 0.0, **seen)
+    tail = [Observation(2.0, 1, 1.0, 0.1, **seen), Odometry(3.0, (1.0, 0.0, 0.0), **odo)]
+    stopped = replay([*good, bad, *tail], ReplayConfig(estimators=("ekf",)))
+    assert stopped.error == "<events>:5: range: expected a finite number, got NaN" and stopped.poses == 3
+    skipped = replay([*good, bad, *tail], ReplayConfig(estimators=("ekf",), on_error="skip"))
+    assert skipped.error is None and skipped.poses == 4 and skipped.input.skipped_lines == 1
+    records = replay([e.to_record() for e in (*good, *tail)], ReplayConfig(estimators=("ekf",)))
+    assert records.poses == 4 and records.observations == 2
+    with pytest.raises(InputError, match=r"<events>:1: expected an event or a stream-v1 record, got str"):
+        replay(["start"])

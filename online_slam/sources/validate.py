@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -430,3 +431,55 @@ class EventValidator:
         landmark = self.landmark(record, line)
         self._pending.seen_content = True
         return LandmarkTruth(landmark=landmark, position=self.vector(record, "position", 2, line))
+
+
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
+def plain(value: Any) -> Any:
+    """numpy arrays and scalars, and tuples, as the JSON-like values the validator checks."""
+    kind = type(value)
+    if kind in _SCALARS:
+        return value
+    if (kind is tuple or kind is list) and (not value or type(value[0]) in _SCALARS):
+        return value if kind is list else list(value)  # flat: the validator checks every element
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    return value
+
+
+def validate_events(
+    items: Iterable[Any], on_error: Callable[[InputError], None] | None = None, name: str = "<events>"
+) -> Iterator[Event]:
+    """Events given as objects (or as decoded stream-v1 records), checked one at a time by the stream's rules.
+
+    Args:
+        items: Event objects (anything with ``to_record()``) or ``dict`` records, in stream order.
+        on_error: None: the first bad item raises. Otherwise each bad item is given to this function and skipped.
+        name: Source name for messages; an item's 1-based position stands for its line.
+
+    Yields:
+        The validated events.
+    """
+    validator = EventValidator(name)
+    for position, item in enumerate(items, 1):
+        try:
+            if isinstance(item, Mapping):
+                record = {key: plain(value) for key, value in item.items()}
+            elif callable(getattr(item, "to_record", None)):
+                record = {key: plain(value) for key, value in item.to_record().items()}
+            else:
+                raise validator.fail(
+                    position, "", f"expected an event or a stream-v1 record, got {type(item).__name__}"
+                )
+            event = validator.parse_record(record, position)
+        except InputError as exc:
+            if on_error is None:
+                raise
+            on_error(exc)
+            continue
+        yield event
