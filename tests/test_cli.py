@@ -215,6 +215,9 @@ def test_a_failed_convert_writes_nothing_and_keeps_an_existing_file(tmp_path: Pa
     out.write_text("kept\n")
     assert cli("convert", "g2o", str(bad), "-o", str(out)).returncode == 2
     assert out.read_text() == "kept\n"
+    (tmp_path / "folder").mkdir()  # an output path that is a folder: refused, and no folder.part left beside it
+    assert cli("simulate", "square", "-o", str(tmp_path / "folder")).returncode == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.g2o", "folder", "out.jsonl"]
 
 
 def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:

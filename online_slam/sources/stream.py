@@ -108,10 +108,10 @@ def write_stream(destination: str | Path | IO[str], events: Iterable[Event]) -> 
     try:
         with opener(part, "wt", encoding="utf-8") as handle:  # type: ignore[operator]
             count = _write_lines(handle, events)
+        os.replace(part, p)  # onto a folder: IsADirectoryError, and the partial file goes too
     except BaseException:
         part.unlink(missing_ok=True)
         raise
-    os.replace(part, p)
     return count
 
 
