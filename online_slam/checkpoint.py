@@ -98,14 +98,10 @@ def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:
         "sha256": {name: hashlib.sha256(data).hexdigest() for name, data in members.items()},
     }
     target = Path(path)
-    if target.is_dir():
-        raise OnlineSlamError(f"cannot write checkpoint {path}: it is a folder, expected a file path")
+    temporary: str | None = None
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        raise OnlineSlamError(f"cannot write checkpoint {path}: {exc.strerror or exc}") from None
-    try:
         with os.fdopen(handle, "wb") as raw:
             with zipfile.ZipFile(raw, "w", compression=zipfile.ZIP_STORED) as archive:
                 archive.writestr("manifest.json", json.dumps(manifest, indent=1))
@@ -114,12 +110,12 @@ def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:
             raw.flush()
             os.fsync(raw.fileno())
         os.chmod(temporary, 0o644)
-        os.replace(temporary, target)
-    except OSError as exc:
-        Path(temporary).unlink(missing_ok=True)
-        raise OnlineSlamError(f"cannot write checkpoint {path}: {exc.strerror or exc}") from None
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
+        os.replace(temporary, target)  # onto a folder: IsADirectoryError
+    except BaseException as exc:
+        if temporary is not None:
+            Path(temporary).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise OnlineSlamError(f"cannot write checkpoint {path}: {exc.strerror or exc}") from None
         raise
 
 

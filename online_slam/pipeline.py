@@ -294,8 +294,8 @@ def replay(
     if isinstance(source, (str, Path)):
         label, events = open_source(source, skip if cfg.on_error == "skip" else None, **dict(cfg.dataset))
     else:
-        events = validate_events(source, skip if cfg.on_error == "skip" else None) if validate else iter(source)
-        label = "<events>"
+        checked = validate_events(source, skip if cfg.on_error == "skip" else None) if validate else iter(source)
+        label, events = "<events>", checked
     label = name or label
     method = cfg.association
     if method == "auto":
@@ -374,12 +374,12 @@ def replay(
         for event in events:
             position.take(event)
             take(engine.push(event))
-    except (InputError, _CheckpointFailure) as exc:
-        if isinstance(exc, InputError) and engine.steps == 0 and engine.frontend.pending is None:
+    except InputError as exc:
+        if engine.steps == 0 and engine.frontend.pending is None:
             raise
         error = str(exc)
-        if isinstance(exc, _CheckpointFailure):
-            checkpoint = None
+    except _CheckpointFailure as exc:
+        error, checkpoint = str(exc), None  # no more writes: the last one written stays
     try:
         take(engine.close())
     except _CheckpointFailure as exc:

@@ -65,8 +65,9 @@ def run_robot(folder: str | Path, robot: int) -> RobotRow:
     final = smoother.finish().poses
     rows = [k for k, s in enumerate(steps) if s.index in truth_by_index]
     truth = np.array([truth_by_index[steps[k].index] for k in rows])
-    peer = gtsam_peer.isam2_online(steps, huber=HUBER) if gtsam_peer.available() else None
-    plain = gtsam_peer.isam2_online(steps) if gtsam_peer.available() else None
+    peer = plain = None
+    if gtsam_peer.available():
+        peer, plain = gtsam_peer.isam2_online(steps, huber=HUBER), gtsam_peer.isam2_online(steps)
     return RobotRow(
         robot,
         len(steps),

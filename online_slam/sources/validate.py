@@ -469,14 +469,14 @@ def validate_events(
     for position, item in enumerate(items, 1):
         try:
             if isinstance(item, Mapping):
-                record = {key: plain(value) for key, value in item.items()}
+                record = item
             elif callable(getattr(item, "to_record", None)):
-                record = {key: plain(value) for key, value in item.to_record().items()}
+                record = item.to_record()
             else:
                 raise validator.fail(
                     position, "", f"expected an event or a stream-v1 record, got {type(item).__name__}"
                 )
-            event = validator.parse_record(record, position)
+            event = validator.parse_record({key: plain(value) for key, value in record.items()}, position)
         except InputError as exc:
             if on_error is None:
                 raise
