@@ -171,6 +171,46 @@ class SparseLDL:
         return x
 
 
+@dataclass(frozen=True)
+class _Problem:
+    """What one solve minimises: the factors (in a column layout), the loss and the prior."""
+
+    graph: FactorGraph
+    sparse: SparseLayout
+    loss: RobustLoss | None
+    prior: QuadraticPrior | None
+    assemble: DenseAssembler | None
+    """Dense normal-equation assembler, or None for the sparse path."""
+
+    def system(self, p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array, float]:
+        """Normal equations and cost at (p, l), in one pass over the factors."""
+        if self.assemble is not None:
+            H, g, value = self.assemble(p, l, self.loss)
+        else:
+            r, J = linearize(self.graph, self.sparse, p, l, self.loss)
+            H, g = J.T @ J, J.T @ r
+            value = 0.5 * float(r @ r) if self.loss is None else cost(self.graph, evaluate(self.graph, p, l), self.loss)
+        prior = self.prior
+        if prior is not None:
+            x = flatten(self.sparse, p, l)
+            H[np.ix_(prior.columns, prior.columns)] += prior.information
+            g[prior.columns] += prior.information @ prior.delta(x) + prior.gradient
+            value += prior.cost(x)
+        return H, g, value
+
+    def cost(self, p: Array, l: Array) -> float:
+        """The cost alone at (p, l)."""
+        value = cost(self.graph, evaluate(self.graph, p, l), self.loss)
+        return value + self.prior.cost(flatten(self.sparse, p, l)) if self.prior is not None else value
+
+    def damped_step(self, H: Array | sp.spmatrix, g: Array, lam: float, ldl: SparseLDL) -> Array:
+        """Solve ``(H + lam diag(H)) dx = -g``; raises ValueError / LinAlgError when it is not positive definite."""
+        diagonal = np.maximum(H.diagonal(), 1e-12)
+        if self.assemble is None:
+            return ldl.solve(H.tocsc() + sp.diags(lam * diagonal, format="csc"), -g)
+        return la.cho_solve(la.cho_factor(H + np.diag(lam * diagonal)), -g)
+
+
 def solve(
     graph: FactorGraph,
     poses: Array,
@@ -208,31 +248,27 @@ def solve(
     use_dense = dense if dense is not None else (prior is not None or sparse.n_columns <= DENSE_LIMIT)
     if not use_dense and len(sparse.keep) == 0 and graph.n_residuals:
         sparse = layout(graph)  # the sparse path needs every Jacobian entry's place
-    assemble = DenseAssembler(graph, sparse) if use_dense else None
-
-    def system(p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array, float]:
-        """Normal equations and cost at (p, l), in one pass over the factors."""
-        if assemble is not None:
-            H, g, value = assemble(p, l, loss)
-        else:
-            r, J = linearize(graph, sparse, p, l, loss)
-            H, g = J.T @ J, J.T @ r
-            value = 0.5 * float(r @ r) if loss is None else cost(graph, evaluate(graph, p, l), loss)
-        if prior is not None:
-            x = flatten(sparse, p, l)
-            H[np.ix_(prior.columns, prior.columns)] += prior.information
-            g[prior.columns] += prior.information @ prior.delta(x) + prior.gradient
-            value += prior.cost(x)
-        return H, g, value
-
-    def cost_only(p: Array, l: Array) -> float:
-        value = cost(graph, evaluate(graph, p, l), loss)
-        return value + prior.cost(flatten(sparse, p, l)) if prior is not None else value
-
-    H, g, current = system(poses, landmarks)
-    initial_cost = current
+    problem = _Problem(graph, sparse, loss, prior, DenseAssembler(graph, sparse) if use_dense else None)
+    H, g, current = problem.system(poses, landmarks)
     if sparse.n_columns == 0:
         return SolveResult(poses, landmarks, 0, True, current, current, "no free variables")
+    return _iterate(problem, cfg, _Iterate(poses, landmarks, H, g, current), return_information)
+
+
+@dataclass
+class _Iterate:
+    """The current point of Levenberg-Marquardt and its normal equations."""
+
+    poses: Array
+    landmarks: Array
+    H: Array | sp.spmatrix
+    g: Array
+    cost: float
+
+
+def _iterate(problem: _Problem, cfg: SolverConfig, it: _Iterate, return_information: bool) -> SolveResult:
+    """Levenberg-Marquardt iterations from ``it`` until a tolerance or ``cfg.max_iterations``."""
+    initial_cost = it.cost
     ldl = SparseLDL()
     lam, nu = cfg.initial_lambda, 2.0
     message = "maximum iterations reached"
@@ -240,58 +276,54 @@ def solve(
     iterations = 0
     while iterations < cfg.max_iterations:
         iterations += 1
-        if np.max(np.abs(g)) < cfg.gradient_tolerance:
+        if np.max(np.abs(it.g)) < cfg.gradient_tolerance:
             converged, message = True, "gradient below tolerance"
             break
-        diagonal = np.maximum(H.diagonal(), 1e-12)
         try:
-            if not use_dense:
-                dx = ldl.solve(H.tocsc() + sp.diags(lam * diagonal, format="csc"), -g)
-            else:
-                dx = la.cho_solve(la.cho_factor(H + np.diag(lam * diagonal)), -g)
+            dx = problem.damped_step(it.H, it.g, lam, ldl)
         except (ValueError, la.LinAlgError):  # singular or indefinite: damp harder
             lam, nu = max(lam, 1e-9) * nu, 2 * nu
             continue
-        predicted = -float(dx @ g) - 0.5 * float(dx @ (H @ dx))
-        if lam <= cfg.initial_lambda and 0.0 <= predicted <= cfg.relative_cost_tolerance * max(current, 1e-300):
+        predicted = -float(dx @ it.g) - 0.5 * float(dx @ (it.H @ dx))
+        new_poses, new_landmarks = retract(problem.sparse, it.poses, it.landmarks, dx)
+        new_cost = problem.cost(new_poses, new_landmarks)
+        if lam <= cfg.initial_lambda and 0.0 <= predicted <= cfg.relative_cost_tolerance * max(it.cost, 1e-300):
             # The (barely damped) quadratic model promises no meaningful decrease: converged. Take this last,
             # tiny Newton step when it does not raise the cost (it costs one residual evaluation, no assembly).
-            new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
-            new_cost = cost_only(new_poses, new_landmarks)
-            if new_cost <= current:
-                poses, landmarks, current = new_poses, new_landmarks, new_cost
+            if new_cost <= it.cost:
+                it.poses, it.landmarks, it.cost = new_poses, new_landmarks, new_cost
             converged, message = True, "predicted decrease below tolerance"
             break
-        new_poses, new_landmarks = retract(sparse, poses, landmarks, dx)
         # The cost alone decides acceptance and convergence; the normal equations are assembled only at an
         # accepted point the iterations go on from (at convergence H stays the last one assembled, one small
         # step away: what the information matrix is used for does not see the difference).
-        new_cost = cost_only(new_poses, new_landmarks)
-        actual = current - new_cost
+        actual = it.cost - new_cost
         if actual >= 0.0 and np.isfinite(new_cost):
             rho = actual / predicted if predicted > 0 else 1.0
             undamped = lam <= cfg.initial_lambda
-            poses, landmarks, current = new_poses, new_landmarks, new_cost
+            it.poses, it.landmarks, it.cost = new_poses, new_landmarks, new_cost
             lam = lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3) if lam > 0 else 0.0
             nu = 2.0
-            small_step = np.max(np.abs(dx)) < cfg.step_tolerance
-            small_gain = actual <= cfg.relative_cost_tolerance * max(current + actual, 1e-300)
-            model_held = undamped and abs(actual - predicted) <= cfg.model_tolerance * current
-            if small_step or small_gain or model_held:
-                converged = True
-                message = (
-                    "step below tolerance"
-                    if small_step
-                    else "cost change below tolerance"
-                    if small_gain
-                    else "quadratic model held within tolerance"
-                )
+            reason = _converged(cfg, dx, actual, predicted, it.cost, undamped)
+            if reason:
+                converged, message = True, reason
                 break
-            H, g, current = system(poses, landmarks)
+            it.H, it.g, it.cost = problem.system(it.poses, it.landmarks)
         else:
             if np.max(np.abs(dx)) < cfg.step_tolerance:
                 converged, message = True, "step below tolerance"
                 break
             lam, nu = max(lam, 1e-9) * nu, 2 * nu
-    information = H if return_information else None
-    return SolveResult(poses, landmarks, iterations, converged, initial_cost, current, message, information)
+    information = it.H if return_information else None
+    return SolveResult(it.poses, it.landmarks, iterations, converged, initial_cost, it.cost, message, information)
+
+
+def _converged(cfg: SolverConfig, dx: Array, actual: float, predicted: float, cost: float, undamped: bool) -> str:
+    """Why an accepted step ends the iterations, or "" when they go on."""
+    if np.max(np.abs(dx)) < cfg.step_tolerance:
+        return "step below tolerance"
+    if actual <= cfg.relative_cost_tolerance * max(cost + actual, 1e-300):
+        return "cost change below tolerance"
+    if undamped and abs(actual - predicted) <= cfg.model_tolerance * cost:
+        return "quadratic model held within tolerance"
+    return ""
