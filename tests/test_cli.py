@@ -231,10 +231,26 @@ def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:
     )
 
 
-def test_bench_prints_ratio_against_gtsam() -> None:
+def benchmarks(*args: str) -> subprocess.CompletedProcess:
+    """``python -m benchmarks`` from the repository root, where the benchmarks live beside the package."""
+    root = Path(__file__).resolve().parents[1]
+    return subprocess.run(
+        [sys.executable, "-m", "benchmarks", *args], capture_output=True, text=True, cwd=root, timeout=300
+    )
+
+
+def test_benchmarks_ask_for_the_mrclam_folder_before_running() -> None:
+    done = benchmarks("--only", "batch,mrclam")
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.strip() == (
+        "benchmarks: error: mrclam: give --mrclam PATH, the MRCLAM Dataset 6 folder (it holds Barcodes.dat)"
+    )
+
+
+def test_benchmarks_print_ratio_against_gtsam() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-    done = cli(
-        "bench", "--poses", "100", "--repeats", "1", "--fuzz-cases", "20", "--recording-source", "square",
+    done = benchmarks(
+        "--poses", "100", "--repeats", "1", "--fuzz-cases", "20", "--recording-source", "square",
         "--landmarks", "50,500", "--windows", "20",
     )  # fmt: skip
     assert done.returncode == 0, done.stderr

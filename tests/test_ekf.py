@@ -10,7 +10,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from scipy.stats import chi2
 
 import online_slam
-from online_slam.bench.ekf import random_state
+from benchmarks.ekf import random_state
 from online_slam.estimators import EkfConfig, EkfSlam
 from online_slam.frontend import FrontEnd, Step
 from online_slam.geometry import compose, compose_with_jacobians, wrap

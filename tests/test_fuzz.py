@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from online_slam.bench.fuzz import run_fuzz
+from benchmarks.fuzz import run_fuzz
 
 
 def test_reader_and_engine_api_refuse_bad_input_with_input_error_only() -> None:

@@ -7,7 +7,7 @@ import sys
 from collections.abc import Sequence
 
 from online_slam import __version__
-from online_slam.cli import bench, compare, convert, inspect, replay, simulate, sweep
+from online_slam.cli import compare, convert, inspect, replay, simulate, sweep
 from online_slam.errors import OnlineSlamError
 
 COMMANDS = {
@@ -16,7 +16,6 @@ COMMANDS = {
     "simulate": simulate,
     "convert": convert,
     "inspect": inspect,
-    "bench": bench,
     "sweep": sweep,
 }
 
@@ -25,7 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The full argument parser, one sub-command per module."""
     parser = argparse.ArgumentParser(
         prog="online-slam",
-        description="Incremental, online 2D landmark SLAM: replay streams, simulate worlds, benchmark.",
+        description="Incremental, online 2D landmark SLAM: replay streams, compare estimators, simulate worlds.",
     )
     parser.add_argument("--version", action="version", version=f"online-slam {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -16,8 +16,8 @@ from online_slam.compare import CompareConfig, compare, replay_config
 from online_slam.pipeline import estimator_names
 from online_slam.sinks.recording import Layout, RerunConfig, RerunSink
 
-SHIPPED = Path(__file__).resolve().parents[2] / "replay" / "mrclam6_robot1.jsonl.gz"
-"""The shipped MRCLAM Dataset 6 robot 1 stream (present in a clone of the repository)."""
+SHIPPED = Path(__file__).resolve().parents[1] / "replay" / "mrclam6_robot1.jsonl.gz"
+"""The MRCLAM Dataset 6 robot 1 stream in the repository's ``replay/`` folder, beside ``benchmarks/``."""
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from online_slam.bench import gtsam_peer
+from benchmarks import gtsam_peer
 from online_slam.frontend.steps import FrontEnd
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, waypoint_world
@@ -21,7 +21,7 @@ BIG_WORLD = GridConfig(poses=5000, blocks=15, landmarks=1000)
 """``online-slam simulate grid --blocks 15 --landmarks 1000 --poses 5000`` (982 landmarks seen, 72,287 sightings)."""
 WAYPOINT_WORLD = WaypointConfig()
 """``online-slam simulate waypoint``: 5000 poses 0.5 m apart, 1500 landmarks over 150 m, 6 m range (884 seen,
-38,539 sightings): the kind of world issue 12 was filed with."""
+38,539 sightings)."""
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import json
 import math
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -70,45 +70,48 @@ def _strategies() -> dict[str, Any]:
     return {"scalars": scalars, "json": json_values}
 
 
-def run_fuzz(examples: int = 200, seed: int | None = None) -> FuzzReport:
-    """Run every property ``examples`` times (hypothesis, derandomized when ``seed`` is given).
+@dataclass
+class _Tally:
+    """Cases run and InputErrors seen so far, per property (filled while hypothesis runs)."""
 
-    Raises:
-        AssertionError: (from hypothesis, with the failing case) if anything but InputError came out.
-    """
-    from hypothesis import HealthCheck, given, settings
-    from hypothesis import seed as with_seed
-    from hypothesis import strategies as st
+    cases: dict[str, int] = field(default_factory=dict)
+    """Cases run per property."""
+    refused: dict[str, int] = field(default_factory=dict)
+    """Cases that raised InputError, per property."""
 
-    s = _strategies()
-    cases: dict[str, int] = {}
-    refused: dict[str, int] = {}
-    folder = Path(tempfile.mkdtemp(prefix="online-slam-fuzz-"))
-    profile = settings(max_examples=examples, deadline=2000, suppress_health_check=list(HealthCheck), database=None)
-
-    def count(name: str, outcome: Callable[[], Any]) -> None:
-        cases[name] = cases.get(name, 0) + 1
+    def count(self, name: str, outcome: Callable[[], Any]) -> None:
+        """Run one case; InputError is the expected refusal, anything else propagates."""
+        self.cases[name] = self.cases.get(name, 0) + 1
         try:
             outcome()
         except InputError:
-            refused[name] = refused.get(name, 0) + 1
+            self.refused[name] = self.refused.get(name, 0) + 1
 
-    def read_all(path: Path, skip: bool) -> None:
-        list(read_stream(path, (lambda error: None) if skip else None))
+
+def _read_all(path: Path, skip: bool) -> None:
+    list(read_stream(path, (lambda error: None) if skip else None))
+
+
+def _file_properties(folder: Path, tally: _Tally, profile: Callable) -> list[Callable[[], None]]:
+    """The reader's properties: arbitrary bytes, arbitrary JSON lines, valid lines with one field perturbed."""
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    s = _strategies()
 
     @profile
     @given(data=st.binary(max_size=400), compress=st.booleans(), skip=st.booleans())
     def arbitrary_bytes(data: bytes, compress: bool, skip: bool) -> None:
         path = folder / ("bytes.jsonl.gz" if compress else "bytes.jsonl")
         path.write_bytes(gzip.compress(data) if compress and data[:1] != b"\x00" else data)
-        count("bytes", lambda: read_all(path, skip))
+        tally.count("bytes", lambda: _read_all(path, skip))
 
     @profile
     @given(values=st.lists(s["json"], min_size=1, max_size=6), skip=st.booleans())
     def arbitrary_json(values: list, skip: bool) -> None:
         path = folder / "json.jsonl"
         path.write_text("\n".join(json.dumps(v) for v in values) + "\n")
-        count("json", lambda: read_all(path, skip))
+        tally.count("json", lambda: _read_all(path, skip))
 
     @profile
     @given(data=st.data())
@@ -121,10 +124,37 @@ def run_fuzz(examples: int = 200, seed: int | None = None) -> FuzzReport:
         path = folder / "perturbed.jsonl"
         path.write_text("\n".join(json.dumps(r) for r in lines) + "\n")
         skip = data.draw(st.booleans())
-        count("perturbed lines", lambda: read_all(path, skip))
+        tally.count("perturbed lines", lambda: _read_all(path, skip))
+
+    return [arbitrary_bytes, arbitrary_json, perturbed_lines]
+
+
+def _api_call(slam: Slam, kind: str, t: float, value: Callable[[Any], Any]) -> Callable[[], Any]:
+    """One call of the engine API, each argument passed through ``value`` (which may perturb it)."""
+    if kind == "odometry":
+        return partial(
+            slam.add_odometry, value(t), [value(0.5), value(0.0), value(0.1)],
+            sigma=[value(0.1), value(0.1), value(0.01)],
+        )  # fmt: skip
+    if kind == "observation":
+        return partial(slam.add_observation, value(t), value(1), value(2.0), value(0.3), [value(0.1), value(0.01)])
+    if kind == "scan":
+        return partial(
+            slam.add_observations, value(t), [value(1), value(2)], [value(2.0), value(3.0)],
+            [value(0.3), value(-0.2)], sigma=[value(0.1), value(0.01)],
+        )  # fmt: skip
+    if kind == "start":
+        return partial(slam.start, value(t), [value(0.0), value(0.0), value(0.0)])
+    return slam.estimate
+
+
+def _engine_api_property(tally: _Tally, profile: Callable) -> Callable[[], None]:
+    """The engine API's property: a few calls, some arguments perturbed; what is accepted is estimated."""
+    from hypothesis import given
+    from hypothesis import strategies as st
 
     numbers = st.one_of(
-        st.floats(min_value=-1e9, max_value=1e9), st.sampled_from([1e-6, 1e-8, 1e8, 1e9, 0.5]), s["scalars"]
+        st.floats(min_value=-1e9, max_value=1e9), st.sampled_from([1e-6, 1e-8, 1e8, 1e9, 0.5]), _strategies()["scalars"]
     )
 
     @profile
@@ -140,34 +170,32 @@ def run_fuzz(examples: int = 200, seed: int | None = None) -> FuzzReport:
             def value(default: Any, perturbed: bool = perturbed) -> Any:
                 return data.draw(numbers) if perturbed and data.draw(st.booleans()) else default
 
-            if kind == "odometry":
-                call = partial(
-                    slam.add_odometry, value(t), [value(0.5), value(0.0), value(0.1)],
-                    sigma=[value(0.1), value(0.1), value(0.01)],
-                )  # fmt: skip
-            elif kind == "observation":
-                call = partial(
-                    slam.add_observation, value(t), value(1), value(2.0), value(0.3), [value(0.1), value(0.01)]
-                )
-            elif kind == "scan":
-                call = partial(
-                    slam.add_observations, value(t), [value(1), value(2)], [value(2.0), value(3.0)],
-                    [value(0.3), value(-0.2)], sigma=[value(0.1), value(0.01)],
-                )  # fmt: skip
-            elif kind == "start":
-                call = partial(slam.start, value(t), [value(0.0), value(0.0), value(0.0)])
-            else:
-                call = slam.estimate
-            count("engine API", call)
-        count("engine API", slam.estimate)
+            tally.count("engine API", _api_call(slam, kind, t, value))
+        tally.count("engine API", slam.estimate)
         if slam.poses:
             assert all(math.isfinite(v) for v in slam.estimate().pose)
 
+    return engine_api
+
+
+def run_fuzz(examples: int = 200, seed: int | None = None) -> FuzzReport:
+    """Run every property ``examples`` times (hypothesis, derandomized when ``seed`` is given).
+
+    Raises:
+        AssertionError: (from hypothesis, with the failing case) if anything but InputError came out.
+    """
+    from hypothesis import HealthCheck, settings
+    from hypothesis import seed as with_seed
+
+    tally = _Tally()
+    folder = Path(tempfile.mkdtemp(prefix="online-slam-fuzz-"))
+    profile = settings(max_examples=examples, deadline=2000, suppress_health_check=list(HealthCheck), database=None)
+    properties = [*_file_properties(folder, tally, profile), _engine_api_property(tally, profile)]
     try:
-        for prop in (arbitrary_bytes, arbitrary_json, perturbed_lines, engine_api):
+        for prop in properties:
             (with_seed(seed)(prop) if seed is not None else prop)()
     finally:
         for path in folder.iterdir():
             path.unlink()
         folder.rmdir()
-    return FuzzReport(cases, refused)
+    return FuzzReport(tally.cases, tally.refused)

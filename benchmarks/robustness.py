@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from online_slam.bench import gtsam_peer
+from benchmarks import gtsam_peer
 from online_slam.engine import Engine
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world

@@ -1,23 +1,20 @@
-"""``online-slam bench``: benchmarks that print figures and ratios against peers measured in the same run."""
+"""The benchmark sections: each measures, then prints its table and its ratios against peers run alongside."""
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import GridConfig
 
-SECTIONS = (
-    "batch", "ekf-update", "online", "api", "checkpoint", "recording", "association", "fuzz", "robust", "big",
-    "waypoint", "mrclam", "sweep", "soak",
-)  # fmt: skip
-DEFAULT_SECTIONS = SECTIONS[:-5]
-"""The big and waypoint worlds (5000 poses beside iSAM2, minutes), MRCLAM and the sweep (MRCLAM data) and the soak
-(100,000 poses, minutes) run only when asked for (``--only``)."""
+if TYPE_CHECKING:
+    from benchmarks.big import BigRow
 
 
 def _repeats(args: argparse.Namespace, default: int = 3) -> int:
@@ -25,46 +22,8 @@ def _repeats(args: argparse.Namespace, default: int = 3) -> int:
     return max(1, default if args.repeats is None else args.repeats)
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Register the command."""
-    p = sub.add_parser(
-        "bench",
-        help="benchmark against peers (filterpy, GTSAM with the 'peers' extra) on simulated worlds",
-        description="Measure solve and step times beside peers, in the same run, and print ratios.",
-    )
-    p.add_argument("--poses", type=int, default=GridConfig.poses, help="poses of the grid world (default 2000)")
-    p.add_argument("--seed", type=int, default=GridConfig.seed, help="seed of the grid world")
-    p.add_argument(
-        "--repeats",
-        type=int,
-        default=None,
-        help="timed repeats of each measurement; the best counts (default 3, 5 for the library API overhead)",
-    )
-    p.add_argument(
-        "--landmarks",
-        default="50,200,500,1000",
-        help="map sizes for the EKF update benchmark (default 50,200,500,1000)",
-    )
-    p.add_argument("--windows", default="10,20,50", help="smoother window sizes to time (default 10,20,50)")
-    p.add_argument(
-        "--only",
-        default=",".join(DEFAULT_SECTIONS),
-        help=f"sections to run (default: {','.join(DEFAULT_SECTIONS)}; 'soak' runs 100,000 poses, minutes)",
-    )
-    p.add_argument(
-        "--recording-source",
-        metavar="SOURCE",
-        help="recording: the stream to compare with and without --rrd (default: the shipped MRCLAM robot 1 stream)",
-    )
-    p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
-    p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
-    p.add_argument(
-        "--mrclam", default="../shared/data/MRCLAM_Dataset6", help="mrclam, sweep: the MRCLAM Dataset 6 folder"
-    )
-
-
 def _batch(args: argparse.Namespace, world: GridConfig) -> None:
-    from online_slam.bench.batch import run_batch_bench  # with GTSAM: imported when a section needs it
+    from benchmarks.batch import run_batch_bench  # with GTSAM: imported when a section needs it
 
     bench = run_batch_bench(world, repeats=_repeats(args))
     print(
@@ -80,8 +39,8 @@ def _batch(args: argparse.Namespace, world: GridConfig) -> None:
         print("GTSAM not installed: pip install '.[peers]' to measure the ratio")
 
 
-def _ekf_update(args: argparse.Namespace) -> None:
-    from online_slam.bench.ekf import time_updates
+def _ekf_update(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.ekf import time_updates
 
     try:
         counts = tuple(int(v) for v in args.landmarks.split(",") if v.strip())
@@ -96,7 +55,7 @@ def _ekf_update(args: argparse.Namespace) -> None:
 
 
 def _online_steps(args: argparse.Namespace, world: GridConfig) -> None:
-    from online_slam.bench.ekf import paired_rounds, time_smoother, time_steps
+    from benchmarks.ekf import paired_rounds, time_smoother, time_steps
 
     n, rows = time_steps(world)
     windows = tuple(int(w) for w in args.windows.split(",") if w.strip())
@@ -131,20 +90,29 @@ def _met(ok: bool) -> str:
     return "met" if ok else "NOT met"
 
 
-def _big(args: argparse.Namespace, waypoint: bool = False) -> None:
-    from online_slam.bench.big import BIG_WORLD, WAYPOINT_WORLD, run_big_world
+def _big(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.big import BIG_WORLD, run_big_world
 
-    if waypoint:
-        w = WAYPOINT_WORLD
-        rows, batch = run_big_world(w)
-        print(f"waypoint world: {w.poses} poses {w.step:g} m apart towards random goals, {w.landmarks} landmarks "
-              f"over {w.size:g} m, range {w.min_range:g}-{w.sensor_range:g} m, seed {w.seed}; "
-              f"batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
-    else:
-        c = BIG_WORLD
-        rows, batch = run_big_world(c)
-        print(f"big world: grid {c.blocks}x{c.blocks} blocks of {c.block_size:g} m, {c.poses} poses, {c.landmarks} "
-              f"landmarks placed, seed {c.seed}; batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
+    c = BIG_WORLD
+    rows, batch = run_big_world(c)
+    print(f"big world: grid {c.blocks}x{c.blocks} blocks of {c.block_size:g} m, {c.poses} poses, {c.landmarks} "
+          f"landmarks placed, seed {c.seed}; batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
+    _big_table(rows, batch)
+
+
+def _waypoint(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.big import WAYPOINT_WORLD, run_big_world
+
+    w = WAYPOINT_WORLD
+    rows, batch = run_big_world(w)
+    print(f"waypoint world: {w.poses} poses {w.step:g} m apart towards random goals, {w.landmarks} landmarks "
+          f"over {w.size:g} m, range {w.min_range:g}-{w.sensor_range:g} m, seed {w.seed}; "
+          f"batch final {batch[0]:.4f} m, landmarks {batch[1]:.4f} m")  # fmt: skip
+    _big_table(rows, batch)
+
+
+def _big_table(rows: list[BigRow], batch: tuple[float, float]) -> None:
+    """The big or waypoint world's table and targets: ours first, iSAM2 after when it ran."""
     print(f"{'estimator':<18}{'online m':>10}{'final m':>9}{'landm. m':>10}{'median ms':>11}{'p95':>8}{'p99':>8}"
           f"{'max':>9}{'total s':>9}")  # fmt: skip
     for r in rows:
@@ -165,7 +133,7 @@ def _big(args: argparse.Namespace, waypoint: bool = False) -> None:
 
 
 def _api(args: argparse.Namespace, world: GridConfig) -> None:
-    from online_slam.bench.api import measure_api_overhead
+    from benchmarks.api import measure_api_overhead
 
     # A few per cent between runs of a 1 s loop: the best of 5 (the default) is stable.
     repeats = _repeats(args, default=5)
@@ -184,8 +152,8 @@ def _api(args: argparse.Namespace, world: GridConfig) -> None:
         print(f"target: {r.estimator} through the API with scans <= 1.05x direct: {verdict}")
 
 
-def _recording(args: argparse.Namespace) -> None:
-    from online_slam.bench.recording import SHIPPED, measure_recording_cost
+def _recording(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.recording import SHIPPED, measure_recording_cost
 
     source = args.recording_source or SHIPPED
     if args.recording_source is None and not SHIPPED.exists():
@@ -197,8 +165,8 @@ def _recording(args: argparse.Namespace) -> None:
           f"(target <= 30%: {'met' if overhead <= 0.30 else 'NOT met'}); recording {r.size_mib:.2f} MiB")  # fmt: skip
 
 
-def _association() -> None:
-    from online_slam.bench.association import time_association
+def _association(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.association import time_association
 
     rows = time_association()
     print("association without ids: time per scan (median of 20 random scans) and share paired right")
@@ -210,7 +178,7 @@ def _association() -> None:
 
 
 def _checkpoint(args: argparse.Namespace, world: GridConfig) -> None:
-    from online_slam.bench.reliability import measure_checkpoint_overhead
+    from benchmarks.reliability import measure_checkpoint_overhead
 
     r = measure_checkpoint_overhead(world, every=100, repeats=_repeats(args))
     ratio = r.checkpointed_s / r.plain_s - 1.0
@@ -222,11 +190,11 @@ def _checkpoint(args: argparse.Namespace, world: GridConfig) -> None:
     print(f"target: overhead <= 10%: {'met' if ratio <= 0.10 else 'NOT met'}")
 
 
-def _fuzz(args: argparse.Namespace) -> None:
+def _fuzz(args: argparse.Namespace, world: GridConfig) -> None:
     try:
-        from online_slam.bench.fuzz import run_fuzz
+        from benchmarks.fuzz import run_fuzz
     except ImportError:  # pragma: no cover - hypothesis is a dev extra
-        raise OnlineSlamError("bench fuzz needs hypothesis: pip install '.[dev]'") from None
+        raise OnlineSlamError("fuzz needs hypothesis: pip install '.[dev]'") from None
     started = time.perf_counter()
     report = run_fuzz(examples=max(1, args.fuzz_cases))
     print(f"fuzzing: {report.total} generated cases in {time.perf_counter() - started:.1f} s; only InputError came out")
@@ -234,8 +202,8 @@ def _fuzz(args: argparse.Namespace) -> None:
         print(f"  {name:<16}{count:>7} cases, {report.input_errors.get(name, 0):>6} refused with InputError")
 
 
-def _soak(args: argparse.Namespace) -> None:
-    from online_slam.bench.reliability import soak
+def _soak(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.reliability import soak
 
     runs = soak(poses=args.soak_poses)
     print(f"soak: grid world, {args.soak_poses} poses (190 landmarks: bounded map), one estimator per run, --rrd on")
@@ -253,7 +221,7 @@ def _soak(args: argparse.Namespace) -> None:
 
 
 def _robust(args: argparse.Namespace, world: GridConfig) -> None:
-    from online_slam.bench.robustness import run_robustness
+    from benchmarks.robustness import run_robustness
 
     rows = run_robustness(world)
     print(f"robustness: grid world, {world.poses} poses, a fraction of sightings given a wrong landmark id; default")
@@ -274,12 +242,10 @@ def _robust(args: argparse.Namespace, world: GridConfig) -> None:
         )
 
 
-def _mrclam(args: argparse.Namespace) -> None:
-    from online_slam.bench.mrclam import HUBER, run_robot
+def _mrclam(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.mrclam import HUBER, run_robot
 
     folder = Path(args.mrclam)
-    if not folder.is_dir():
-        raise OnlineSlamError(f"bench mrclam: no MRCLAM folder at {folder} (give --mrclam PATH)")
     print(f"MRCLAM Dataset 6: default smoother beside GTSAM iSAM2 + Huber {HUBER} on the same steps (ATE vs Vicon, m);")
     print("iSAM2 LS: iSAM2 without a kernel (plain least squares, the core of our default cost)")
     print(f"{'robot':<7}{'poses':>6}{'online':>9}{'iSAM2':>9}{'ratio':>7}{'iSAM2 LS':>10}{'final':>9}{'iSAM2':>9}"
@@ -299,12 +265,10 @@ def _mrclam(args: argparse.Namespace) -> None:
     print(f"target: smoother online ATE <= iSAM2's per robot: {met} of 5 met")
 
 
-def _sweep(args: argparse.Namespace) -> None:
+def _sweep(args: argparse.Namespace, world: GridConfig) -> None:
     from online_slam.sweep import make_cells, run_cell, sweep
 
     folder = Path(args.mrclam)
-    if not (folder / "Barcodes.dat").is_file():
-        raise OnlineSlamError(f"bench sweep: no MRCLAM folder at {folder} (give --mrclam PATH)")
     cells = make_cells([str(folder)], windows=(20, 50, 100), robots=(1, 2, 3, 4, 5))
     started = time.perf_counter()
     for cell in cells:
@@ -322,42 +286,28 @@ def _sweep(args: argparse.Namespace) -> None:
           f"{report.failed} failed")  # fmt: skip
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the selected benchmarks and print their tables."""
-    chosen = [s.strip() for s in args.only.split(",") if s.strip()]
-    unknown = sorted(set(chosen) - set(SECTIONS))
-    if unknown:
-        raise OnlineSlamError(f"--only: unknown section {unknown[0]!r}; expected some of {', '.join(SECTIONS)}")
-    world = GridConfig(poses=args.poses, seed=args.seed)
-    for k, section in enumerate(s for s in SECTIONS if s in chosen):
-        if k:
-            print()
-        if section == "batch":
-            _batch(args, world)
-        elif section == "ekf-update":
-            _ekf_update(args)
-        elif section == "api":
-            _api(args, world)
-        elif section == "checkpoint":
-            _checkpoint(args, world)
-        elif section == "recording":
-            _recording(args)
-        elif section == "association":
-            _association()
-        elif section == "fuzz":
-            _fuzz(args)
-        elif section == "robust":
-            _robust(args, world)
-        elif section == "big":
-            _big(args)
-        elif section == "waypoint":
-            _big(args, waypoint=True)
-        elif section == "mrclam":
-            _mrclam(args)
-        elif section == "sweep":
-            _sweep(args)
-        elif section == "soak":
-            _soak(args)
-        else:
-            _online_steps(args, world)
-    return 0
+Section = Callable[[argparse.Namespace, GridConfig], None]
+"""Measures, then prints: given the options and the grid world they describe."""
+
+SECTIONS: dict[str, Section] = {
+    "batch": _batch,
+    "ekf-update": _ekf_update,
+    "online": _online_steps,
+    "api": _api,
+    "checkpoint": _checkpoint,
+    "recording": _recording,
+    "association": _association,
+    "fuzz": _fuzz,
+    "robust": _robust,
+    "big": _big,
+    "waypoint": _waypoint,
+    "mrclam": _mrclam,
+    "sweep": _sweep,
+    "soak": _soak,
+}
+"""Every section by name, in the order they run."""
+DEFAULT_SECTIONS = tuple(SECTIONS)[:-5]
+"""The big and waypoint worlds (5000 poses beside iSAM2, minutes), MRCLAM and the sweep (MRCLAM data) and the soak
+(100,000 poses, minutes) run only when asked for (``--only``)."""
+MRCLAM_SECTIONS = ("mrclam", "sweep")
+"""The sections that read the MRCLAM Dataset 6 folder (``--mrclam``)."""

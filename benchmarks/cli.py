@@ -1,0 +1,91 @@
+"""``python -m benchmarks``: the options, the choice of sections, and one-line errors."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from benchmarks.sections import DEFAULT_SECTIONS, MRCLAM_SECTIONS, SECTIONS
+from online_slam.errors import OnlineSlamError
+from online_slam.sources.worlds import GridConfig
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The benchmarks' argument parser."""
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks",
+        description="Measure online-slam beside peers (filterpy, GTSAM with the 'peers' extra) in the same run, "
+        "and print figures and ratios. Run from the repository root.",
+    )
+    p.add_argument("--poses", type=int, default=GridConfig.poses, help="poses of the grid world (default 2000)")
+    p.add_argument("--seed", type=int, default=GridConfig.seed, help="seed of the grid world")
+    p.add_argument(
+        "--repeats",
+        type=int,
+        default=None,
+        help="timed repeats of each measurement; the best counts (default 3, 5 for the library API overhead)",
+    )
+    p.add_argument(
+        "--landmarks",
+        default="50,200,500,1000",
+        help="map sizes for the EKF update benchmark (default 50,200,500,1000)",
+    )
+    p.add_argument("--windows", default="10,20,50", help="smoother window sizes to time (default 10,20,50)")
+    p.add_argument(
+        "--only",
+        default=",".join(DEFAULT_SECTIONS),
+        help=f"sections to run, of {', '.join(SECTIONS)} (default: {','.join(DEFAULT_SECTIONS)}; "
+        "'soak' runs 100,000 poses, minutes)",
+    )
+    p.add_argument(
+        "--recording-source",
+        metavar="SOURCE",
+        help="recording: the stream to compare with and without --rrd (default: the shipped MRCLAM robot 1 stream)",
+    )
+    p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
+    p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
+    p.add_argument(
+        "--mrclam",
+        metavar="PATH",
+        help="mrclam, sweep: the MRCLAM Dataset 6 folder (required by those sections; not shipped with the repository)",
+    )
+    return p
+
+
+def chosen_sections(args: argparse.Namespace) -> list[str]:
+    """The sections ``--only`` names, in run order; checks the MRCLAM folder up front when one of them needs it."""
+    chosen = [s.strip() for s in args.only.split(",") if s.strip()]
+    unknown = sorted(set(chosen) - set(SECTIONS))
+    if unknown:
+        raise OnlineSlamError(f"--only: unknown section {unknown[0]!r}; expected some of {', '.join(SECTIONS)}")
+    needs = [s for s in MRCLAM_SECTIONS if s in chosen]
+    if needs and args.mrclam is None:
+        raise OnlineSlamError(f"{needs[0]}: give --mrclam PATH, the MRCLAM Dataset 6 folder (it holds Barcodes.dat)")
+    if needs and not (Path(args.mrclam) / "Barcodes.dat").is_file():
+        raise OnlineSlamError(f"--mrclam: no MRCLAM Dataset 6 folder at {args.mrclam} (no Barcodes.dat there)")
+    return [s for s in SECTIONS if s in chosen]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the selected sections, a blank line between their tables."""
+    world = GridConfig(poses=args.poses, seed=args.seed)
+    for k, section in enumerate(chosen_sections(args)):
+        if k:
+            print()
+        SECTIONS[section](args, world)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse, run; returns the exit code (0 ok, 2 bad input or usage, 130 interrupted)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return run(args)
+    except OnlineSlamError as exc:
+        print(f"benchmarks: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("benchmarks: interrupted", file=sys.stderr)
+        return 130
