@@ -19,16 +19,15 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
   moved): it is re-anchored from its newest sighting (its old correlations dropped) instead of pulling the
   robot. When sightings of confirmed landmarks mostly fail over the last few updates and one robot correction
   explains them, the filter has drifted: a confirmed landmark failing ``gate_persistence`` times in a row is
-  used again (Victoria Park: a strict gate starved the filter, 249 m end gap; with persistence 14.9 m, batch
-  14.2 m). Measured with 10% wrong ids on the 2000-pose grid: online RMSE 0.095 m (clean 0.097 m).
+  used again (without it a strict gate starves the filter on Victoria Park).
   Bearing innovations are wrapped; the heading is wrapped after every update.
 
 ``x_prior``/``P_prior``/``x_post``/``P_post`` are not maintained (copying P every step would cost O(n^2) for
 nothing); ``dim_x``, ``_I``, ``F`` and ``Q`` follow the state size so that stock filterpy calls stay valid.
 
 Each step runs with BLAS limited to one thread: the products here are small (n up to a few thousand, rank 2k),
-and OpenBLAS's thread hand-off costs more than it saves (grid world, 2 cores: 8.0 ms median per step with two
-threads, 0.49 ms with one).
+and OpenBLAS's thread hand-off costs more than it saves. The figures behind these choices are in
+benchmarks/RESULTS.md ("EKF").
 """
 
 from __future__ import annotations

@@ -13,21 +13,13 @@ Noise model (``MrclamNoise``): per-increment variances ``var = a * dt + b * |s| 
 the elapsed time, s the commanded path length (x, y) or turned angle (theta), of a perturbation at the end of the
 increment (forward and lateral along the axes of the pose it reaches, as GTSAM's between factor has it; written
 to the stream as a full covariance in the earlier pose's frame, see :func:`increment_covariances`); range and
-bearing sigmas. Measured on Dataset 6 (all robots, 8,812 Vicon-covered increments), this end-frame model fits
-the data better than the same variances along the earlier pose's axes (log-likelihood higher by 358), and on
-MRCLAM robot 1 it halves the smoother's online error (0.46 -> 0.24 m; iSAM2 with GTSAM's factor: 0.22 m). The default
-coefficients are maximum-likelihood fits against Vicon over Dataset 6; the floor keeps 1-ms-apart poses well
-conditioned. The data choose the form per axis: forward and lateral variances grow with the squared path (the
-linear term fits to zero), the heading variance with the angle turned (a random walk in the angle: ``0.020 |turn|``,
-the squared term fits to zero). ../shared/ANCHORS.md describes an older conversion with a squared-turn heading term
-(``0.47 turn^2``): its log-likelihood is lower by 148 and it is badly calibrated: increments turning more than 0.8
-rad (often long blind stretches) err by 0.17 rad RMS where it predicts 1.09 rad (z RMS 0.13), and small turns err
-more than it predicts (z RMS 1.39 at 0.01-0.05 rad); the linear term gives z RMS 0.80-1.18 in every size band.
-Such an over-wide heading sigma after a long turn let association pair a cluster of tubes with another cluster a
-1.2 rad turn away (``--association jcbb``, robot 1 step 131). :mod:`online_slam.importers.mrclam_noise` repeats
-the fit on a folder (``--noise fit``): it reproduces the x and heading coefficients within 5%; its range/bearing
-sigmas are median-based (0.131 m, 0.0083 rad: the core of the residuals, with the misread rows left out) where the
-built-in ones are plain Gaussian fits (0.178 m, 0.0125 rad).
+bearing sigmas. The end-frame axes are chosen because they fit Dataset 6's Vicon data better than the earlier
+pose's axes. The default coefficients are maximum-likelihood fits against Vicon over Dataset 6; the floor keeps
+1-ms-apart poses well conditioned. The data choose the form per axis: forward and lateral variances grow with the
+squared path, the heading variance with the angle turned (a random walk in the angle). An earlier squared-turn
+heading term is not used: it predicted far too wide a heading after long turns, which let association pair a
+cluster of tubes with another cluster a large turn away. :mod:`online_slam.importers.mrclam_noise` repeats the fit
+on a folder (``--noise fit``). The figures behind these choices are in benchmarks/RESULTS.md ("MRCLAM Dataset 6").
 """
 
 from __future__ import annotations
