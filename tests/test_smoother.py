@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 import online_slam
 from online_slam.estimators import BatchConfig, BatchEstimator, SlidingWindowSmoother, SmootherConfig
@@ -65,23 +66,23 @@ def test_window_20_on_the_2000_pose_grid() -> None:
 def test_marginalization_is_exact_at_the_solution() -> None:
     """Linearized at the optimum, marginalizing poses leaves the same estimate and covariance as the full problem."""
     fe, smoother, _, batch_est, batch, _ = run(square_world(), SmootherConfig(window=10_000))
-    with smoother._blas.limit(limits=1, user_api="blas"):
-        smoother._solve(final=True)
+    with threadpool_limits(limits=1, user_api="blas"):
+        smoother.solve(final=True)
         for _ in range(12):
-            smoother._marginalize_oldest()
-        smoother._solve(final=True)
-    window = smoother.window
+            smoother.marginalize_oldest()
+        smoother.solve(final=True)
+    window = smoother.window.indices
     assert window == list(range(12, 25)) and smoother.prior is not None
-    poses = np.array([smoother.poses[i] for i in window])
+    poses = smoother.window.values()
     assert np.max(np.abs(poses[:, :2] - batch.poses[12:, :2])) < 1e-7
-    order = [smoother.landmark_ids.index(lid) for lid in batch.landmark_ids]
+    order = [smoother.window.landmark_ids.index(lid) for lid in batch.landmark_ids]
     assert np.max(np.abs(smoother.landmarks[order] - batch.landmarks)) < 1e-7
     graph = batch_est.log.graph()
     sparse = layout(graph)
     _, J = linearize(graph, sparse, batch.poses, batch.landmarks)
     covariance = np.linalg.inv((J.T @ J).toarray())
     last = sparse.pose_column[24] + np.arange(3)
-    assert np.allclose(smoother._pose_cov, covariance[np.ix_(last, last)], rtol=1e-6, atol=1e-12)
+    assert np.allclose(smoother.window.pose_cov, covariance[np.ix_(last, last)], rtol=1e-6, atol=1e-12)
 
 
 def test_loop_closure_corrects_the_current_pose_long_after_the_window_moved_on() -> None:
@@ -92,7 +93,7 @@ def test_loop_closure_corrects_the_current_pose_long_after_the_window_moved_on()
     # The last pose re-observes landmarks first seen ~20 poses earlier, long marginalized out of a 3-pose window.
     assert np.linalg.norm(snapshots[-1].pose[:2] - truth_last[:2]) < 0.2
     assert snapshots[-1].info["window"] == (22, 23, 24)
-    assert smoother.marginalized == 22
+    assert smoother.progress.marginalized == 22
 
 
 def test_robust_to_landmarks_seen_once_window_one_and_large_k() -> None:
@@ -187,15 +188,15 @@ def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> 
 
     config = SmootherConfig(window=5, global_every=10**6, global_iterations=100, solver=SolverConfig())
     fe, smoother, _, _, batch, _ = run(square_world(), config)
-    with smoother._blas.limit(limits=1, user_api="blas"):
-        report = smoother._relinearize_globally()
-        assert "global_rejected" not in report and smoother.global_solves == 1
+    with threadpool_limits(limits=1, user_api="blas"):
+        report = smoother.relinearize_globally()
+        assert "global_rejected" not in report and smoother.relinearization.solves == 1
         before = smoother.trajectory().copy()
-        smoother._solve(final=True)
+        smoother.solve(final=True)
     after = smoother.trajectory()
     assert np.max(np.abs(after[:, :2] - before[:, :2])) < 1e-6
     assert np.max(np.linalg.norm(after[:, :2] - batch.poses[:, :2], axis=1)) < 1e-6
-    order = [smoother.landmark_ids.index(lid) for lid in batch.landmark_ids]
+    order = [smoother.window.landmark_ids.index(lid) for lid in batch.landmark_ids]
     assert np.max(np.abs(smoother.landmarks[order] - batch.landmarks)) < 1e-6
 
 
@@ -203,20 +204,20 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
     """``global_information_max``: re-anchoring replaces the prior's covariance by the exact marginal of the
     history's factors at the revised estimate (checked against a dense elimination); without it the covariance
     keeps the fold-in linearization, which differs."""
-    from online_slam.estimators.relinearize import history_graph
-    from online_slam.estimators.smoother import inlier_graph
+    from online_slam.estimators.smoother.relinearize import history_graph, inlier_graph
 
     events = list(grid_world(GridConfig(poses=120, seed=5)))
     covariances = {}
     for cap in (0, 10**6):
         config = SmootherConfig(window=5, window_distance=0.0, global_every=10**6, global_information_max=cap)
         _, smoother, _, _, _, _ = run(events, config)
-        with smoother._blas.limit(limits=1, user_api="blas"):
-            assert "global_rejected" not in smoother._relinearize_globally()
+        with threadpool_limits(limits=1, user_api="blas"):
+            assert "global_rejected" not in smoother.relinearize_globally()
         covariances[cap] = smoother.prior.Sigma
     p = smoother.prior
-    past = history_graph(inlier_graph(smoother.log, smoother._decisions), p.pose)
-    poses = np.vstack([smoother.history.view(), smoother.poses[p.pose][None]])
+    relinearization, window = smoother.relinearization, smoother.window
+    past = history_graph(inlier_graph(relinearization.log, relinearization.decisions), p.pose)
+    poses = np.vstack([window.history.view(), window.poses[p.pose][None]])
     sparse = layout(past)
     _, J = linearize(past, sparse, poses, smoother.landmarks, smoother.config.loss)
     H = (J.T @ J).toarray()
@@ -237,7 +238,7 @@ def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
     events = list(grid_world(GridConfig(poses=600, seed=5)))
     fe, _, frozen, _, batch, _ = run(events, SmootherConfig(window=10, global_every=0))
     _, smoother, revised, _, _, _ = run(events, SmootherConfig(window=10, global_every=100, global_delay=0))
-    assert smoother.global_solves == 6  # every 100 steps of 600, solved at once
+    assert smoother.relinearization.solves == 6  # every 100 steps of 600, solved at once
     ratio_frozen = rmse(frozen.poses, fe) / rmse(batch.poses, fe)
     ratio_revised = rmse(revised.poses, fe) / rmse(batch.poses, fe)
     print(f"final RMSE / batch: window alone {ratio_frozen:.3f}, with global relinearization {ratio_revised:.3f}")
@@ -254,7 +255,7 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
         smoother = SlidingWindowSmoother(config)
         for k, step in enumerate(steps):
             if k == cut:  # a global solve started at step 300 is pending until 330
-                assert smoother._global_job is not None
+                assert smoother.relinearization.job is not None
                 state = smoother.state_dict()
                 smoother = SlidingWindowSmoother(config)
                 smoother.load_state(state)

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import scipy.linalg as la
 
 from online_slam import Slam
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
@@ -267,30 +266,20 @@ def test_association_covariance_from_the_last_solve_equals_relinearizing_the_win
     and the prior's conditional for landmarks only the prior holds, is the one a relinearization of the window
     at the same point gives (the solve's factor is taken at the solution here so that the two meet to rounding;
     in a run it is one converged step before it)."""
-    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig, _Solved
+    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+    from online_slam.estimators.smoother.covariance import factored, propagated_covariance, window_covariance
+    from online_slam.estimators.smoother.window import linearize
     from online_slam.frontend import FrontEnd
 
     compared: list[tuple[float, bool]] = []
 
     class Checked(SlidingWindowSmoother):
-        def _solve(self, final: bool = False, depth: int = 0) -> dict[str, float]:
-            report = super()._solve(final, depth)
-            if self._solved is not None:
-                active, sparse, _, H = self._linearized_window()
-                assert H is not None
-                factor = la.cho_factor(H, lower=False)[0]
-                window = np.array(self.window, dtype=np.int64)
-                columns = sparse.pose_column[: len(window)].copy(), sparse.landmark_column[: len(active)].copy()
-                self._solved = _Solved(window, columns[0], active, columns[1], factor)
-            return report
-
-        def _association_covariance(self, indices: np.ndarray) -> np.ndarray:
-            fast = self._propagated_covariance(indices)
-            saved, self._solved = self._solved, None
-            full = super()._association_covariance(indices)
-            self._solved = saved
+        def association_covariance(self, indices: np.ndarray) -> np.ndarray:
+            solved = self.association.solved
+            fast = propagated_covariance(solved, self.window, self.prior, indices)
+            full = window_covariance(linearize(self.window, self.prior, self.config.loss), self.prior, indices)
             if fast is not None:
-                passive = bool(np.any(~np.isin(indices, saved.active)))
+                passive = bool(np.any(~np.isin(indices, solved.active)))
                 compared.append((float(np.abs(fast - full).max() / np.abs(full).max()), passive))
             return full
 
@@ -299,6 +288,13 @@ def test_association_covariance_from_the_last_solve_equals_relinearizing_the_win
     world = contaminate(grid_world(replace(SMALL, poses=200)), Contamination(clutter=0.1))
     for step in FrontEnd().steps(without_ids(world)):
         smoother.step(step)
+        if smoother.association.solved is not None:  # the solve's factor, taken at its solution
+            window = smoother.window
+            linearized = linearize(window, smoother.prior, config.loss)
+            assert linearized.information is not None
+            refactored = factored(linearized.information, window.indices, linearized.layout, linearized.active)
+            assert refactored is not None
+            smoother.association.solved = refactored[1]
     errors = np.array([e for e, _ in compared])
     passive = np.array([p for _, p in compared])
     assert len(errors) > 150 and passive.sum() > 30 and (~passive).sum() > 30, (len(errors), passive.sum())

@@ -1,0 +1,418 @@
+"""The sliding-window smoother: the estimator that drives the window, its prior, covariance recovery and the
+global relinearization (see :mod:`online_slam.estimators.smoother`).
+
+Its state is in a few groups, each a dataclass: the window (:class:`~.window.Window`), the marginal prior
+(:class:`~.prior.Prior`), progress (:class:`~.state.Progress`), the global relinearization
+(:class:`~.global_solve.Relinearization`) and association (:class:`~.state.AssociationState`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from threadpoolctl import ThreadpoolController
+
+from online_slam.estimators.landmark_book import LandmarkBook
+from online_slam.estimators.problem import ProblemLog
+from online_slam.estimators.protocol import Estimate, Snapshot
+from online_slam.estimators.smoother.config import SmootherConfig
+from online_slam.estimators.smoother.covariance import (
+    factored,
+    landmark_marginals,
+    propagated_covariance,
+    window_covariance,
+)
+from online_slam.estimators.smoother.global_solve import (
+    Relinearization,
+    finish_job,
+    global_inputs,
+    global_solver,
+    is_due,
+    revise,
+    solve_now,
+    start_job,
+)
+from online_slam.estimators.smoother.prior import Prior, initial_prior, marginalize, release
+from online_slam.estimators.smoother.state import (
+    AssociationState,
+    Progress,
+    pack,
+    unpack_association,
+    unpack_prior,
+    unpack_progress,
+    unpack_relinearization,
+    unpack_window,
+)
+from online_slam.estimators.smoother.window import (
+    Window,
+    active,
+    consensus,
+    judge,
+    linearize,
+    solve_window,
+)
+from online_slam.factors.graph import FactorGraph
+from online_slam.factors.robust import outlier_threshold
+from online_slam.frontend.steps import Step
+from online_slam.solvers.least_squares import SolveResult
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+
+class SlidingWindowSmoother:
+    """Fixed-lag smoother over poses, keeping all landmarks; follows the estimator protocol."""
+
+    name = "smoother"
+    online = True
+
+    def __init__(self, config: SmootherConfig | None = None, name: str = "smoother") -> None:
+        self.config = config or SmootherConfig()
+        self.name = name
+        self.window = Window()
+        self.prior: Prior | None = None
+        self.progress = Progress()
+        # every factor, for global solves
+        self.relinearization = Relinearization(ProblemLog(keep_factors=self.config.global_every > 0))
+        self.association = AssociationState(LandmarkBook(self.config.association, inside=False))
+        self._reject_bound = (
+            outlier_threshold(self.config.reject_false_alarm) if self.config.reject_false_alarm > 0 else np.inf
+        )
+        self._blas = ThreadpoolController()
+
+    @property
+    def landmarks(self) -> Array:
+        """Current landmark estimates, shape (M, 2)."""
+        return self.window.landmarks
+
+    # -- protocol --------------------------------------------------------------------------------
+    def step(self, step: Step) -> Snapshot:
+        """Add the step; solve every K steps; marginalize beyond the window; relinearize globally on schedule."""
+        with self._blas.limit(limits=1, user_api="blas"):
+            w = self.window
+            w.add_pose(step)
+            step, _ = self._resolve(step, 0)
+            w.add_sightings(step, 0)
+            self.relinearization.log.add(step)
+            self._add_retro()
+            w.since_solve += 1
+            report: dict[str, float] = {}
+            if w.since_solve >= self.config.relinearize_every:
+                report = self.solve()
+            marginalized = []
+            while w.is_full(self.config):
+                if w.indices[0] in w.unsolved:  # never marginalize a pose before it was optimized
+                    report = self.solve()
+                marginalized.append(w.indices[0])
+                self.marginalize_oldest()
+            report = self._global_schedule(report)
+            self.progress.step_report, self.progress.step_marginalized = report, marginalized
+            return self.snapshot(step)
+
+    def extend(self, step: Step, start: int) -> Snapshot:
+        """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
+        with self._blas.limit(limits=1, user_api="blas"):
+            step, start = self._resolve(step, start)
+            self.window.add_sightings(step, start)
+            self.relinearization.log.extend(step, start)
+            self._add_retro()
+            if self.window.since_solve == 0:  # this step solved: its new sightings are used at once
+                self.progress.step_report = self.solve()
+            return self.snapshot(step)
+
+    def trajectory(self) -> Array:
+        """Current estimate of every pose so far (window poses as now, older ones as they left), shape (N, 3)."""
+        return np.concatenate(self.trajectory_parts())
+
+    def trajectory_parts(self) -> tuple[Array, Array]:
+        """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3))."""
+        return self.window.history.view(), self.window.values().reshape(-1, 3)
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue exactly where the smoother is (numbers and arrays only).
+
+        A pending global solve is finished first: its result is part of the state.
+        """
+        finish_job(self.relinearization.job)
+        return pack(self.window, self.prior, self.progress, self.relinearization, self.association)
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore a :meth:`state_dict` (this smoother's config is kept)."""
+        self.window = unpack_window(state)
+        self.prior = unpack_prior(state)
+        self.progress = unpack_progress(state)
+        self.relinearization = unpack_relinearization(state, self.relinearization.log)
+        self.association = unpack_association(state, self.association.book, self.window)
+
+    def snapshot(self, step: Step) -> Snapshot:
+        """The current estimate as an immutable snapshot."""
+        w, report = self.window, self.progress.step_report
+        return Snapshot(
+            estimator=self.name,
+            index=step.index,
+            t=step.t,
+            pose=w.poses[w.indices[-1]].copy(),
+            pose_cov=w.pose_cov.copy(),
+            landmark_ids=tuple(w.landmark_ids),
+            landmarks=w.landmarks.copy(),
+            info={
+                "window": tuple(w.indices),
+                "window_poses": w.values(),
+                "relinearized": bool(report),
+                "marginalized": tuple(self.progress.step_marginalized),
+                **report,
+            },
+        )
+
+    def finish(self) -> Estimate:
+        """Solve once more if anything arrived since the last solve; each pose's last estimate is final.
+
+        A global relinearization still running in the background is waited for and dropped: its hand-over
+        step never came (the final estimate is what the regular schedule gave).
+        """
+        started = time.perf_counter()
+        w, r, p = self.window, self.relinearization, self.progress
+        finish_job(r.job)
+        r.job = None
+        if w.indices:
+            with self._blas.limit(limits=1, user_api="blas"):
+                self.solve(final=True)
+        decisions = r.decisions + [(g, judge(w, g, self._reject_bound)) for g in w.indices if g in w.observations]
+        rejected = np.concatenate([d[1] for d in decisions]) if decisions else np.zeros(0, dtype=bool)
+        return Estimate(
+            self.name,
+            self.trajectory(),
+            tuple(w.landmark_ids),
+            w.landmarks.copy(),
+            {
+                "rejected": rejected,
+                "solves": p.solves,
+                "marginalized_poses": p.marginalized,
+                "global_solves": r.solves,
+                "global_rejections": r.rejections,
+                "landmarks_released": p.released,
+                "window": self.config.window,
+                "relinearize_every": self.config.relinearize_every,
+                "final_solve_s": time.perf_counter() - started,
+                **self.association.book.info(),
+            },
+        )
+
+    # -- covariances -----------------------------------------------------------------------------
+    def association_covariance(self, indices: Index) -> Array:
+        """Joint covariance of the newest pose and landmarks ``indices`` (c,), shape (3 + 2c, 3 + 2c).
+
+        Usually the last solve's factored information, carried through the newest odometry
+        (:func:`~.covariance.propagated_covariance`); otherwise the window (without the newest pose's sightings,
+        still being associated) linearized at the current estimate (:func:`~.covariance.window_covariance`).
+        """
+        propagated = propagated_covariance(self.association.solved, self.window, self.prior, indices)
+        if propagated is not None:
+            return propagated
+        return window_covariance(linearize(self.window, self.prior, self.config.loss), self.prior, indices)
+
+    def landmark_marginals(self) -> Array:
+        """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
+
+        The window's factors and the reduced prior are linearized once at the current estimate (no iteration,
+        no state change); see :func:`~.covariance.landmark_marginals`. NaN where the system is singular.
+        """
+        count = len(self.window.landmark_ids)
+        if not self.window.indices:
+            return np.full((count, 2, 2), np.nan)
+        with self._blas.limit(limits=1, user_api="blas"):
+            return landmark_marginals(linearize(self.window, self.prior, self.config.loss), self.prior, count)
+
+    # -- association -----------------------------------------------------------------------------
+    def _resolve(self, step: Step, start: int) -> tuple[Step, int]:
+        """The step with the sightings ``start:`` associated (those not used left out), and where they begin.
+
+        Without association (every sighting has an id, ids used) this is the step itself.
+        """
+        a, w = self.association, self.window
+        ids = step.landmarks[start:]
+        needed = a.book.needs(ids)
+        if start == 0:
+            a.resolved = None
+        if not needed and a.resolved is None:
+            return step, start
+        base = a.resolved if a.resolved is not None else step
+        cut = len(base.landmarks) if a.resolved is not None else start
+        if needed:
+            a.book.expire(step.index)
+            ids = a.book.assign_ids(
+                step.index,
+                ids,
+                step.z[start:],
+                step.z_cov[start:],
+                w.poses[w.indices[-1]].copy(),
+                w.pose_cov,
+                w.landmarks,
+                w.landmark_ids,
+                self.association_covariance,
+                known=w.index,
+            )
+        keep = np.array([lid is not None for lid in ids], dtype=bool)
+        resolved = replace(
+            step,
+            landmarks=base.landmarks[:cut] + tuple(lid for lid, ok in zip(ids, keep) if ok),
+            z=np.concatenate([base.z[:cut], step.z[start:][keep]]),
+            z_cov=np.concatenate([base.z_cov[:cut], step.z_cov[start:][keep]]),
+        )
+        a.resolved = resolved
+        return resolved, cut
+
+    def _add_retro(self) -> None:
+        """Earlier sightings of the landmarks association confirmed just now, at poses still in the window."""
+        book = self.association.book
+        for lid, g, z, R in book.retro:
+            if self.window.add_earlier_sighting(lid, g, z, R):
+                self.relinearization.log.add_sightings(g, (lid,), z[None], R[None])
+        book.retro = []
+
+    # -- solving ---------------------------------------------------------------------------------
+    def solve(self, final: bool = False) -> dict[str, float]:
+        """Relinearize the window and solve; solve again (at most twice) when consensus moved landmarks.
+
+        Args:
+            final: Use the final solver settings (the end of the stream).
+
+        Returns:
+            The last solve's report (iterations, costs before and after).
+        """
+        for depth in range(3):
+            report, graph, observed = self._solve_once(final)
+            if depth == 2 or not self._consensus(graph, observed):
+                break
+        return report
+
+    def _solve_once(self, final: bool) -> tuple[dict[str, float], FactorGraph, Index]:
+        """One window solve written into the state; (its report, its graph, the landmarks it solved)."""
+        w = self.window
+        observed = active(w)
+        solver = self.config.final_solver if final else self.config.solver
+        s, result = solve_window(w, self.prior, observed, solver, self.config.loss)
+        for k, g in enumerate(w.indices):
+            w.poses[g] = result.poses[k]
+        w.landmarks[observed] = result.landmarks
+        if s.recover is not None:
+            passive, positions = s.recover(result.poses[0], result.landmarks)
+            w.landmarks[passive] = positions
+        information = factored(result.information, w.indices, s.layout, observed)
+        self.association.solved = None
+        if information is not None:
+            w.pose_cov, self.association.solved = information
+        w.since_solve = 0
+        w.unsolved.clear()
+        self.progress.solves += 1
+        report = {"iterations": result.iterations, "cost_before": result.initial_cost, "cost_after": result.final_cost}
+        return report, s.graph, observed
+
+    def _consensus(self, graph: FactorGraph, observed: Index) -> bool:
+        """Move landmarks the window's sightings place elsewhere (:func:`~.window.consensus`), releasing those the
+        prior holds; True when something moved."""
+        if not (self.config.consensus and np.isfinite(self._reject_bound)) or len(graph.obs_pose) == 0:
+            return False
+        held = self.prior.landmarks if self.prior is not None else np.zeros(0, dtype=np.int64)
+        w = self.window
+        moves, stale = consensus(graph, observed, w.values(), w.landmarks, held, self._reject_bound)
+        for j, position in moves:
+            w.landmarks[j] = position
+        if stale:
+            assert self.prior is not None
+            self.prior, count = release(self.prior, stale)
+            self.progress.released += count
+            self.association.solved = None
+        return bool(moves)
+
+    # -- marginalization -------------------------------------------------------------------------
+    def marginalize_oldest(self) -> None:
+        """Fold the oldest window pose's factors into the prior (:func:`~.prior.marginalize`) and drop the pose.
+
+        Its sightings judged outliers at the current estimate are recorded and never folded in.
+        """
+        w = self.window
+        o, n1 = w.indices[0], w.indices[1]
+        if self.prior is None:
+            assert w.start is not None
+            p = initial_prior(w.start, w.poses[w.start[0]])
+        else:
+            p = self.prior
+        assert p.pose == o
+        sightings = w.observations.get(o)
+        if sightings is not None:
+            keep = ~judge(w, o, self._reject_bound)
+            self.relinearization.decisions.append((o, ~keep))
+            if not keep.all():  # judged outliers are never folded into the prior
+                self.association.solved = None  # the solved information holds them
+                sightings = tuple(a[keep] for a in sightings) if keep.any() else None  # type: ignore[assignment]
+        delta, _, W = w.odometry[n1]
+        recentre = not self.config.first_estimate_jacobians
+        self.prior = marginalize(
+            p, w.poses[o], w.landmarks, sightings, (delta, W), (n1, w.poses[n1]), self.config.loss, recentre
+        )
+        w.drop_oldest()
+        self.progress.marginalized += 1
+
+    # -- global relinearization ------------------------------------------------------------------
+    def _global_schedule(self, report: dict[str, float]) -> dict[str, float]:
+        """After a step: hand a finished background solve over, start the next one when due; the step's report
+        with theirs."""
+        r, p = self.relinearization, self.progress
+        r.since += 1
+        p.steps += 1
+        job = r.job
+        if job is not None and p.steps >= job.handover:
+            started = time.perf_counter()
+            finish_job(job)
+            r.job = None
+            if job.result is not None:
+                report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
+                report["global_s"] = time.perf_counter() - started
+        if is_due(self.config, r, p.steps, self.window):
+            if self.config.global_delay:
+                inputs = global_inputs(r, self.window)
+                r.since = 0
+                if inputs is not None:
+                    r.job = start_job(inputs, self.config, p.steps, self.name)
+            else:
+                r.since = 0
+                report = {**report, **self.relinearize_globally()}
+        return report
+
+    def relinearize_globally(self) -> dict[str, float]:
+        """Re-solve every factor from the current estimate now; revise the history; re-anchor the prior there."""
+        started = time.perf_counter()
+        inputs = global_inputs(self.relinearization, self.window)
+        if inputs is None:
+            return {}
+        result = solve_now(inputs, global_solver(self.config), self.config.loss)
+        report = self._apply_global(result, len(inputs.poses), at_once=True)
+        report["global_s"] = time.perf_counter() - started
+        return report
+
+    def _apply_global(self, result: SolveResult, n_poses: int, at_once: bool) -> dict[str, float]:
+        """Write a global solution's revision (:func:`~.global_solve.revise`) into the state; its report."""
+        r, w = self.relinearization, self.window
+        revision = revise(result, n_poses, at_once, w, self.prior, r, self.config)
+        if revision is None:
+            r.rejections += 1
+            return {"global_rejected": 1.0}
+        w.history.replace(revision.history)
+        self.association.solved = None
+        if at_once:
+            for g in w.indices:
+                w.poses[g] = result.poses[g].copy()
+            w.landmarks = revision.landmarks
+        if revision.prior is not None:
+            self.prior = revision.prior
+        r.solves += 1
+        return {
+            "global_iterations": result.iterations,
+            "global_cost_before": result.initial_cost,
+            "global_cost_after": result.final_cost,
+        }

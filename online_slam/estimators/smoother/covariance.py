@@ -1,0 +1,260 @@
+"""Covariance recovery for the smoother: the newest pose's, association's joint covariance, landmark marginals.
+
+Association asks for the joint covariance of the newest pose and candidate landmarks at every scan. Usually it
+is read from the last solve's factored information (:class:`Solved`), carried through the newest odometry
+(:func:`propagated_covariance`): this saves linearizing and factoring the window per scan. Otherwise the
+window and the reduced prior are linearized at the current estimate (:func:`window_covariance`). Landmarks only
+the prior holds are, given the prior's part that the window sees, independent of the rest: their covariance is
+the prior's conditional plus that part's uncertainty carried through the regression.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as la
+from numpy.typing import NDArray
+
+from online_slam.estimators.smoother.prior import Prior, split
+from online_slam.estimators.smoother.window import Linearized, Window
+from online_slam.factors.graph import SparseLayout
+from online_slam.geometry.se2 import compose_with_jacobians
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+
+def locate(ids: Index, wanted: Index) -> tuple[Index, NDArray[np.bool_]]:
+    """Where each of ``wanted`` (k,) is in ``ids`` (distinct, any order), and whether it is there; shapes (k,)."""
+    if not len(ids):
+        return np.zeros(len(wanted), dtype=np.int64), np.zeros(len(wanted), dtype=bool)
+    order = np.argsort(ids, kind="stable")
+    where = order[np.minimum(np.searchsorted(ids, wanted, sorter=order), len(ids) - 1)]
+    return where, ids[where] == wanted
+
+
+@dataclass(frozen=True)
+class Solved:
+    """The last window solve's factored information, for association covariances until the state moves."""
+
+    window: Index
+    """The window poses it solved, shape (P,)."""
+    pose_column: Index
+    """Column of each window pose in its system (-1: fixed), shape (P,)."""
+    active: Index
+    """The landmarks it solved (sorted), shape (A,)."""
+    landmark_column: Index
+    """Column of each active landmark, shape (A,)."""
+    factor: Array
+    """``scipy.linalg.cho_factor`` of its information (upper triangle), shape (n, n)."""
+
+    def columns(self, landmarks: Index) -> Index:
+        """The columns of these solved landmarks (k,), shape (2k,)."""
+        return (self.landmark_column[locate(self.active, landmarks)[0]][:, None] + np.arange(2)).reshape(-1)
+
+
+def factored(
+    information: Array | None, window: list[int], sparse: SparseLayout, active: Index
+) -> tuple[Array, Solved | None] | None:
+    """The newest pose's covariance from a window solve's information, and that information factored.
+
+    Args:
+        information: The solve's information at its solution (dense or sparse), or None.
+        window: The window poses it solved, oldest first.
+        sparse: Its layout.
+        active: The landmarks it solved (sorted).
+
+    Returns:
+        None when the newest pose was fixed or there is no information (the pose covariance stays); else
+        (the newest pose's covariance (3, 3), the factored information), NaN and None where it is singular.
+    """
+    newest = sparse.pose_column[len(window) - 1]
+    if newest < 0 or information is None:
+        return None
+    H = information
+    H = H.toarray() if hasattr(H, "toarray") else H
+    unit = np.zeros((H.shape[0], 3))
+    unit[newest + np.arange(3), np.arange(3)] = 1.0
+    try:
+        factor, _ = la.cho_factor(H, lower=False)
+        cov = la.cho_solve((factor, False), unit)[newest : newest + 3]
+    except (la.LinAlgError, ValueError):  # singular, or not finite
+        return np.full((3, 3), np.nan), None
+    solved = Solved(
+        np.array(window, dtype=np.int64),
+        sparse.pose_column[: len(window)].copy(),
+        active,
+        sparse.landmark_column[: len(active)].copy(),
+        factor,
+    )
+    return 0.5 * (cov + cov.T), solved
+
+
+def window_covariance(linearized: Linearized, prior: Prior | None, indices: Index) -> Array:
+    """Joint covariance of the newest pose and landmarks ``indices`` (c,) from a linearized window, shape
+    (3 + 2c, 3 + 2c).
+
+    Landmarks the window observes read the inverse information; landmarks only the prior holds are its
+    conditional given the part the window shares, propagated. A landmark nothing constrains (cannot happen with
+    a consistent state) gives a large diagonal.
+    """
+    c = len(indices)
+    active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
+    rows = 3 + 2 * c
+    fallback = np.eye(rows) * 1e6
+    if H is None:
+        return fallback
+    n = len(H)
+    L = np.zeros((rows, n))
+    N = np.zeros((rows, rows))
+    newest = sparse.pose_column[linearized.poses - 1]
+    if newest >= 0:
+        L[np.arange(3), newest + np.arange(3)] = 1.0
+    position, is_active = locate(active, indices)
+    for k in np.flatnonzero(is_active):
+        column = sparse.landmark_column[position[k]]
+        L[3 + 2 * k + np.arange(2), column + np.arange(2)] = 1.0
+    passive_k = np.flatnonzero(~is_active)
+    if len(passive_k):
+        if prior is None or quadratic is None:
+            return fallback
+        slots, held = locate(prior.landmarks, indices[passive_k])
+        if not held.all():
+            return fallback
+        s = split(prior, active)
+        state_rows = (2 * slots[:, None] + np.arange(2)).reshape(-1)
+        S_pa = prior.Sigma[np.ix_(state_rows, s.order)]
+        B = S_pa @ s.information
+        out_rows = (3 + 2 * passive_k[:, None] + np.arange(2)).reshape(-1)
+        L[np.ix_(out_rows, quadratic.columns)] = B
+        N[np.ix_(out_rows, out_rows)] = prior.Sigma[np.ix_(state_rows, state_rows)] - B @ S_pa.T
+    try:
+        X = la.cho_solve(la.cho_factor(H), L.T)
+    except (la.LinAlgError, ValueError):
+        return fallback
+    joint = L @ X + N
+    return 0.5 * (joint + joint.T)
+
+
+def propagated_covariance(solved: Solved | None, window: Window, prior: Prior | None, indices: Index) -> Array | None:
+    """The joint covariance of :func:`window_covariance` from the last solve's factored information, or None if
+    it does not apply.
+
+    It applies while nothing moved since that solve but the newest pose's odometry: the newest pose is then
+    the solved one composed with it, and its joint covariance with the landmarks is the solved one carried
+    through the composition's Jacobians. Marginalizing old poses since does not change the remaining
+    variables' marginal (exact for the linearized system with the default re-centred marginalization; with
+    ``first_estimate_jacobians`` up to the prior's older linearization points). A landmark only the prior
+    holds is, given the prior's part that the solve saw (its pose and solved landmarks), independent of the
+    rest: its covariance is the prior's conditional plus that part's solved covariance carried through the
+    regression. None when the state moved otherwise (the owner drops ``solved`` then: a sighting was added, a
+    global solve handed over, judged outliers dropped from a marginalized pose, a landmark released).
+    """
+    applies, carry = _carry(solved, window)
+    if solved is None or not applies:
+        return None
+    s, c = solved, len(indices)
+    _, is_solved = locate(s.active, indices)
+    passive = np.flatnonzero(~is_solved)
+    # The joint is R^T H^-1 R (+ the prior's conditional), R mapping it onto the solved system's columns.
+    R = np.zeros((len(s.factor), 3 + 2 * c))
+    R[s.pose_column[-1] + np.arange(3), np.arange(3)] = 1.0
+    known = 3 + (2 * np.flatnonzero(is_solved)[:, None] + np.arange(2)).reshape(-1)
+    R[s.columns(indices[is_solved]), known] = 1.0
+    conditional = None
+    if len(passive):
+        regression = _passive_regression(s, prior, indices[passive])
+        if regression is None:
+            return None
+        a_columns, B, S_cond = regression
+        out = 3 + (2 * passive[:, None] + np.arange(2)).reshape(-1)
+        R[np.ix_(a_columns, out)] = B.T
+        conditional = (out, S_cond)
+    P = R.T @ la.cho_solve((s.factor, False), R)
+    if conditional is not None:
+        P[np.ix_(conditional[0], conditional[0])] += conditional[1]
+    if carry is not None:
+        F, noise = carry
+        P[:3] = F @ P[:3]
+        P[:, :3] = P[:, :3] @ F.T
+        P[:3, :3] += noise
+    return 0.5 * (P + P.T)
+
+
+def _carry(solved: Solved | None, window: Window) -> tuple[bool, tuple[Array, Array] | None]:
+    """Whether the last solve still applies, and how its newest pose reaches the current one: None (it is the
+    same) or (F, noise) through the newest odometry."""
+    if solved is None:
+        return False, None
+    newest = window.indices[-1]
+    if newest == solved.window[-1] and not window.unsolved:
+        return True, None
+    if len(window.indices) > 1 and window.indices[-2] == solved.window[-1] and window.unsolved == {newest}:
+        if newest in window.observations:
+            return False, None
+        delta, Q, _ = window.odometry[newest]
+        _, F, G = compose_with_jacobians(window.poses[solved.window[-1]], delta)
+        return True, (F, G @ Q @ G.T)
+    return False, None
+
+
+def _passive_regression(s: Solved, prior: Prior | None, wanted: Index) -> tuple[Index, Array, Array] | None:
+    """The regression ``d_p = B d_a + noise`` of landmarks only the prior holds (``wanted``, (k,)) on the prior's
+    part the solve saw: (that part's columns in the solved system (q,), B (2k, q), the conditional covariance
+    (2k, 2k)), or None when it does not apply."""
+    prior_pose = int(np.searchsorted(s.window, prior.pose)) if prior is not None else len(s.window)
+    if prior is None or not len(prior.landmarks) or prior_pose == len(s.window) or s.window[prior_pose] != prior.pose:
+        return None
+    if s.pose_column[prior_pose] < 0:  # the prior's pose was fixed in that solve
+        return None
+    slot, held = locate(prior.landmarks, wanted)
+    if not held.all():  # not in the prior either (inconsistent state)
+        return None
+    is_held = np.isin(prior.landmarks, s.active)
+    n = len(prior.mu)
+    order = np.r_[(2 * np.flatnonzero(is_held)[:, None] + np.arange(2)).reshape(-1), np.arange(n - 3, n)]
+    rows = (2 * slot[:, None] + np.arange(2)).reshape(-1)
+    S_pa = prior.Sigma[np.ix_(rows, order)]
+    try:
+        B = la.cho_solve(la.cho_factor(prior.Sigma[np.ix_(order, order)]), S_pa.T).T  # (2k, q)
+    except (la.LinAlgError, ValueError):
+        return None
+    a_columns = np.r_[s.columns(prior.landmarks[is_held]), s.pose_column[prior_pose] + np.arange(3)]
+    return a_columns, B, prior.Sigma[np.ix_(rows, rows)] - B @ S_pa.T
+
+
+def landmark_marginals(linearized: Linearized, prior: Prior | None, count: int) -> Array:
+    """2x2 marginal covariance of every landmark (``count``) from a linearized window, shape (M, 2, 2).
+
+    Landmarks a window pose observes read their block of the inverse information; passive landmarks add the
+    prior's conditional covariance to the propagated uncertainty of the part they are conditioned on. NaN
+    where the system is singular.
+    """
+    out = np.full((count, 2, 2), np.nan)
+    active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
+    if H is None:  # no free variable
+        return out
+    try:
+        C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
+    except (la.LinAlgError, ValueError):  # singular, or not finite
+        return out
+    cols = sparse.landmark_column[np.arange(len(active))][:, None] + np.arange(2)  # (A, 2)
+    out[active] = C[cols[:, :, None], cols[:, None, :]]
+    if prior is None or quadratic is None:
+        return out
+    s = split(prior, active)
+    if len(s.passive) == 0:
+        return out
+    S_pa = prior.Sigma[np.ix_(s.passive, s.order)]
+    B = S_pa @ s.information  # d_p = mu_p + B (d_a - mu_a) + noise
+    C_a = C[np.ix_(quadratic.columns, quadratic.columns)]
+    q = len(s.order)
+    B3, S3 = B.reshape(-1, 2, q), S_pa.reshape(-1, 2, q)
+    pairs = s.passive.reshape(-1, 2)
+    S_pp = prior.Sigma[pairs[:, :, None], pairs[:, None, :]]
+    conditional = S_pp - np.einsum("piq,pjq->pij", B3, S3)
+    propagated = np.einsum("piq,qr,pjr->pij", B3, C_a, B3)
+    blocks = conditional + propagated
+    out[prior.landmarks[~s.is_active]] = 0.5 * (blocks + blocks.transpose(0, 2, 1))
+    return out

@@ -1,0 +1,200 @@
+"""The smoother's global relinearization: when it runs, the background job, and what its result revises.
+
+Every ``global_every`` steps (or N / 20 after N steps) every factor seen so far is re-solved from a copy of the
+current estimate (:func:`~online_slam.estimators.smoother.relinearize.solve_all`), in a background thread
+started here (:func:`start_job`); its result is handed over ``global_delay`` steps later (or N / 50), waiting for the
+thread if need be (:func:`finish_job`), so the outcome never depends on timing. The hand-over revises the history
+and re-anchors the prior at the revised values (:func:`revise`). All threading of the smoother is in this
+module.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.estimators.problem import ProblemLog
+from online_slam.estimators.smoother.config import GLOBAL_DELAY_GROWTH, GLOBAL_GROWTH, SmootherConfig
+from online_slam.estimators.smoother.prior import Prior, reanchored
+from online_slam.estimators.smoother.relinearize import history_graph, inlier_graph, refine_recent, solve_all
+from online_slam.estimators.smoother.window import Window
+from online_slam.factors.robust import RobustLoss
+from online_slam.geometry.se2 import between, compose, rotation
+from online_slam.solvers.least_squares import SolverConfig, SolveResult
+
+Array = NDArray[np.float64]
+Decisions = list[tuple[int, NDArray[np.bool_]]]
+"""(pose, which of its sightings were judged outliers) for each pose when it left the window."""
+
+
+@dataclass
+class GlobalJob:
+    """A global solve running in the background (or finished, or restored from a checkpoint)."""
+
+    handover: int
+    """Step count at which its result is applied."""
+    n_poses: int
+    """Poses in the state it started from (0 .. n_poses - 1)."""
+    thread: threading.Thread | None = None
+    """The thread solving it, until it is joined."""
+    result: SolveResult | None = None
+    """Its solution, once solved."""
+    error: str | None = None
+    """Why it gave no solution, if it failed."""
+
+
+@dataclass
+class Relinearization:
+    """What global relinearizations need and how they went."""
+
+    log: ProblemLog
+    """Every factor seen so far."""
+    decisions: Decisions = field(default_factory=list)
+    """The sightings judged outliers when their pose left the window (left out of global solves)."""
+    since: int = 0
+    """Steps since the last global relinearization started."""
+    job: GlobalJob | None = None
+    """The pending background solve."""
+    solves: int = 0
+    """Global relinearizations kept."""
+    rejections: int = 0
+    """Global relinearizations not kept (the solve did not reconcile the history)."""
+
+
+@dataclass(frozen=True)
+class GlobalInputs:
+    """What a global solve needs, copied from the smoother (safe to read in another thread)."""
+
+    log: ProblemLog
+    """The log, frozen."""
+    decisions: Decisions
+    """The outlier decisions so far."""
+    poses: Array
+    """Every pose's current estimate, shape (N, 3)."""
+    landmarks: Array
+    """Every landmark's current estimate, shape (M, 2)."""
+
+
+@dataclass(frozen=True)
+class Revision:
+    """A global solution applied to the smoother's state."""
+
+    history: Array
+    """Revised estimates of the poses that left the window, shape (N - P, 3)."""
+    landmarks: Array
+    """Revised landmark estimates, shape (M, 2)."""
+    prior: Prior | None
+    """The re-anchored prior, or None when the prior does not move (none, or not on the oldest window pose)."""
+
+
+def global_solver(config: SmootherConfig) -> SolverConfig:
+    """The window's solver settings with ``global_iterations`` iterations."""
+    return replace(config.solver, max_iterations=config.global_iterations)
+
+
+def is_due(config: SmootherConfig, state: Relinearization, steps: int, window: Window) -> bool:
+    """Whether a global relinearization is to start after ``steps`` steps (none pending, every pose solved)."""
+    every = config.global_every and max(config.global_every, steps // GLOBAL_GROWTH)
+    due = every and state.since >= every and len(window.history) and not window.unsolved
+    return bool(due) and state.job is None
+
+
+def global_inputs(state: Relinearization, window: Window) -> GlobalInputs | None:
+    """What a global solve needs, copied; None when the log does not match the window's variables."""
+    log = state.log
+    if len(log.poses) != len(window.history) + len(window.indices) or log.landmark_ids != tuple(window.landmark_ids):
+        return None
+    poses = np.vstack([window.history.view(), window.values()])
+    return GlobalInputs(log.frozen(), list(state.decisions), poses, window.landmarks.copy())
+
+
+def solve_now(inputs: GlobalInputs, solver: SolverConfig, loss: RobustLoss | None) -> SolveResult:
+    """Every factor but the judged outliers, solved from the given values (pure: safe in a thread)."""
+    return solve_all(inputs.log, inputs.decisions, inputs.poses, inputs.landmarks, solver, loss)
+
+
+def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: str) -> GlobalJob:
+    """Solve every factor in a background thread; the result is to be handed over ``global_delay`` steps (or
+    N / 50 after N steps) after step ``steps``."""
+    solver = global_solver(config)
+    delay = max(config.global_delay, steps // GLOBAL_DELAY_GROWTH)
+    job = GlobalJob(handover=steps + delay, n_poses=len(inputs.poses))
+
+    def work() -> None:
+        try:
+            job.result = solve_now(inputs, solver, config.loss)
+        except Exception as exc:  # noqa: BLE001 - handed over as "no result"; the smoother goes on without it
+            job.error = repr(exc)
+
+    job.thread = threading.Thread(target=work, name=f"{name} global relinearization", daemon=True)
+    job.thread.start()
+    return job
+
+
+def finish_job(job: GlobalJob | None) -> GlobalJob | None:
+    """The job, finished (its thread joined); None if there is none."""
+    if job is not None and job.thread is not None:
+        job.thread.join()
+        job.thread = None
+    return job
+
+
+def revise(
+    result: SolveResult,
+    n_poses: int,
+    at_once: bool,
+    window: Window,
+    prior: Prior | None,
+    state: Relinearization,
+    config: SmootherConfig,
+) -> Revision | None:
+    """The history revised with a global solution over poses ``0..n_poses-1``, and the prior re-anchored.
+
+    ``at_once``: the solution is of the current state (window poses and landmarks take its values too);
+    otherwise it is of an earlier one (handed over from the background): window poses and landmark estimates
+    keep their newer values, poses marginalized since keep theirs, and the prior is re-anchored at the
+    revised history and the current oldest window pose.
+
+    Returns:
+        The revision, or None when the re-anchored prior is rejected
+        (:func:`~online_slam.estimators.smoother.prior.reanchored`).
+    """
+    oldest = window.indices[0]
+    history, oldest_value, landmarks = _followed(result, n_poses, at_once, window)
+    if prior is None or prior.pose != oldest:
+        return Revision(history, landmarks, None)
+    past = history_graph(inlier_graph(state.log, state.decisions), oldest)
+    values = np.vstack([history, oldest_value[None]])
+    if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
+        values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.loss)
+        history = values[:-1]
+    anchored = reanchored(prior, past, values, landmarks, config.loss, config.global_information_max)
+    return None if anchored is None else Revision(history, landmarks, anchored)
+
+
+def _followed(result: SolveResult, n_poses: int, at_once: bool, window: Window) -> tuple[Array, Array, Array]:
+    """(history, oldest window pose, landmarks) with the solution's values where it has them.
+
+    Poses that left the window after the solve started, and landmarks first seen since, follow the solution
+    rigidly: their geometry relative to the last solved pose is kept (it holds newer data).
+    """
+    oldest = window.indices[0]
+    history = window.history.view().copy()
+    revised = min(oldest, n_poses)
+    history[:revised] = result.poses[:revised]
+    landmarks = window.landmarks.copy()
+    landmarks[: len(result.landmarks)] = result.landmarks
+    oldest_value = result.poses[oldest] if at_once else window.poses[oldest].copy()
+    if not at_once and oldest >= n_poses:
+        anchor = n_poses - 1
+        before, after = window.history.view()[anchor], result.poses[anchor]
+        history[anchor + 1 :] = compose(after, between(before, window.history.view()[anchor + 1 :]))
+        oldest_value = compose(after, between(before, oldest_value))
+        new = landmarks[len(result.landmarks) :]
+        if len(new):
+            local = (new - before[:2]) @ rotation(before[2])  # R(before)^T (l - t)
+            landmarks[len(result.landmarks) :] = local @ rotation(after[2]).T + after[:2]
+    return history, oldest_value, landmarks

@@ -1,0 +1,346 @@
+"""The smoother's marginal prior: fold-in of the oldest pose's factors, release of landmarks, re-anchoring.
+
+The prior is a Gaussian ``d ~ N(mu, Sigma)`` on ``d = x - x_lin`` (heading wrapped) over the oldest window pose
+and every landmark it has touched, kept in covariance form: folding a factor in is an exact linear-Gaussian
+update (the next pose and new landmarks are appended through their factor, the other observations update it
+like a Kalman filter), and eliminating a pose is dropping its rows — the same result as a Schur complement of
+the information matrix, at O(n^2) per factor. Its quadratic is never relinearized: by default it is re-centred
+(exactly) at the current estimate before new factors are folded in, and those are linearized there.
+
+A window solve sees only the prior's marginal on its pose and the landmarks the window observes
+(:func:`reduced`); the others are recovered from their conditional mean afterwards.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as la
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from online_slam.estimators.kalman import apply_update, stacked_jacobian
+from online_slam.estimators.smoother.config import GLOBAL_FALSE_ALARM
+from online_slam.estimators.smoother.relinearize import prior_covariance, prior_marginal
+from online_slam.factors.graph import FactorGraph, sqrt_information
+from online_slam.factors.robust import RobustLoss
+from online_slam.geometry.angles import wrap
+from online_slam.models.motion import odometry_residual_with_jacobians
+from online_slam.models.range_bearing import range_bearing_with_jacobians
+from online_slam.solvers.least_squares import QuadraticPrior
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+Sightings = tuple[Index, Array, Array, Array]
+"""A pose's sightings: landmark indices (k,), z (k, 2), covariances (k, 2, 2), square-root information (k, 2, 2)."""
+Appended = tuple[Array, Array, Array, Array]
+"""A whitened factor that appends a variable: (residual r0, Jacobian on the old pose, on the new variable, the
+new variable's linearization point)."""
+
+
+@dataclass
+class Prior:
+    """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[landmarks..., pose]``.
+
+    The pose comes last, so that its rows and columns are the ones the next pose reuses.
+    """
+
+    pose: int
+    """Index of the pose it holds (the oldest window pose)."""
+    landmarks: Index
+    """Indices of the landmarks it holds, in its order, shape (L,)."""
+    x_lin: Array
+    """Linearization point of ``[landmarks..., pose]``, shape (2 L + 3,)."""
+    mu: Array
+    """Mean of d, shape (2 L + 3,)."""
+    Sigma: Array
+    """Covariance of d, contiguous (n, n), so that Kalman updates run in place
+    (:func:`~online_slam.estimators.kalman.downdate`)."""
+
+
+@dataclass(frozen=True)
+class PriorSplit:
+    """The prior's state split into the part a window solve sees and the passive landmarks."""
+
+    order: Index
+    """State rows of the active landmarks, then of the pose."""
+    passive: Index
+    """State rows of the passive landmarks."""
+    is_active: NDArray[np.bool_]
+    """Which of the prior's landmarks are active, shape (L,)."""
+    information: Array
+    """``Sigma_aa^-1``, the information of the active part, shape (len(order), len(order))."""
+
+
+def initial_prior(start: tuple[int, Array, Array | None], pose: Array) -> Prior:
+    """The prior before any marginalization: the start pose, fixed (Sigma = 0) or with its prior.
+
+    Args:
+        start: (start pose index, its prior mean, its prior covariance or None when fixed).
+        pose: The start pose's current estimate, shape (3,).
+    """
+    index, mean, cov = start
+    x_lin = pose.copy()
+    mu = mean - x_lin
+    mu[2] = wrap(mu[2])
+    Sigma = np.zeros((3, 3))
+    if cov is not None:
+        Sigma[:] = cov
+    return Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
+
+
+def resized(Sigma: Array, size: int, keep: int) -> Array:
+    """Sigma itself when the size does not change, else a new contiguous size x size array whose top-left
+    ``keep`` x ``keep`` block holds Sigma's (the rest uninitialized)."""
+    if len(Sigma) == size:
+        return Sigma
+    grown = np.empty((size, size))
+    grown[:keep, :keep] = Sigma[:keep, :keep]
+    return grown
+
+
+def fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array, Array]:
+    """Merge repeated observations of one landmark from one pose into a single equivalent observation.
+
+    Both measure the same ``h(pose, landmark)``, so their two quadratics sum to one with information
+    ``R1^-1 + R2^-1`` centred on the information-weighted mean (bearings averaged relative to the first).
+    """
+    if len(np.unique(indices)) == len(indices):
+        return indices, z, z_cov
+    keep_i, keep_z, keep_c = [], [], []
+    for j in dict.fromkeys(indices.tolist()):
+        rows = np.flatnonzero(indices == j)
+        info = np.linalg.inv(z_cov[rows])
+        offsets = z[rows] - z[rows[0]]
+        offsets[:, 1] = wrap(offsets[:, 1])
+        cov = np.linalg.inv(info.sum(axis=0))
+        mean = z[rows[0]] + cov @ np.einsum("kij,kj->i", info, offsets)
+        mean[1] = wrap(mean[1])
+        keep_i.append(j)
+        keep_z.append(mean)
+        keep_c.append(0.5 * (cov + cov.T))
+    return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c)
+
+
+def split(prior: Prior, active: Index) -> PriorSplit:
+    """The prior's state split by the landmarks a window solve sees (``active``, sorted)."""
+    n = len(prior.mu)
+    is_active = np.isin(prior.landmarks, active)
+    order = np.r_[(2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1), np.arange(n - 3, n)]
+    passive = (2 * np.flatnonzero(~is_active)[:, None] + np.arange(2)).reshape(-1)
+    S_aa = prior.Sigma[np.ix_(order, order)]
+    try:
+        A = la.cho_solve(la.cho_factor(S_aa), np.eye(len(order)))
+    except la.LinAlgError:  # rank-deficient: the information of the directions it has
+        A = np.linalg.pinv(S_aa, hermitian=True)
+    return PriorSplit(order, passive, is_active, 0.5 * (A + A.T))
+
+
+def reduced(
+    prior: Prior, active: Index, pose_column: int, landmark_column: Index
+) -> tuple[QuadraticPrior, Callable[[Array, Array], tuple[Index, Array]] | None]:
+    """The prior's marginal on its pose and the active landmarks, and a function recovering the others.
+
+    Args:
+        prior: The marginal prior.
+        active: The landmarks the window observes (sorted), shape (A,).
+        pose_column: The prior pose's column in the window system.
+        landmark_column: Each active landmark's column in the window system, shape (A,).
+
+    Returns:
+        (the quadratic on those columns; None when every landmark of the prior is active, else a function of the
+        solved prior pose (3,) and active landmarks (A, 2) giving the passive landmarks' indices and conditional
+        means (k, 2)).
+    """
+    s = split(prior, active)
+    A = s.information
+    mu_a = prior.mu[s.order]
+    local = np.searchsorted(active, prior.landmarks[s.is_active])
+    columns = np.r_[(landmark_column[local][:, None] + np.arange(2)).reshape(-1), pose_column + np.arange(3)]
+    angle = np.zeros(len(s.order), dtype=bool)
+    angle[-1] = True
+    quadratic = QuadraticPrior(columns, prior.x_lin[s.order], angle, A, -A @ mu_a)
+    if len(s.passive) == 0:
+        return quadratic, None
+    passive_ids = prior.landmarks[~s.is_active]
+
+    def recover(oldest_pose: Array, active_landmarks: Array) -> tuple[Index, Array]:
+        """Passive landmarks at their conditional mean given the solved active part (matrix-vector only)."""
+        d_a = np.r_[active_landmarks[local].reshape(-1), oldest_pose] - prior.x_lin[s.order]
+        d_a[-1] = wrap(d_a[-1])
+        d_p = prior.mu[s.passive] + prior.Sigma[np.ix_(s.passive, s.order)] @ (A @ (d_a - mu_a))
+        return passive_ids, (prior.x_lin[s.passive] + d_p).reshape(-1, 2)
+
+    return quadratic, recover
+
+
+def marginalize(
+    prior: Prior,
+    pose: Array,
+    landmarks: Array,
+    sightings: Sightings | None,
+    odometry: tuple[Array, Array],
+    next_pose: tuple[int, Array],
+    loss: RobustLoss | None,
+    recentre: bool = True,
+) -> Prior:
+    """Fold the prior pose o's factors into the prior ``[landmarks..., o]``, then eliminate o.
+
+    First o's observations of landmarks the prior holds update it jointly (a Kalman update). Then every
+    variable that o's remaining factors determine — landmarks seen for the first time, and the next pose
+    n1 through the odometry — is appended from its factor, ``d_new = M d_o - J_new^-1 (r0 + v)`` with
+    ``M = -J_new^-1 J_o``; their noises are independent, so one growth of Sigma serves them all and drops o
+    on the way: ``[landmarks..., new landmarks..., n1]``. The prior's covariance is updated in place (the
+    prior owns it); the result reuses its buffer when the size holds.
+
+    Args:
+        prior: The prior on o (``prior.pose``).
+        pose: o's current estimate, shape (3,).
+        landmarks: Every landmark's current estimate, shape (M, 2).
+        sightings: o's sightings to fold in (judged outliers left out), or None.
+        odometry: (delta, square-root information) of the odometry from o to n1.
+        next_pose: (n1, its current estimate (3,)).
+        loss: The robust loss on sightings (IRLS weights at the linearization point).
+        recentre: Re-centre the prior at the current estimate first and linearize there (else at the prior's
+            first estimates: FEJ).
+    """
+    x_lin, mu, Sigma = prior.x_lin, prior.mu, prior.Sigma
+    n = len(mu)
+    if recentre:
+        current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
+        shift = current - x_lin
+        shift[-1] = wrap(shift[-1])
+        x_lin, mu = current, mu - shift
+    lin_o = x_lin[n - 3 :]
+    held = list(prior.landmarks)
+    appended: list[Appended] = []
+    if sightings is not None:
+        mu, held, appended = _fold_sightings(Sigma, x_lin, mu, held, sightings, landmarks, loss)
+    delta, W = odometry
+    index, value = next_pose
+    e, J_a, J_b = odometry_residual_with_jacobians(lin_o, value, delta)
+    appended.append((W @ e, W @ J_a, W @ J_b, value))
+    return _grown(index, np.array(held, dtype=np.int64), x_lin, mu, Sigma, appended)
+
+
+def _fold_sightings(
+    Sigma: Array,
+    x_lin: Array,
+    mu: Array,
+    held: list[int],
+    sightings: Sightings,
+    landmarks: Array,
+    loss: RobustLoss | None,
+) -> tuple[Array, list[int], list[Appended]]:
+    """Update the prior with the sightings of the landmarks it holds (``held``, in its order; Sigma in place).
+
+    Returns:
+        (the updated mean, ``held`` with the landmarks seen for the first time appended, the factors that
+        append them).
+    """
+    n = len(mu)
+    lin_o = x_lin[n - 3 :]
+    held = list(held)
+    slot = {int(j): k for k, j in enumerate(held)}
+    indices, z, z_cov = fuse_repeats(*sightings[:3])
+    is_held = np.array([int(j) in slot for j in indices], dtype=bool)
+    first = ~is_held  # first sight (repeats are fused): appends the landmark
+    for j in indices[first]:
+        slot[int(j)] = len(held)
+        held.append(int(j))
+    lin_l = np.array(
+        [landmarks[j] if first[k] else x_lin[2 * slot[int(j)] : 2 * slot[int(j)] + 2] for k, j in enumerate(indices)]
+    )
+    z_hat, J_p, J_l = range_bearing_with_jacobians(lin_o, lin_l)
+    e = z_hat - z
+    e[:, 1] = wrap(e[:, 1])
+    W = sightings[3] if z_cov is sightings[2] else sqrt_information(z_cov)  # stored unless repeats were fused
+    r0 = np.einsum("kij,kj->ki", W, e)
+    if loss is not None:
+        W = W * np.sqrt(loss.weight(np.sum(r0 * r0, axis=1)))[:, None, None]
+        r0 = np.einsum("kij,kj->ki", W, e)
+    Jp, Jl = W @ J_p, W @ J_l
+    update = np.flatnonzero(is_held)
+    if len(update):
+        cols = np.r_[
+            (2 * np.array([slot[int(indices[k])] for k in update])[:, None] + np.arange(2)).reshape(-1),
+            np.arange(n - 3, n),
+        ]
+        J_s = stacked_jacobian(Jp[update], Jl[update], pose_first=False)
+        PHt = Sigma[:, cols] @ J_s.T
+        S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
+        # in place: the prior owns its covariance (untouched if S is not positive definite in floating point)
+        with contextlib.suppress(np.linalg.LinAlgError):
+            innovation = -(r0[update].reshape(-1) + J_s @ mu[cols])
+            dmu, _, _ = apply_update(Sigma, PHt, S, innovation, exactly_symmetric=False)
+            mu = mu + dmu
+    return mu, held, [(r0[k], Jp[k], Jl[k], lin_l[k]) for k in np.flatnonzero(first)]
+
+
+def _grown(index: int, landmarks: Index, x_lin: Array, mu: Array, Sigma: Array, appended: list[Appended]) -> Prior:
+    """The prior with the appended variables (the last one the new pose ``index``) and the old pose dropped."""
+    n = len(mu)
+    inv = [np.linalg.inv(a[2]) for a in appended]
+    M = np.vstack([-i @ a[1] for i, a in zip(inv, appended)])  # (q, 3)
+    offset = np.concatenate([-i @ a[0] for i, a in zip(inv, appended)])
+    noise = la.block_diag(*[i @ i.T for i in inv])
+    keep = n - 3
+    q = len(M)
+    cross = M @ Sigma[:keep, keep:].T  # (q, keep): read o's rows before they are overwritten
+    block = M @ Sigma[keep:, keep:] @ M.T + noise
+    grown = resized(Sigma, keep + q, keep)  # o's rows and columns are reused when the size holds
+    grown[keep:, :keep] = cross
+    grown[:keep, keep:] = cross.T
+    grown[keep:, keep:] = 0.5 * (block + block.T)
+    mu = np.r_[mu[:keep], M @ mu[keep:] + offset]
+    x_lin = np.r_[x_lin[:keep], np.concatenate([a[3] for a in appended])]
+    return Prior(index, landmarks, x_lin, mu, grown)
+
+
+def release(prior: Prior, stale: list[int]) -> tuple[Prior, int]:
+    """The prior with landmarks ``stale`` marginalized out (in covariance form: their rows and columns dropped),
+    and how many it held."""
+    slots = np.flatnonzero(np.isin(prior.landmarks, stale))
+    drop = (2 * slots[:, None] + np.arange(2)).reshape(-1)
+    keep = np.setdiff1d(np.arange(len(prior.mu)), drop)
+    Sigma = np.ascontiguousarray(prior.Sigma[np.ix_(keep, keep)])
+    return Prior(prior.pose, np.delete(prior.landmarks, slots), prior.x_lin[keep], prior.mu[keep], Sigma), len(slots)
+
+
+def reanchored(
+    prior: Prior,
+    past: FactorGraph,
+    values: Array,
+    landmarks: Array,
+    loss: RobustLoss | None,
+    information_max: int,
+) -> Prior | None:
+    """The prior moved to revised values of the history (see :mod:`~online_slam.estimators.smoother.relinearize`).
+
+    Its linearization point becomes the revised values of its variables and its mean the one the history's
+    factors give there; its covariance is relinearized too while it holds at most ``information_max``
+    landmarks.
+
+    Args:
+        prior: The prior on the oldest window pose (``prior.pose``).
+        past: The history's factors (:func:`~online_slam.estimators.smoother.relinearize.history_graph`).
+        values: Revised values of poses ``0..prior.pose``, shape (prior.pose + 1, 3).
+        landmarks: Revised values of every landmark, shape (M, 2).
+        loss: The robust loss on sightings.
+        information_max: Most landmarks the prior may hold for its covariance to be relinearized.
+
+    Returns:
+        The re-anchored prior, or None when the history's pull on the prior's variables, in its own metric,
+        exceeds the chi-square bound (an inlier-consistent history gives a chi-square value; a larger one means
+        the solve did not reconcile it: a poor minimum).
+    """
+    relinearized = len(prior.landmarks) <= information_max
+    g_k, H_k = prior_marginal(past, values, landmarks, prior.landmarks, loss, relinearized)
+    Sigma = prior.Sigma if H_k is None else prior_covariance(H_k, prior.Sigma)
+    if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):
+        return None
+    x_lin = np.r_[landmarks[prior.landmarks].reshape(-1), values[-1]]
+    return Prior(prior.pose, prior.landmarks, x_lin, -(Sigma @ g_k), Sigma)

@@ -1,0 +1,317 @@
+"""The smoother's window: its poses, factors and landmarks, the graph and system it solves, consensus moves.
+
+The window keeps the newest poses and *every* landmark as variables. Landmarks that no window pose observes
+(passive) appear only in the marginal prior, a quadratic: a window system holds the prior's marginal on its
+pose and the observed (active) landmarks only (:func:`~online_slam.estimators.smoother.prior.reduced`), so
+each iteration factors a system over the window poses and the observed landmarks; the passive landmarks are
+recovered from their conditional mean after the solve. The result equals the solve over all landmarks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.estimators.history import PoseHistory
+from online_slam.estimators.smoother.config import SmootherConfig
+from online_slam.estimators.smoother.prior import Prior, Sightings, reduced
+from online_slam.factors.graph import (
+    FactorGraph,
+    SparseLayout,
+    layout,
+    observation_chi2,
+    range_bearing_chi2,
+    sqrt_information,
+)
+from online_slam.factors.robust import RobustLoss
+from online_slam.frontend.steps import Step
+from online_slam.geometry.se2 import compose_with_jacobians
+from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
+from online_slam.sources.events import LandmarkId
+
+Array = NDArray[np.float64]
+Index = NDArray[np.int64]
+
+
+@dataclass
+class Window:
+    """The window's poses and factors, the poses that left it, and every landmark."""
+
+    indices: list[int] = field(default_factory=list)
+    """Indices of the window's poses, oldest first."""
+    poses: dict[int, Array] = field(default_factory=dict)
+    """Current estimate of each window pose, shape (3,), keyed by index."""
+    history: PoseHistory = field(default_factory=PoseHistory)
+    """Final estimates of the poses that left the window."""
+    landmark_ids: list[LandmarkId] = field(default_factory=list)
+    """Landmark ids in order of first sighting."""
+    index: dict[LandmarkId, int] = field(default_factory=dict)
+    """Each landmark id's row in ``landmarks``."""
+    landmarks: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    """Current estimate of every landmark, shape (M, 2)."""
+    odometry: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
+    """Window odometry factors (delta, covariance, square-root information), keyed by the later pose."""
+    observations: dict[int, Sightings] = field(default_factory=dict)
+    """Window pose sightings (landmark rows, z, covariances, square-root information), keyed by pose."""
+    start: tuple[int, Array, Array | None] | None = None
+    """(start pose, its prior mean, its prior covariance or None when fixed)."""
+    pose_cov: Array = field(default_factory=lambda: np.zeros((3, 3)))
+    """Covariance of the newest pose, shape (3, 3)."""
+    unsolved: set[int] = field(default_factory=set)
+    """Window poses with factors added since the last solve."""
+    since_solve: int = 0
+    """Steps since the last solve."""
+
+    def values(self) -> Array:
+        """The window poses' estimates, oldest first, shape (P, 3)."""
+        return np.array([self.poses[g] for g in self.indices])
+
+    def add_pose(self, step: Step) -> None:
+        """Add the step's pose: the start (from its prior) or the newest pose composed with the odometry."""
+        i = step.index
+        if step.odometry is None:
+            pose = np.array(step.prior, dtype=float)
+            self.start = (i, pose.copy(), None if step.prior_cov is None else np.array(step.prior_cov))
+            self.pose_cov = np.zeros((3, 3)) if step.prior_cov is None else np.array(step.prior_cov)
+        else:
+            previous = self.indices[-1]
+            pose, F, G = compose_with_jacobians(self.poses[previous], step.odometry)
+            self.pose_cov = F @ self.pose_cov @ F.T + G @ step.odometry_cov @ G.T
+            self.odometry[i] = (
+                np.array(step.odometry),
+                np.array(step.odometry_cov),
+                sqrt_information(step.odometry_cov),
+            )
+        self.indices.append(i)
+        self.poses[i] = pose
+        self.unsolved.add(i)
+
+    def add_sightings(self, step: Step, start: int) -> None:
+        """Factors for the newest pose's sightings ``start:``; new landmarks from their first sight."""
+        if len(step.landmarks) <= start:
+            return
+        i = step.index
+        pose = self.poses[i]
+        indices = []
+        for lid, z in zip(step.landmarks[start:], step.z[start:]):
+            if lid not in self.index:
+                self.index[lid] = len(self.landmark_ids)
+                self.landmark_ids.append(lid)
+                self.landmarks = np.vstack([self.landmarks, landmark_from_observation(pose, z)])
+            indices.append(self.index[lid])
+        z, z_cov = step.z[start:], step.z_cov[start:]
+        self._merge(i, (np.array(indices, dtype=np.int64), z, z_cov, sqrt_information(z_cov)))
+
+    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array) -> bool:
+        """Add a sighting ``z`` (2,) with covariance ``R`` (2, 2) of a known landmark from an earlier window pose;
+        False (nothing added) when the pose left the window or the landmark is unknown."""
+        if pose not in self.poses or lid not in self.index:
+            return False
+        self._merge(pose, (np.array([self.index[lid]], dtype=np.int64), z[None], R[None], sqrt_information(R[None])))
+        self.unsolved.add(pose)
+        return True
+
+    def _merge(self, pose: int, factors: Sightings) -> None:
+        """Append sightings to a window pose's."""
+        if pose in self.observations:
+            factors = tuple(np.concatenate([a, b]) for a, b in zip(self.observations[pose], factors))  # type: ignore[assignment]
+        self.observations[pose] = factors
+
+    def drop_oldest(self) -> None:
+        """Move the oldest pose to the history and drop its factors (the prior holds them now)."""
+        o, n1 = self.indices[0], self.indices[1]
+        self.history.append(self.poses.pop(o))
+        self.odometry.pop(n1)
+        self.observations.pop(o, None)
+        self.indices.pop(0)
+
+    def is_full(self, config: SmootherConfig) -> bool:
+        """Whether the oldest pose is to be marginalized (see ``window`` and ``window_distance``)."""
+        n = len(self.indices)
+        if n <= config.window:
+            return False
+        if not config.window_distance or n > config.window_max:  # n > W already: never fewer than W poses
+            return True
+        path = sum(math.hypot(*self.odometry[g][0][:2]) for g in self.indices[2:] if g in self.odometry)
+        return path >= config.window_distance
+
+
+@dataclass(frozen=True)
+class System:
+    """A window's least-squares system over its poses and active landmarks."""
+
+    graph: FactorGraph
+    """The window's factors over local pose indices and the active landmarks (local order)."""
+    layout: SparseLayout
+    """The graph's layout (columns of every variable)."""
+    quadratic: QuadraticPrior | None
+    """The prior's marginal on its pose and the active landmarks, or None without a prior."""
+    recover: Callable[[Array, Array], tuple[Index, Array]] | None
+    """The passive landmarks from the solved prior pose and active landmarks, or None when there are none."""
+    poses: Array
+    """The window poses' current estimates, shape (P, 3)."""
+
+
+@dataclass(frozen=True)
+class Linearized:
+    """A window system linearized once at the current estimate (no iteration)."""
+
+    active: Index
+    """The landmarks the window observes (sorted), shape (A,)."""
+    layout: SparseLayout
+    """The system's layout."""
+    quadratic: QuadraticPrior | None
+    """The reduced prior, or None without a prior."""
+    information: Array | None
+    """Dense information matrix, or None when nothing is free."""
+    poses: int
+    """Window poses (the newest is the last)."""
+
+
+def active(window: Window) -> Index:
+    """Landmarks some window pose observes (sorted)."""
+    observed = [window.observations[i][0] for i in window.indices if i in window.observations]
+    return np.unique(np.concatenate(observed)) if observed else np.zeros(0, dtype=np.int64)
+
+
+def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, int]]:
+    """The window's factors as a graph over local pose indices and the active landmarks (local order), and each
+    window pose's local index."""
+    local = {g: k for k, g in enumerate(window.indices)}
+    to_local = np.full(len(window.landmark_ids), -1, dtype=np.int64)
+    to_local[active] = np.arange(len(active))
+    odo = [(local[j] - 1, local[j], *window.odometry[j]) for j in window.indices[1:]]
+    obs = [(local[i], *window.observations[i]) for i in window.indices if i in window.observations]
+    fixed: list[int] = []
+    prior_pose, prior_mean, prior_W = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3))
+    start = window.start
+    if start is not None and start[0] in local:
+        if start[2] is None:
+            fixed = [local[start[0]]]
+        else:
+            prior_pose = np.array([local[start[0]]])
+            prior_mean, prior_W = start[1][None], sqrt_information(start[2])[None]
+    graph = FactorGraph(
+        n_poses=len(window.indices),
+        n_landmarks=len(active),
+        fixed_poses=np.array(fixed, dtype=np.int64),
+        prior_pose=prior_pose,
+        prior_mean=prior_mean,
+        prior_sqrt_info=prior_W,
+        odo_from=np.array([o[0] for o in odo], dtype=np.int64),
+        odo_to=np.array([o[1] for o in odo], dtype=np.int64),
+        odo_delta=np.array([o[2] for o in odo]).reshape(-1, 3),
+        odo_sqrt_info=np.array([o[4] for o in odo]).reshape(-1, 3, 3),
+        obs_pose=np.concatenate([np.full(len(o[1]), o[0]) for o in obs]).astype(np.int64)
+        if obs
+        else np.zeros(0, dtype=np.int64),
+        obs_landmark=to_local[np.concatenate([o[1] for o in obs])] if obs else np.zeros(0, dtype=np.int64),
+        obs_z=np.concatenate([o[2] for o in obs]) if obs else np.zeros((0, 2)),
+        obs_sqrt_info=np.concatenate([o[4] for o in obs]) if obs else np.zeros((0, 2, 2)),
+    )
+    return graph, local
+
+
+def system(window: Window, prior: Prior | None, active: Index) -> System:
+    """The window's factor graph, its layout, the reduced prior (and passive recovery), the window poses."""
+    graph, local = window_graph(window, active)
+    sparse = layout(graph, entries=False)
+    quadratic, recover = None, None
+    if prior is not None:
+        quadratic, recover = reduced(prior, active, sparse.pose_column[local[prior.pose]], sparse.landmark_column)
+    return System(graph, sparse, quadratic, recover, window.values())
+
+
+def solve_window(
+    window: Window, prior: Prior | None, active: Index, solver: SolverConfig, loss: RobustLoss | None
+) -> tuple[System, SolveResult]:
+    """The window's system over the ``active`` landmarks, solved from the current estimate (with its
+    information at the solution)."""
+    s = system(window, prior, active)
+    result = solve(
+        s.graph,
+        s.poses,
+        window.landmarks[active],
+        solver,
+        loss=loss,
+        prior=s.quadratic,
+        return_information=True,
+        graph_layout=s.layout,
+    )
+    return s, result
+
+
+def linearize(window: Window, prior: Prior | None, loss: RobustLoss | None) -> Linearized:
+    """The window and the reduced prior linearized once at the current estimate (no iteration)."""
+    observed = active(window)
+    s = system(window, prior, observed)
+    linearized = solve(
+        s.graph,
+        s.poses,
+        window.landmarks[observed],
+        SolverConfig(max_iterations=0),
+        loss=loss,
+        prior=s.quadratic,
+        return_information=True,
+        graph_layout=s.layout,
+        dense=True,
+    )
+    H = None if linearized.information is None else np.asarray(linearized.information)
+    return Linearized(observed, s.layout, s.quadratic, H, len(window.indices))
+
+
+def judge(window: Window, pose: int, bound: float) -> NDArray[np.bool_]:
+    """Which sightings of a window pose are outliers at the current estimate (chi-square ``bound``; none when
+    it is infinite)."""
+    indices, z, _, W = window.observations[pose]
+    if not np.isfinite(bound):
+        return np.zeros(len(indices), dtype=bool)
+    return range_bearing_chi2(window.poses[pose][None, :], window.landmarks[indices], z, W) > bound
+
+
+def consensus(
+    graph: FactorGraph, active: Index, poses: Array, landmarks: Array, held: Index, bound: float
+) -> tuple[list[tuple[int, Array]], list[int]]:
+    """Landmarks whose window sightings agree with each other but not with them, and where they go.
+
+    Only landmarks with a sighting beyond the rejection ``bound`` are examined (none, usually). A landmark
+    with three or more window sightings whose positions (from the solved poses) cluster away from its
+    estimate — further than three times their median spread from their coordinate-wise median — was
+    placed by a wrong association (its first sighting, or one folded into the prior long ago): a landmark
+    only the window knows moves to that median; one the marginal prior holds (``held``) moves when two thirds
+    of its sightings are outliers, and is to be released from the prior.
+
+    Args:
+        graph: The solved window graph (:func:`window_graph`).
+        active: The landmarks it solved (sorted), shape (A,).
+        poses: The solved window poses, shape (P, 3).
+        landmarks: Every landmark's estimate, shape (M, 2).
+        held: The landmarks the prior holds.
+        bound: The rejection bound on a sighting's squared whitened residual.
+
+    Returns:
+        ((landmark, new position (2,)) for each landmark to move, the moved landmarks the prior holds).
+    """
+    outlying = observation_chi2(graph, poses, landmarks[active]) > bound
+    if not outlying.any():
+        return [], []
+    ids = active[graph.obs_landmark]
+    moves, stale = [], []
+    for j in np.unique(ids[outlying]):
+        mine = ids == j
+        in_prior = bool(np.isin(j, held))
+        if mine.sum() < 3 or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
+            continue
+        points = landmark_from_observation(poses[graph.obs_pose[mine]], graph.obs_z[mine])
+        median = np.median(points, axis=0)
+        spread = np.median(np.linalg.norm(points - median, axis=1))
+        if np.linalg.norm(landmarks[j] - median) > 3.0 * spread + 1e-9:
+            moves.append((int(j), median))
+            if in_prior:
+                stale.append(int(j))
+    return moves, stale
