@@ -7,7 +7,8 @@ The table :data:`OPTIONS` is the only place an option is described. From it come
 ``docs/options.md``). Defaults are read from the configuration dataclasses, never restated; an option that is
 no configuration field (``robust``, the dataset's) holds its own default here.
 
-Run ``python -m online_slam.options > docs/options.md`` after changing the table.
+After changing the table, regenerate the page:
+``python -c "from online_slam.options import markdown; print(markdown(), end='')" > docs/options.md``.
 """
 
 from __future__ import annotations
@@ -406,7 +407,7 @@ def markdown() -> str:
     lines = [
         "# Options",
         "",
-        "Generated from `online_slam/options.py` (`python -m online_slam.options > docs/options.md`); a test checks",
+        "Generated from the option table in `online_slam/options.py` (its docstring says how); a test checks",
         "that this page equals the rendering. Each option is a flag of the commands listed (`--window-distance`)",
         'and, for the estimator options, a keyword of `Slam` (`Slam("smoother", window_distance=10.0)`) and a',
         "comma-separated list of `sweep` (every combination runs). `compare --window` and",
@@ -425,12 +426,9 @@ def markdown() -> str:
         lines.append("|---|---|---|---|---|---|")
         for o in members:
             kind = " \\| ".join(f"`{c}`" for c in o.choices) if o.choices else o.kind.__name__
-            commands = ", ".join((*o.commands, "Slam") if o.estimator else o.commands)
+            slam = o.estimator and (o.fits("ekf") or o.fits("smoother"))
+            commands = ", ".join((*o.commands, "Slam") if slam else o.commands)
             shown, owners = o.shown_default() or "-", ", ".join(o.owners)
             row = (f"`{o.flag}`", kind, shown, owners, commands, o.help.replace("|", "\\|"))
             lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
-
-
-if __name__ == "__main__":
-    print(markdown(), end="")

@@ -26,7 +26,7 @@ import numpy as np
 
 from online_slam.errors import ConfigError, OnlineSlamError
 from online_slam.options import OPTIONS, check_value, estimator_options, flag, replay_config
-from online_slam.pipeline import ESTIMATORS
+from online_slam.pipeline import ESTIMATORS, ReplayConfig
 from online_slam.sources.worlds import WORLDS
 
 FIGURES = (
@@ -66,6 +66,11 @@ class Cell:
         """Every estimator option's value in this cell (given or default), as the row records it."""
         given = dict(self.settings)
         return {name: given.get(name, option.value) for name, option in estimator_options().items()}
+
+    def config(self) -> ReplayConfig:
+        """The replay configuration of this cell: its settings translated as ``replay`` translates its flags."""
+        values = {**dict(self.settings), "estimators": ",".join(self.estimators), "robot": self.robot}
+        return replay_config(values)
 
     @property
     def key(self) -> str:
@@ -132,8 +137,7 @@ def run_cell(cell: Cell) -> list[dict[str, Any]]:
 
     head = {"cell": cell.key, "source": cell.source, "robot": cell.robot, "seed": cell.seed, **cell.values}
     try:
-        values = {**dict(cell.settings), "estimators": ",".join(cell.estimators), "robot": cell.robot}
-        config = replay_config(values)
+        config = cell.config()
         if cell.seed is not None:
             results = replay(WORLDS[cell.source].events(cell.seed), config, name=cell.source, validate=False)
         else:
