@@ -130,7 +130,7 @@ def readable(value: Any, unit: str = "") -> str:
         return "no limit"
     text = f"{value:g}" if isinstance(value, float) else str(value)
     if unit == "rad":
-        return f"{text} rad ({math.degrees(value):.3g} deg)"
+        return f"{value:.3g} rad ({math.degrees(value):.3g} deg)"
     return f"{text} {unit}" if unit else text
 
 
