@@ -18,11 +18,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.errors import InputError, OnlineSlamError
+from online_slam.estimators.smoother import SmootherConfig
 from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sinks.protocol import ReplaySink
-from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, square_world, waypoint_world
+from online_slam.sources.worlds import WORLDS, World
 
 Array = NDArray[np.float64]
 
@@ -31,9 +32,9 @@ Array = NDArray[np.float64]
 class CompareConfig:
     """What ``online-slam compare`` runs."""
 
-    windows: tuple[int, ...] = (20,)
+    windows: tuple[int, ...] = (SmootherConfig.window,)
     """Smoother window sizes W; every (W, K) pair is run."""
-    relinearize_every: tuple[int, ...] = (1,)
+    relinearize_every: tuple[int, ...] = (SmootherConfig.relinearize_every,)
     """Smoother relinearization periods K."""
     replay: ReplayConfig = field(default_factory=lambda: ReplayConfig(estimators=("ekf", "batch")))
     """Everything else (EKF and batch settings, front-end, alignment); its smoother settings seed each (W, K)."""
@@ -179,19 +180,15 @@ def replay_config(config: CompareConfig) -> ReplayConfig:
     return replace(base, estimators=estimators, extra_smoothers=smoothers)
 
 
-def _world(source: str, seed: int) -> Any:
-    if source == "square":
-        return square_world(seed)
-    if source == "grid":
-        return grid_world(GridConfig(seed=seed))
-    if source == "waypoint":
-        return waypoint_world(WaypointConfig(seed=seed))
-    raise OnlineSlamError(f"Monte Carlo runs need a simulated world (square, grid, waypoint), not {source!r}")
+def _world(source: str) -> World:
+    if source not in WORLDS:
+        raise OnlineSlamError(f"Monte Carlo runs need a simulated world ({', '.join(WORLDS)}), not {source!r}")
+    return WORLDS[source]
 
 
 def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict[str, Array]]:
     source, seed, config = args
-    results = replay(_world(source, seed), config, name=source, validate=False)
+    results = replay(_world(source).events(seed), config, name=source, validate=False)
     return rows_of(results), {name: s.nees for name, s in results.series.items()}
 
 
@@ -204,7 +201,7 @@ def compare(
     """Run EKF, smoother configurations and batch on the same stream; optionally Monte Carlo over seeds.
 
     Args:
-        source: A stream path, ``-``, or a built-in world (``square``, ``grid``).
+        source: A stream path, ``-``, or a built-in world (see :data:`~online_slam.sources.worlds.WORLDS`).
         config: Smoother grid, replay settings, Monte Carlo runs.
         on_skip: Told of each bad line skipped (``config.replay.on_error == "skip"``).
         sinks: Given every step of the (first) run with all configurations' snapshots, then its results (e.g.
@@ -220,9 +217,7 @@ def compare(
     monte_carlo = None
     if cfg.runs > 1:
         name = str(source)
-        base_seed = 1616 if name == "square" else GridConfig.seed if name == "grid" else WaypointConfig.seed
-        seeds = tuple(base_seed + k for k in range(cfg.runs))
-        _world(name, seeds[0])  # fail early on a non-simulated source
+        seeds = tuple(_world(name).seed + k for k in range(cfg.runs))
         jobs = [(name, seed, one_replay) for seed in seeds]
         workers = cfg.workers or os.cpu_count() or 1
         if workers > 1:

@@ -25,6 +25,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
+from online_slam.estimators.presets import smoother_label
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.evaluation.association import majority, score_association, true_labels, with_true_ids
@@ -55,7 +56,8 @@ class ReplayConfig:
     smoother: SmootherConfig = field(default_factory=SmootherConfig)
     """Settings of the sliding-window smoother."""
     extra_smoothers: tuple[SmootherConfig, ...] = ()
-    """Further smoother configurations run side by side, named ``smoother W=<window> K=<relinearize_every>``."""
+    """Further smoother configurations run side by side, each named by what its window is
+    (:func:`~online_slam.estimators.presets.smoother_label`)."""
     batch: BatchConfig = field(default_factory=BatchConfig)
     """Settings of the batch solver."""
     alignment: str = "anchor"
@@ -139,7 +141,7 @@ def build_estimators(config: ReplayConfig) -> list[Estimator]:
     """The estimators a replay with this configuration runs, in table order (extra smoothers after the rest)."""
     estimators = [make_estimator(n, config) for n in config.estimators]
     for extra in config.extra_smoothers:
-        estimators.append(SlidingWindowSmoother(extra, name=f"smoother W={extra.window} K={extra.relinearize_every}"))
+        estimators.append(SlidingWindowSmoother(extra, name=smoother_label(extra)))
     names = [e.name for e in estimators]
     if len(set(names)) != len(names):
         raise OnlineSlamError(f"estimator names repeat: {', '.join(names)}")

@@ -10,7 +10,6 @@ replay gives the same numbers).
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -24,14 +23,11 @@ from numpy.typing import NDArray
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine
 from online_slam.errors import ConfigError, InputError
-from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
-from online_slam.estimators.landmark_book import AssociationConfig
-from online_slam.estimators.presets import robust_settings
 from online_slam.estimators.protocol import Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
-from online_slam.factors.robust import RobustLoss
-from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
+from online_slam.frontend.steps import FrontEndConfig
+from online_slam.options import Option, check_value, estimator_options, replay_config
 from online_slam.sources.events import Event, LandmarkId
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
 
@@ -40,44 +36,10 @@ Array = NDArray[np.float64]
 ESTIMATORS = ("ekf", "smoother")
 """Estimators a :class:`Slam` can run."""
 
-OPTIONS: dict[str, tuple[type, str]] = {
-    "window": (int, "smoother: poses kept in the window (W, >= 1)"),
-    "relinearize_every": (int, "smoother: relinearize and solve every K steps (>= 1)"),
-    "window_distance": (float, "smoother: keep poses beyond W until the window's path is this long (m; 0 = W poses)"),
-    "window_max": (int, "smoother: most poses the window keeps for window_distance (>= 1)"),
-    "global_every": (int, "smoother: re-solve the whole history every N steps (0 = never)"),
-    "global_delay": (int, "smoother: hand a global solve over D (or N/50 after step N) steps later (0: at once)"),
-    "global_information_max": (int, "smoother: relinearize the prior's covariance too while it holds <= L landmarks"),
-    "robust": (str, "smoother: outliers 'auto' (default), 'none', 'huber' or 'cauchy'"),
-    "robust_scale": (float, "smoother: robust loss threshold in sigmas (> 0)"),
-    "gate_probability": (float, "ekf: chi-square gate on each observation's NIS, in (0, 1]"),
-    "gate_persistence": (int, "ekf: use a landmark again after this many gated sightings in a row (>= 0)"),
-    "ekf_update": (str, "ekf: 'joint' or 'sequential'"),
-    "association": (
-        str,
-        "'known' (default: the ids given; a sighting without one by JCBB), 'nn' or 'jcbb' (ids ignored)",
-    ),
-    "first_observation_only": (bool, "keep only the first sighting of each landmark"),
-    "keyframe_distance": (float, "merge observation-free odometry up to this many metres"),
-    "keyframe_angle": (float, "... and up to this many radians"),
-    "keyframe_time": (float, "... and up to this many seconds"),
-}
-"""Options of :class:`Slam`, named as the CLI's flags (``--relinearize-every`` -> ``relinearize_every``)."""
-
-_ESTIMATOR_OPTIONS = {
-    "ekf": {"gate_probability", "gate_persistence", "ekf_update"},
-    "smoother": {
-        "window",
-        "window_distance",
-        "window_max",
-        "relinearize_every",
-        "global_every",
-        "global_delay",
-        "global_information_max",
-        "robust",
-        "robust_scale",
-    },
-}
+OPTIONS: dict[str, Option] = estimator_options()
+"""Options of :class:`Slam`: the estimator options of :mod:`online_slam.options`, named as the CLI's flags
+(``--relinearize-every`` -> ``relinearize_every``); each estimator takes its own, the front-end's and the
+association's."""
 _CHECKPOINT_KIND = "slam"
 
 
@@ -155,64 +117,22 @@ def _locked(array: Array) -> Array:
 
 
 def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | SmootherConfig, FrontEndConfig]:
-    """Check the options and build the estimator's and the front-end's configurations."""
+    """Check the options and build the estimator's and the front-end's configurations (the CLI's translation)."""
     if estimator not in ESTIMATORS:
         raise ConfigError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
     for key, value in options.items():
         if key not in OPTIONS:
             raise ConfigError(f"unknown option {key!r}; options: {', '.join(sorted(OPTIONS))}")
-        kind, help_text = OPTIONS[key]
-        ok = (
-            isinstance(value, bool)
-            if kind is bool
-            else isinstance(value, int) and not isinstance(value, bool)
-            if kind is int
-            else isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            if kind is float
-            else isinstance(value, str)
-        )
-        if not ok:
-            raise ConfigError(f"option {key}: expected {kind.__name__}, got {value!r} ({help_text})")
-        owner = next((name for name, keys in _ESTIMATOR_OPTIONS.items() if key in keys), estimator)
-        if owner != estimator:
-            raise ConfigError(f"option {key} is for the {owner}, not the {estimator}")
-    try:
-        if estimator == "ekf":
-            config: EkfConfig | SmootherConfig = EkfConfig(
-                gate_probability=options.get("gate_probability", EkfConfig.gate_probability),
-                gate_persistence=options.get("gate_persistence", EkfConfig.gate_persistence),
-                update=options.get("ekf_update", EkfConfig.update),
-                association=AssociationConfig(options.get("association", "known")),
-            )
-        else:
-            config, _ = robust_settings(
-                options.get("robust", "auto"),
-                options.get("robust_scale", RobustLoss.scale),
-                SmootherConfig(
-                    window=options.get("window", SmootherConfig.window),
-                    relinearize_every=options.get("relinearize_every", SmootherConfig.relinearize_every),
-                    global_every=options.get("global_every", SmootherConfig.global_every),
-                    global_delay=options.get("global_delay", SmootherConfig.global_delay),
-                    global_information_max=options.get("global_information_max", SmootherConfig.global_information_max),
-                    window_distance=options.get("window_distance", SmootherConfig.window_distance),
-                    window_max=options.get("window_max", SmootherConfig.window_max),
-                    association=AssociationConfig(options.get("association", "known")),
-                ),
-                BatchConfig(),
-            )
-        keyframing = None
-        limits = ("keyframe_distance", "keyframe_angle", "keyframe_time")
-        if any(k in options for k in limits):
-            defaults = KeyframeConfig()
-            keyframing = KeyframeConfig(
-                max_distance=options.get("keyframe_distance", defaults.max_distance),
-                max_angle=options.get("keyframe_angle", defaults.max_angle),
-                max_time=options.get("keyframe_time", math.inf),
-            )
-        frontend = FrontEndConfig(keyframing, options.get("first_observation_only", False))
-    except ValueError as exc:
-        raise ConfigError(str(exc)) from None
-    return config, frontend
+        option = OPTIONS[key]
+        check_value(option, value)
+        if not option.fits(estimator):
+            owners = " and the ".join(option.owners)
+            raise ConfigError(f"option {key} is for the {owners}, not the {estimator} (a Slam runs ekf or smoother)")
+    method = options.get("association", "auto")
+    config = replay_config({**options, "estimators": estimator}).with_association(
+        "known" if method == "auto" else method  # no stream to look ahead in: ids where given, else JCBB
+    )
+    return (config.ekf if estimator == "ekf" else config.smoother), config.frontend
 
 
 class Slam:

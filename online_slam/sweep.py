@@ -1,7 +1,8 @@
 """Sweeps: the cartesian product of sources, settings and noise seeds, one replay per cell, on Dask.
 
-A cell is one replay (a source, a smoother window, an outlier setting and, for simulated worlds, a seed); it gives
-one tidy row per estimator. Cells run as tasks of a ``dask.distributed`` cluster: a ``LocalCluster`` on this
+A cell is one replay (a source, a combination of estimator options and, for built-in worlds, a seed), its options
+translated exactly as ``replay`` translates its flags; it gives one tidy row per estimator, holding every estimator
+option's value. Cells run as tasks of a ``dask.distributed`` cluster: a ``LocalCluster`` on this
 machine's cores by default, or an existing scheduler (``tcp://host:port``) whose workers run this package. Rows
 are written to the output file as each cell finishes, so a sweep that is stopped and started again with the same
 output skips the cells already there. A cell that fails is a row with its error, not a dead sweep. Replays are
@@ -12,22 +13,22 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import itertools
 import json
 import math
 import os
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import asdict, dataclass, replace
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from online_slam.errors import OnlineSlamError
+from online_slam.errors import ConfigError, OnlineSlamError
+from online_slam.options import OPTIONS, check_value, estimator_options, flag, replay_config
+from online_slam.pipeline import ESTIMATORS, ReplayConfig
+from online_slam.sources.worlds import WORLDS
 
-SIMULATED = ("square", "grid")
-"""Sources whose noise seed a sweep varies (``--runs``)."""
-BASE_SEED = {"square": 1616, "grid": 7}
-"""First seed of each simulated world (its default)."""
 FIGURES = (
     "online_rmse_m",
     "final_rmse_m",
@@ -39,7 +40,9 @@ FIGURES = (
     "total_s",
 )
 """Figures of a row (floats; empty where an estimator has none)."""
-COLUMNS = ("cell", "source", "robot", "window", "robust", "seed", "estimator", *FIGURES, "error")
+SETTINGS = tuple(estimator_options())
+"""Settings a sweep varies: the estimator options (each row holds every one's value, given or default)."""
+COLUMNS = ("cell", "source", "robot", "seed", *SETTINGS, "estimator", *FIGURES, "error")
 """Columns of the tidy output, in order."""
 
 
@@ -49,67 +52,94 @@ class Cell:
 
     source: str
     """A built-in world, a stream file, or a dataset path."""
-    window: int
-    """Smoother window W."""
-    robust: str
-    """Outlier setting (``auto``, ``none``, ``huber``, ``cauchy``)."""
     estimators: tuple[str, ...]
     """Estimators to run."""
+    settings: tuple[tuple[str, Any], ...] = ()
+    """Estimator options given for this cell as (name, value), in table order; the others keep their defaults."""
     seed: int | None = None
     """Noise seed of a simulated world (None for files and datasets)."""
     robot: int | None = None
     """MRCLAM robot (None otherwise)."""
 
     @property
+    def values(self) -> dict[str, Any]:
+        """Every estimator option's value in this cell (given or default), as the row records it."""
+        given = dict(self.settings)
+        return {name: given.get(name, option.value) for name, option in estimator_options().items()}
+
+    def config(self) -> ReplayConfig:
+        """The replay configuration of this cell: its settings translated as ``replay`` translates its flags."""
+        values = {**dict(self.settings), "estimators": ",".join(self.estimators), "robot": self.robot}
+        return replay_config(values)
+
+    @property
     def key(self) -> str:
-        """A stable identifier of the cell (same settings, same key, on any machine)."""
-        text = json.dumps(asdict(self), sort_keys=True)
+        """A stable identifier of the cell (same source and settings, defaults included: same key, anywhere)."""
+        cell = {"source": self.source, "estimators": self.estimators, "seed": self.seed, "robot": self.robot}
+        text = json.dumps({**cell, "options": self.values}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def make_cells(
     sources: Sequence[str],
-    windows: Sequence[int] = (20,),
-    robust: Sequence[str] = ("auto",),
-    estimators: Sequence[str] = ("ekf", "smoother", "batch"),
+    settings: Mapping[str, Sequence[Any]] | None = None,
+    estimators: Sequence[str] = ESTIMATORS,
     runs: int = 1,
     robots: Sequence[int] = (),
 ) -> list[Cell]:
-    """The cartesian product of sources (x robots for MRCLAM folders, x seeds for simulated worlds), windows and
-    outlier settings."""
-    if runs < 1 or any(w < 1 for w in windows):
-        raise OnlineSlamError("sweep: --runs and every --window must be >= 1")
+    """The cartesian product of sources (x robots for MRCLAM folders, x seeds for built-in worlds) and settings.
+
+    Args:
+        sources: Built-in worlds, stream files, dataset paths.
+        settings: Values to try per estimator option (e.g. ``{"window": (5, 20), "robust": ("huber",)}``).
+        estimators: Estimators each replay runs.
+        runs: Noise seeds per built-in world (its base seed and the next ones).
+        robots: MRCLAM robots (required for MRCLAM folders).
+
+    Raises:
+        ConfigError: An unknown option or a value out of range (told before anything runs).
+    """
+    if runs < 1:
+        raise OnlineSlamError("sweep: --runs must be >= 1")
+    combos = _combinations(settings or {})
     cells = []
     for source in sources:
-        is_world = source in SIMULATED and not Path(source).exists()
-        seeds: list[int | None] = [BASE_SEED[source] + k for k in range(runs)] if is_world else [None]
+        is_world = source in WORLDS and not Path(source).exists()
+        seeds: list[int | None] = [WORLDS[source].seed + k for k in range(runs)] if is_world else [None]
         is_mrclam = Path(source).is_dir() and (Path(source) / "Barcodes.dat").is_file()
         robot_list: list[int | None] = list(robots) if is_mrclam else [None]
         if is_mrclam and not robots:
             raise OnlineSlamError(f"sweep: {source} is an MRCLAM folder; give --robot 1,2,...")
-        for robot in robot_list:
-            for seed in seeds:
-                for window in windows:
-                    for setting in robust:
-                        cells.append(Cell(source, int(window), setting, tuple(estimators), seed, robot))
+        for robot, seed, combo in itertools.product(robot_list, seeds, combos):
+            cells.append(Cell(source, tuple(estimators), combo, seed, robot))
     return cells
 
 
-def run_cell(cell: Cell) -> list[dict[str, Any]]:
-    """Replay one cell; one row per estimator (or one row holding the error)."""
-    from online_slam.estimators.presets import robust_settings
-    from online_slam.pipeline import ReplayConfig, replay
-    from online_slam.sources.worlds import GridConfig, grid_world, square_world
+def _combinations(settings: Mapping[str, Sequence[Any]]) -> list[tuple[tuple[str, Any], ...]]:
+    """Every combination of the settings' values, each checked by translating it once."""
+    options = estimator_options()
+    for name, values in settings.items():
+        if name not in options:
+            raise ConfigError(f"sweep: {name!r} is no estimator option; options: {', '.join(options)}")
+        for value in values:
+            check_value(options[name], value)
+    names = [n for n in options if n in settings]
+    combos = [tuple(zip(names, chosen)) for chosen in itertools.product(*(settings[n] for n in names))]
+    for combo in combos:
+        replay_config(dict(combo), naming=flag)
+    return combos
 
-    head = {"cell": cell.key, "source": cell.source, "robot": cell.robot, "window": cell.window}
-    head.update({"robust": cell.robust, "seed": cell.seed})
+
+def run_cell(cell: Cell) -> list[dict[str, Any]]:
+    """Replay one cell, with the options translated as ``replay`` translates them; one row per estimator (or
+    one row holding the error)."""
+    from online_slam.pipeline import replay
+
+    head = {"cell": cell.key, "source": cell.source, "robot": cell.robot, "seed": cell.seed, **cell.values}
     try:
-        base = ReplayConfig(estimators=cell.estimators)
-        smoother, batch = robust_settings(cell.robust, 3.0, replace(base.smoother, window=cell.window), base.batch)
-        config = replace(base, smoother=smoother, batch=batch, dataset={"robot": cell.robot})
+        config = cell.config()
         if cell.seed is not None:
-            events = square_world(cell.seed) if cell.source == "square" else grid_world(GridConfig(seed=cell.seed))
-            results = replay(events, config, name=cell.source, validate=False)
+            results = replay(WORLDS[cell.source].events(cell.seed), config, name=cell.source, validate=False)
         else:
             results = replay(cell.source, config)
     except Exception as exc:  # noqa: BLE001 - a failing cell is a row with its error, whatever it raised
@@ -136,13 +166,15 @@ def run_cell(cell: Cell) -> list[dict[str, Any]]:
 
 # -- output -----------------------------------------------------------------------------------------------
 def _value(text: str, column: str) -> Any:
+    """A CSV cell as the row held it."""
     if text == "":
         return None if column != "error" else ""
-    if column in FIGURES:
-        return float(text)
-    if column in ("robot", "window", "seed"):
-        return int(text)
-    return text
+    kind = float if column in FIGURES else int if column in ("robot", "seed") else None
+    option = OPTIONS.get(column)
+    kind = option.kind if option is not None and column in SETTINGS else kind
+    if kind is bool:
+        return text == "True"
+    return kind(text) if kind is not None else text
 
 
 def read_rows(path: str | Path) -> list[dict[str, Any]]:
@@ -272,13 +304,16 @@ def sweep(
 
 
 def summary(rows: Iterable[dict[str, Any]]) -> list[tuple[tuple, dict[str, tuple[float, float, int]]]]:
-    """Mean and standard deviation of each figure per (source, robot, window, robust, estimator), over seeds."""
+    """Mean and standard deviation of each figure per (source, robot, settings, estimator), over seeds.
+
+    ``settings`` holds (name, value) of the options whose value differs between the rows (the rest are equal).
+    """
+    good = [row for row in rows if not row["error"]]
+    varying = [name for name in SETTINGS if len({repr(row.get(name)) for row in good}) > 1]
     groups: dict[tuple, list[dict[str, Any]]] = {}
-    for row in rows:
-        if row["error"]:
-            continue
-        key = (row["source"], row["robot"], row["window"], row["robust"], row["estimator"])
-        groups.setdefault(key, []).append(row)
+    for row in good:
+        settings = tuple((name, row.get(name)) for name in varying)
+        groups.setdefault((row["source"], row["robot"], settings, row["estimator"]), []).append(row)
     out = []
     for key, members in groups.items():
         figures = {}

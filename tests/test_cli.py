@@ -60,8 +60,37 @@ def test_json_to_stdout_keeps_stdout_pure_and_the_table_on_stderr() -> None:
     assert parse_table(done.stderr)["Position RMSE over the path"]["Odometry only"] == "1.338 m"
     done = cli("compare", "square", "--window", "5", "--json", "-")
     assert done.returncode == 0, done.stderr
-    assert "smoother W=5 K=1" in json.loads(done.stdout)["estimators"]
-    assert "smoother W=5 K=1" in done.stderr
+    assert "smoother W=5..120 D=18 K=1" in json.loads(done.stdout)["estimators"]
+    assert "smoother W=5..120 D=18 K=1" in done.stderr
+
+
+def test_compare_rows_say_what_ran() -> None:
+    """A window kept longer by --window-distance is labelled so; with distance 0 each W is exactly W poses."""
+    sized = parse_compare(cli("compare", "square", "--window", "5,20", "--estimators", "smoother").stdout)
+    assert set(sized) == {"odometry", "smoother W=5..120 D=18 K=1", "smoother W=20..120 D=18 K=1"}
+    exact = cli("compare", "square", "--window", "5,20", "--window-distance", "0", "--estimators", "smoother")
+    rows = parse_compare(exact.stdout)
+    assert set(rows) == {"odometry", "smoother W=5 K=1", "smoother W=20 K=1"}
+    assert rows["smoother W=5 K=1"] != rows["smoother W=20 K=1"]
+
+
+def parse_compare(text: str) -> dict[str, list[str]]:
+    """Rows of the compare table by label."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("estimator")) + 2
+    rows = [re.split(r"\s{2,}", line.strip()) for line in lines[start:] if line.strip()]
+    return {row[0]: row[1:6] for row in rows}
+
+
+def test_help_is_grouped_with_readable_defaults() -> None:
+    done = cli("replay", "--help")
+    assert done.returncode == 0
+    for group in ("input:", "estimators:", "EKF:", "smoother:", "association:", "outliers:", "output:"):
+        assert f"\n{group}\n" in done.stdout
+    text = " ".join(done.stdout.split())
+    assert "(default: 20)" in text and "(default: 18 m)" in text and "0.35 rad (20.1 deg)" in text
+    assert "world (square, grid, waypoint)" in text
+    assert not re.search(r"\d\.\d{8,}", cli("simulate", "--help").stdout)  # no 0.008726646259971648
 
 
 def test_first_observation_only_and_json(tmp_path: Path) -> None:
@@ -184,7 +213,12 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
     [
         (["replay", "/nonexistent/stream.jsonl"], "no such file"),
         (["replay", "--estimators", "magic"], "unknown estimator"),
-        (["compare", "square", "--window", "0"], "windows and relinearize_every must be >= 1"),  # was a traceback
+        (["compare", "square", "--window", "0"], "--window: window must be >= 1"),  # was a traceback
+        (["compare", "square", "--window", "5,x"], "expected comma-separated ints"),
+        (["replay", "--align", "SE2"], "invalid choice: 'SE2'"),  # was 23 lines of usage
+        (["replay", "--window-max", "0"], "--window-max: "),
+        (["sweep", "square", "--robust", "huber,tukey", "--quiet"], "'tukey' is not one of"),
+        (["sweep", "square", "--window", "0", "--quiet"], "--window: window must be >= 1"),
         (["replay", "--keyframe-distance", "-1"], "keyframe limits"),
         (["replay", "--dt", "-1"], "--dt"),
         (["replay", "--robust-scale", "-1"], "--robust-scale"),

@@ -15,6 +15,7 @@ import pytest
 import online_slam
 from online_slam.compare import CompareConfig, compare, nees_bounds
 from online_slam.estimators import SmootherConfig
+from online_slam.estimators.presets import smoother_label
 from online_slam.pipeline import ReplayConfig
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -33,7 +34,8 @@ def test_square_table_has_the_article_figures_beside_ekf_and_smoothers() -> None
         if line.strip()
     }
     assert rows["odometry"][0] == "1.338" and rows["batch"][1] == "0.082"
-    assert set(rows) >= {"ekf", "smoother W=10 K=1", "smoother W=10 K=5", "smoother W=20 K=1", "smoother W=20 K=5"}
+    grid = {f"smoother W={w}..120 D=18 K={k}" for w in (10, 20) for k in (1, 5)}
+    assert set(rows) >= {"ekf", *grid}
 
 
 def test_compare_equals_replay_for_the_same_configuration(tmp_path: Path) -> None:
@@ -44,7 +46,7 @@ def test_compare_equals_replay_for_the_same_configuration(tmp_path: Path) -> Non
     config = ReplayConfig(smoother=SmootherConfig(window=20))
     replayed = online_slam.replay(path, config)
     compared = compare(path, CompareConfig(windows=(20,), relinearize_every=(1,), replay=config))
-    row, ref = compared.rows["smoother W=20 K=1"], replayed.estimators["smoother"]
+    row, ref = compared.rows[smoother_label(config.smoother)], replayed.estimators["smoother"]
     assert compared.results.poses == 600
     for key in ("online_rmse_m", "final_rmse_m", "landmark_rmse_m", "endpoint_gap_m", "nees_mean"):
         assert getattr(row, key) == getattr(ref, key)

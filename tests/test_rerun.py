@@ -95,7 +95,7 @@ def compare_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, d
     return rrd, json.loads(out.read_text()), done.stdout
 
 
-CONFIGS = ("ekf", "smoother W=10 K=1", "smoother W=20 K=1", "batch")
+CONFIGS = ("ekf", "smoother W=10..120 D=18 K=1", "smoother W=20..120 D=18 K=1", "batch")
 
 
 def test_compare_recording_holds_every_configuration_with_the_tables_figures(compare_recording) -> None:
@@ -106,7 +106,7 @@ def test_compare_recording_holds_every_configuration_with_the_tables_figures(com
         paths = set(recording.entity_paths())
     assert summary.estimators == CONFIGS
     entities = summary.layout.entities
-    assert entities["smoother W=10 K=1"] == "smoother_W10_K1" and entities["smoother W=20 K=1"] == "smoother_W20_K1"
+    assert entities[CONFIGS[1]] == "smoother_W10..120_D18_K1" and entities[CONFIGS[2]] == "smoother_W20..120_D18_K1"
     assert len(set(summary.layout.to_json()["colors"].values())) == len(summary.layout.names)  # one colour each
     for name in CONFIGS:
         row, stored = table["estimators"][name], summary.results["estimators"][name]
@@ -138,7 +138,7 @@ def test_inspect_lists_every_configuration_of_a_comparison(compare_recording) ->
         if name != "batch":
             assert f"{table['estimators'][name]['online_rmse_m']:.4f}" in line
     state = json.loads(cli("inspect", str(rrd), "--step", "24", "--json").stdout)["state"]
-    assert set(state["estimators"]) >= {"odometry", "ekf", "smoother W=10 K=1", "smoother W=20 K=1", "truth"}
+    assert set(state["estimators"]) >= {"odometry", *CONFIGS[:-1], "truth"}
 
 
 def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) -> None:

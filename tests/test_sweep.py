@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 import socket
 import subprocess
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -17,11 +17,9 @@ pytest.importorskip("distributed", reason="dask[distributed] is not installed")
 
 from conftest import stop_process_tree  # noqa: E402
 
-import online_slam  # noqa: E402
-from online_slam.estimators.presets import robust_settings  # noqa: E402
-from online_slam.pipeline import ReplayConfig  # noqa: E402
-from online_slam.sources.worlds import square_world  # noqa: E402
-from online_slam.sweep import FIGURES, make_cells, sweep  # noqa: E402
+from online_slam.options import flag  # noqa: E402
+from online_slam.sources.worlds import WORLDS  # noqa: E402
+from online_slam.sweep import FIGURES, make_cells, run_cell, sweep  # noqa: E402
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 DETERMINISTIC = [f for f in FIGURES if f not in ("step_median_ms", "step_p95_ms", "total_s")]
@@ -42,7 +40,7 @@ def assert_same(a: list[dict], b: list[dict]) -> None:
 
 @pytest.fixture(scope="module")
 def cells() -> list:
-    return make_cells(["square"], windows=(5, 10), robust=("auto", "none"), runs=2)
+    return make_cells(["square"], {"window": (5, 10), "robust": ("auto", "none")}, runs=2)
 
 
 @pytest.fixture(scope="module")
@@ -50,17 +48,37 @@ def local_rows(cells) -> list[dict]:
     return sweep(cells, workers=2).rows
 
 
+def replayed(*args: str) -> dict:
+    """``online-slam replay ARGS --json -``: the figures replay prints for these options."""
+    done = subprocess.run([*EXE, "replay", *args, "--json", "-", "--quiet"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)["estimators"]
+
+
+def assert_row_is_replay(rows: list[dict], cell, reference: dict) -> None:
+    """Every deterministic figure of the cell's rows equals replay's, to the last digit."""
+    assert {r["estimator"] for r in rows if r["cell"] == cell.key} == set(reference)
+    for name, figures in reference.items():
+        row = by_key(rows)[(cell.key, name)]
+        for f in DETERMINISTIC:
+            assert row[f] == figures.get(f), (name, f)
+
+
 def test_local_sweep_rows_equal_replay(cells, local_rows) -> None:
     assert len(cells) == 8 and len(local_rows) == 8 * 3
-    for cell in cells[:3]:
-        base = ReplayConfig()
-        smoother, batch = robust_settings(cell.robust, 3.0, replace(base.smoother, window=cell.window), base.batch)
-        results = online_slam.replay(square_world(cell.seed), replace(base, smoother=smoother, batch=batch))
-        for name, r in results.estimators.items():
-            row = by_key(local_rows)[(cell.key, name)]
-            assert row["final_rmse_m"] == pytest.approx(r.final_rmse_m, abs=1e-9)
-            if r.online_rmse_m is not None:
-                assert row["online_rmse_m"] == pytest.approx(r.online_rmse_m, abs=1e-9)
+    assert {dict(c.settings)["window"] for c in cells} == {5, 10} and local_rows[0]["window_distance"] == 18.0
+    for cell in [c for c in cells if c.seed == WORLDS["square"].seed]:  # the world replay runs by name
+        flags = [text for name, value in cell.settings for text in (flag(name), str(value))]
+        assert_row_is_replay(local_rows, cell, replayed("square", *flags))
+
+
+def test_a_sweep_cell_gives_replays_figures_with_huber() -> None:
+    """A sweep's outlier setting is replay's (a sweep once used another Huber threshold than replay's)."""
+    for settings, flags in (({"robust": ("huber",)}, ()), ({"robust": ("cauchy",), "robust_scale": (2.5,)},
+                                                            ("--robust-scale", "2.5"))):  # fmt: skip
+        (cell,) = make_cells(["square"], {**settings, "window": (8,)})
+        reference = replayed("square", "--robust", settings["robust"][0], "--window", "8", *flags)
+        assert_row_is_replay(run_cell(cell), cell, reference)
 
 
 def _free_port() -> int:
@@ -134,7 +152,7 @@ def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows
 
 def test_a_failing_cell_is_a_row_not_a_dead_sweep(tmp_path: Path) -> None:
     missing = str(tmp_path / "missing.jsonl")
-    report = sweep(make_cells(["square", missing], windows=(5,), estimators=("ekf",)), workers=1)
+    report = sweep(make_cells(["square", missing], {"window": (5,)}, estimators=("ekf",)), workers=1)
     errors = [r for r in report.rows if r["error"]]
     assert report.failed == 1 and len(errors) == 1 and "no such file" in errors[0]["error"]
     assert any(r["estimator"] == "ekf" and r["final_rmse_m"] is not None for r in report.rows)

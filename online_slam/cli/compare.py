@@ -6,65 +6,31 @@ import argparse
 import sys
 from dataclasses import replace
 
-from online_slam.cli.replay import check_outputs, config_from, report_skip, sinks_from, write_json
+from online_slam import options
+from online_slam.cli.replay import check_outputs, report_skip, sinks_from, write_json
 from online_slam.compare import CompareConfig, compare, replay_config
 from online_slam.errors import OnlineSlamError
 from online_slam.reports.compare_table import format_comparison
 
-
-def _ints(text: str, option: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise OnlineSlamError(f"{option}: expected comma-separated integers, got {text!r}") from None
-    if not values:
-        raise OnlineSlamError(f"{option}: expected at least one value")
-    return values
+GRID = ("window", "relinearize_every")
+"""Options compare takes as lists: one smoother per (W, K)."""
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Register the command (it shares replay's estimator options)."""
-    from online_slam.cli import replay as replay_cli
-
+    """Register the command (replay's options; --window and --relinearize-every take lists)."""
     p = sub.add_parser(
         "compare",
         help="compare EKF, smoother configurations and batch on one stream: table, figures, Monte Carlo",
         description="Run the EKF, every smoother (W, K) and the batch solver on the same stream; print one table.",
     )
-    replay_cli.add_options(p)
-    p.set_defaults(estimators="ekf,smoother,batch")
-    p.add_argument(
-        "--window", dest="windows", default="20", metavar="W[,W...]", help="smoother window sizes (default 20)"
-    )
-    p.add_argument(
-        "--relinearize-every",
-        dest="relinearize_periods",
-        default="1",
-        metavar="K[,K...]",
-        help="smoother relinearization periods (default 1)",
-    )
-    p.add_argument(
-        "--rrd",
-        metavar="PATH",
-        help="log every configuration, step by step, to one Rerun recording (.rrd) laid out for comparison",
-    )
-    p.add_argument(
-        "--connect",
-        nargs="?",
-        const="default",
-        metavar="ADDR",
-        help="stream that recording to a running Rerun viewer (default address, or a rerun+http:// URL)",
-    )
-    p.add_argument("--plot", metavar="PATH", help="write the figures (map, error, NEES, latency) to this PNG")
-    p.add_argument("--runs", type=int, default=1, help="Monte Carlo runs over noise seeds (simulated worlds only)")
-    p.add_argument("--workers", type=int, help="processes for Monte Carlo runs (default: all cores)")
+    options.add_options(p, "compare", lists=GRID)
 
 
 def run(args: argparse.Namespace) -> int:
     """Compare, print the table, write JSON and figures."""
-    base = config_from(args)
-    windows = _ints(args.windows, "--window")
-    ks = _ints(args.relinearize_periods, "--relinearize-every")
+    windows = args.window or CompareConfig.windows
+    ks = args.relinearize_every or CompareConfig.relinearize_every
+    base = options.replay_config({**vars(args), "window": windows[0], "relinearize_every": ks[0]}, options.flag)
     names = tuple(n for n in base.estimators if n != "smoother")
     if len(names) == len(base.estimators):  # no smoother asked for
         windows, ks = (), ()

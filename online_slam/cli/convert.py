@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from online_slam.cli.replay import add_on_error, on_error_of, report_skip
+from online_slam.cli.replay import report_skip
 from online_slam.errors import OnlineSlamError
-from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP, open_dataset
+from online_slam.importers.detect import DATASET_FORMATS, open_dataset
+from online_slam.options import add_options, on_error_of
 from online_slam.sources.stream import write_stream
 
 
@@ -22,13 +23,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("format", choices=(*DATASET_FORMATS, "stream"), help="input format")
     p.add_argument("input", help="dataset file or folder (MRCLAM), or a stream for FORMAT stream")
     p.add_argument("-o", "--output", default="-", help="output stream (.jsonl, .gz) or .g2o; '-' for stdout")
-    p.add_argument("--robot", type=int, help="MRCLAM: robot number 1..5")
-    p.add_argument("--noise", choices=("builtin", "fit"), help=NOISE_HELP)
-    p.add_argument("--truth", metavar="PATH", help="GTSAM/iSAM text: the noise-free twin file")
-    p.add_argument("--dt", type=float, help="synthetic seconds per pose for files without timestamps (default 1)")
-    p.add_argument("--convention", choices=("gtsam", "isam"), help="GTSAM/iSAM text noise convention")
     p.add_argument("--poses", type=int, help="keep only the first N poses (for shipped excerpts)")
-    add_on_error(p)
+    add_options(p, "convert")
 
 
 def _first_poses(events, limit: int | None):  # noqa: ANN001, ANN202 - a generator filter
@@ -53,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
 
         if not str(args.output).endswith(".g2o"):
             raise OnlineSlamError("convert stream: the output must be a .g2o file")
-        on_error = report_skip if on_error_of(args, args.input) == "skip" else None
+        on_error = report_skip if on_error_of(args.on_error, args.input) == "skip" else None
         lines = write_g2o(args.output, _first_poses(read_stream(args.input, on_error), args.poses))
     else:
         if args.on_error == "skip":

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from online_slam import __version__
 from online_slam.cli import compare, convert, inspect, replay, simulate, sweep
@@ -20,9 +21,16 @@ COMMANDS = {
 }
 
 
+class Parser(argparse.ArgumentParser):
+    """A parser whose usage errors are one line with the package's prefix (the usage is one --help away)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"online-slam: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser, one sub-command per module."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="online-slam",
         description="Incremental, online 2D landmark SLAM: replay streams, compare estimators, simulate worlds.",
     )

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from online_slam.errors import OnlineSlamError
+from online_slam.options import readable
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import (
     WORLDS,
@@ -18,7 +19,6 @@ from online_slam.sources.worlds import (
     WaypointConfig,
     contaminate,
     grid_world,
-    square_world,
     waypoint_world,
     without_ids,
 )
@@ -31,22 +31,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="write a simulated world as a stream file",
         description="Write a built-in world as stream v1 (truth included). Options name the worlds they apply to.",
     )
-    p.add_argument("world", choices=sorted(WORLDS), help="square (the article's), grid or waypoint")
+    worlds = "; ".join(f"{name}: {world.description}" for name, world in WORLDS.items())
+    p.add_argument("world", choices=list(WORLDS), help=worlds)
     p.add_argument("-o", "--output", default="-", help="output path (.gz compresses; '-' for stdout, the default)")
-    p.add_argument("--seed", type=int, help="random seed (square: 1616, grid and waypoint: 7)")
+    seeds = ", ".join(f"{name} {world.seed}" for name, world in WORLDS.items())
+    p.add_argument("--seed", type=int, help=f"random seed (default: {seeds})")
     g, w = GridConfig(), WaypointConfig()
 
-    def both(flag: str, field: str, what: str, **kw: object) -> None:
-        p.add_argument(flag, default=None, help=f"grid, waypoint: {what} (default {getattr(g, field)}, "
-                       f"{getattr(w, field)})", **kw)  # fmt: skip
+    def both(flag: str, field: str, what: str, units: tuple[str, ...] = (), **kw: object) -> None:
+        shown = (_shown(getattr(g, field), units), _shown(getattr(w, field), units))
+        p.add_argument(flag, default=None, help=f"grid, waypoint: {what} (default {shown[0]}; {shown[1]})", **kw)
 
     both("--poses", "poses", "number of poses", type=int)
     both("--landmarks", "landmarks", "landmarks", type=int)
     both("--step", "step", "metres per pose", type=float)
     both("--sensor-range", "sensor_range", "range limit m", type=float)
-    both("--odometry-sigma", "odometry_sigma", "odometry noise (m, m, rad)", type=float, nargs=3,
+    both("--odometry-sigma", "odometry_sigma", "odometry noise", ("m", "m", "rad"), type=float, nargs=3,
          metavar=("SX", "SY", "STH"))  # fmt: skip
-    both("--sensor-sigma", "sensor_sigma", "range (m) and bearing (rad) noise", type=float, nargs=2,
+    both("--sensor-sigma", "sensor_sigma", "range and bearing noise", ("m", "rad"), type=float, nargs=2,
          metavar=("SR", "SB"))  # fmt: skip
     p.add_argument("--blocks", type=int, default=g.blocks, help=f"grid: blocks per side (default {g.blocks})")
     p.add_argument(
@@ -72,10 +74,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
 
 
+def _shown(value: object, units: tuple[str, ...]) -> str:
+    """A world setting for help, angles in degrees too (a bearing sigma reads ``0.00872665 rad (0.5 deg)``)."""
+    if isinstance(value, tuple):
+        return ", ".join(readable(v, u) for v, u in zip(value, units))
+    return readable(value)
+
+
 def run(args: argparse.Namespace) -> int:
     """Simulate and write; prints a one-line summary on stderr."""
     if args.world == "square":
-        events = square_world(1616 if args.seed is None else args.seed)
+        events = WORLDS["square"].events(args.seed)
     else:
         base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
         given = {

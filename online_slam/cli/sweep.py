@@ -6,36 +6,22 @@ import argparse
 import sys
 
 from online_slam.errors import OnlineSlamError
-from online_slam.estimators.presets import ROBUST_CHOICES
+from online_slam.options import add_options, estimator_options
 from online_slam.pipeline import ESTIMATORS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Register the command."""
+    """Register the command: every estimator option takes a comma-separated list."""
     p = sub.add_parser(
         "sweep",
         help="replay every combination of sources, settings and seeds on a Dask cluster; one tidy row each",
-        description="Replay the cartesian product of sources (x MRCLAM robots, x seeds for square/grid), smoother "
-        "windows and outlier settings, one Dask task per replay (a LocalCluster on this machine's cores, or "
-        "--scheduler). One row per replay and estimator; re-running with the same --out skips the replays it holds.",
+        description="Replay the cartesian product of sources (x MRCLAM robots, x seeds for built-in worlds) and "
+        "estimator settings (each a comma-separated list, e.g. --window 5,20 --robust auto,huber), one Dask task "
+        "per replay (a LocalCluster on this machine's cores, or --scheduler); a replay's figures equal those of "
+        "'replay' with the same options. One row per replay and estimator; re-running with the same --out skips "
+        "the replays it holds.",
     )
-    p.add_argument("sources", nargs="+", help="built-in worlds (square, grid), stream files, dataset paths")
-    p.add_argument("--window", default="20", help="smoother windows, comma-separated (default 20)")
-    p.add_argument("--robust", default="auto", help=f"outlier settings, comma-separated ({', '.join(ROBUST_CHOICES)})")
-    p.add_argument("--estimators", default=",".join(ESTIMATORS), help="estimators to run (default all)")
-    p.add_argument("--runs", type=int, default=1, help="noise seeds per simulated world (default 1)")
-    p.add_argument("--robot", default="", help="MRCLAM folders: robots, comma-separated (e.g. 1,2,3,4,5)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler, e.g. tcp://host:8786")
-    p.add_argument("--workers", type=int, help="local cluster: worker processes (default: all cores)")
-    p.add_argument("--out", metavar="FILE", help="rows to .csv or .parquet, written as replays finish (resumable)")
-    p.add_argument("--quiet", action="store_true", help="no progress and no summary")
-
-
-def _list(text: str, kind: type, option: str) -> list:
-    try:
-        return [kind(v.strip()) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise OnlineSlamError(f"{option}: expected comma-separated values, got {text!r}") from None
+    add_options(p, "sweep", lists=(*estimator_options(), "robot"))
 
 
 def _mean_std(figures: dict, name: str, digits: int = 3) -> str:
@@ -45,39 +31,25 @@ def _mean_std(figures: dict, name: str, digits: int = 3) -> str:
     return f"{mean:.{digits}f} +- {std:.{digits}f}"
 
 
-def _mean_std(figures: dict, name: str, digits: int = 3) -> str:
-    if name not in figures:
-        return "-"
-    mean, std, _ = figures[name]
-    return f"{mean:.{digits}f} +- {std:.{digits}f}"
+def _settings_text(settings: tuple) -> str:
+    return " ".join(f"{name}={value}" for name, value in settings) or "-"
 
 
 def run(args: argparse.Namespace) -> int:
     """Build the cells, run them, print the summary (mean +- std over seeds)."""
-    from online_slam.sweep import make_cells, summary, sweep
-
-    robust = _list(args.robust, str, "--robust")
-    unknown = [r for r in robust if r not in ROBUST_CHOICES]
-    if unknown:
-        raise OnlineSlamError(f"--robust: unknown setting {unknown[0]!r}; expected some of {', '.join(ROBUST_CHOICES)}")
-    estimators = _list(args.estimators, str, "--estimators")
-    if not set(estimators) <= set(ESTIMATORS):
-        raise OnlineSlamError(f"--estimators: expected some of {', '.join(ESTIMATORS)}")
     from online_slam.cli.replay import check_writable
     from online_slam.importers.resolve import check_source
+    from online_slam.sweep import make_cells, summary, sweep
 
+    estimators = [n.strip() for n in args.estimators.split(",") if n.strip()]
+    if not set(estimators) <= set(ESTIMATORS):
+        raise OnlineSlamError(f"--estimators: expected some of {', '.join(ESTIMATORS)}")
     for source in args.sources:  # usage errors, told before any cluster starts (a failing replay is a row)
         check_source(source)
     if args.out is not None:
         check_writable("--out", args.out)
-    cells = make_cells(
-        args.sources,
-        windows=_list(args.window, int, "--window"),
-        robust=robust,
-        estimators=estimators,
-        runs=args.runs,
-        robots=_list(args.robot, int, "--robot"),
-    )
+    settings = {name: getattr(args, name) for name in estimator_options() if getattr(args, name) is not None}
+    cells = make_cells(args.sources, settings, estimators, runs=args.runs, robots=args.robot or ())
 
     def progress(done: int, total: int) -> None:
         if not args.quiet:
@@ -90,16 +62,23 @@ def run(args: argparse.Namespace) -> int:
         print(file=sys.stderr)
         print(f"{len(cells)} replays: {report.computed} computed, {report.skipped} already in the output, "
               f"{report.failed} failed")  # fmt: skip
-        header = f"{'source':<28}{'robot':>6}{'W':>5}{'robust':>8}{'estimator':>11}"
-        print(f"{header}{'online RMSE m':>20}{'final RMSE m':>20}{'step median ms':>17}{'n':>4}")
-        for (source, robot, window, setting, estimator), figures in summary(report.rows):
-            n = max((v[2] for v in figures.values()), default=0)
-            name = source if len(source) <= 27 else "..." + source[-24:]
-            online, final = _mean_std(figures, "online_rmse_m"), _mean_std(figures, "final_rmse_m")
-            step = _mean_std(figures, "step_median_ms", 2)
-            print(f"{name:<28}{robot if robot is not None else '-':>6}{window:>5}{setting:>8}{estimator:>11}"
-                  f"{online:>20}{final:>20}{step:>17}{n:>4}")  # fmt: skip
+        _print_summary(summary(report.rows))
         for row in report.rows:
             if row["error"]:
-                print(f"failed: {row['source']} W={row['window']} {row['robust']} seed={row['seed']}: {row['error']}")
+                given = _settings_text(tuple((n, row[n]) for n in settings))
+                print(f"failed: {row['source']} {given} seed={row['seed']}: {row['error']}")
     return 1 if report.failed else 0
+
+
+def _print_summary(groups: list) -> None:
+    """One line per (source, robot, settings that vary, estimator): mean +- std over seeds."""
+    width = max([len(_settings_text(key[2])) for key, _ in groups] + [8]) + 2
+    header = f"{'source':<28}{'robot':>6}  {'settings':<{width}}{'estimator':>11}"
+    print(f"{header}{'online RMSE m':>20}{'final RMSE m':>20}{'step median ms':>17}{'n':>4}")
+    for (source, robot, settings, estimator), figures in groups:
+        n = max((v[2] for v in figures.values()), default=0)
+        name = source if len(source) <= 27 else "..." + source[-24:]
+        online, final = _mean_std(figures, "online_rmse_m"), _mean_std(figures, "final_rmse_m")
+        step = _mean_std(figures, "step_median_ms", 2)
+        print(f"{name:<28}{robot if robot is not None else '-':>6}  {_settings_text(settings):<{width}}"
+              f"{estimator:>11}{online:>20}{final:>20}{step:>17}{n:>4}")  # fmt: skip

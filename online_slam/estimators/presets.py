@@ -31,3 +31,16 @@ def robust_settings(
         return plain, replace(batch, loss=None, outliers="off")
     loss = RobustLoss(robust, scale)
     return replace(smoother, loss=loss), replace(batch, loss=loss)
+
+
+def smoother_label(config: SmootherConfig) -> str:
+    """The name of a smoother run beside others (``compare``), saying what its window is.
+
+    ``smoother W=20..120 D=18 K=1``: at least W=20 poses, more until the window's path is 18 m long, at most 120,
+    solved every K=1 steps; ``smoother W=5 K=1``: exactly 5 poses (``window_distance`` 0, or a ``window_max``
+    that is no more than W). A row so named keeps its meaning whatever the defaults are.
+    """
+    most = max(config.window, config.window_max)
+    if config.window_distance == 0 or most == config.window:
+        return f"smoother W={config.window} K={config.relinearize_every}"
+    return f"smoother W={config.window}..{most} D={config.window_distance:g} K={config.relinearize_every}"

@@ -36,7 +36,7 @@ def open_source(
     """
     text = str(spec)
     if text in WORLDS and not Path(text).exists():
-        return text, WORLDS[text]()
+        return text, WORLDS[text].events()
     kind = dataset_options.pop("format", None) or (detect_format(text) if text != "-" else None)
     if kind is not None:
         options = {k: v for k, v in dataset_options.items() if v is not None}

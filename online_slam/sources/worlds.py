@@ -67,7 +67,11 @@ def _events(
             )
 
 
-def square_world(seed: int = 1616) -> Iterator[Event]:
+ARTICLE_SEED = 1616
+"""The article's seed of the square world."""
+
+
+def square_world(seed: int = ARTICLE_SEED) -> Iterator[Event]:
     """The article's square path: 25 poses, 12 landmarks, 95 observations (with seed 1616).
 
     Args:
@@ -327,12 +331,42 @@ def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
             )
 
 
-WORLDS: dict[str, Callable[[], Iterator[Event]]] = {
-    "square": square_world,
-    "grid": grid_world,
-    "waypoint": waypoint_world,
+@dataclass(frozen=True)
+class World:
+    """A built-in simulated world: its events for any noise seed."""
+
+    build: Callable[[int], Iterator[Event]]
+    """The world's events (truth included) for a seed."""
+    seed: int
+    """Its default seed; Monte Carlo runs and sweeps use ``seed``, ``seed + 1``, ..."""
+    description: str
+    """One line for help texts."""
+
+    def events(self, seed: int | None = None) -> Iterator[Event]:
+        """The world's events for ``seed`` (None: the default seed)."""
+        return self.build(self.seed if seed is None else seed)
+
+
+def _grid(seed: int) -> Iterator[Event]:
+    return grid_world(GridConfig(seed=seed))
+
+
+def _waypoint(seed: int) -> Iterator[Event]:
+    return waypoint_world(WaypointConfig(seed=seed))
+
+
+WORLDS: dict[str, World] = {
+    "square": World(square_world, ARTICLE_SEED, "the article's square path: 25 poses, 12 landmarks"),
+    "grid": World(
+        _grid, GridConfig.seed, f"Manhattan streets: {GridConfig.poses} poses, {GridConfig.landmarks} landmarks"
+    ),
+    "waypoint": World(
+        _waypoint,
+        WaypointConfig.seed,
+        f"random waypoints: {WaypointConfig.poses} poses, {WaypointConfig.landmarks} landmarks",
+    ),
 }
-"""Built-in worlds by name, each with its default settings."""
+"""The built-in worlds by name: ``simulate``, ``replay``, ``compare`` and ``sweep`` all read this registry."""
 
 
 def without_ids(events: Iterable[Event]) -> Iterator[Event]:

@@ -1,0 +1,434 @@
+"""Every option of the engine, defined once: name, type, default, help, owner, help group, where it lands.
+
+The table :data:`OPTIONS` is the only place an option is described. From it come the flags of ``replay``,
+``compare``, ``sweep`` and ``convert`` (:func:`add_options`), the check of ``Slam(**options)``
+(:func:`check_value`), the one translation of option values into a :class:`~online_slam.pipeline.ReplayConfig`
+(:func:`replay_config`, used by the CLI, ``Slam`` and sweeps) and the docs' option list (:func:`markdown`,
+``docs/options.md``). Defaults are read from the configuration dataclasses, never restated; an option that is
+no configuration field (``robust``, the dataset's) holds its own default here.
+
+After changing the table, regenerate the page:
+``python -c "from online_slam.options import markdown; print(markdown(), end='')" > docs/options.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from online_slam.compare import CompareConfig
+from online_slam.errors import ConfigError
+from online_slam.estimators.batch import BatchConfig
+from online_slam.estimators.ekf import EkfConfig
+from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES, AssociationConfig
+from online_slam.estimators.presets import ROBUST_CHOICES, robust_settings
+from online_slam.estimators.smoother import SmootherConfig
+from online_slam.factors.robust import RobustLoss
+from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
+from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP
+from online_slam.pipeline import Checkpointing, ReplayConfig
+from online_slam.solvers.least_squares import SolverConfig
+from online_slam.sources.worlds import WORLDS
+
+GROUPS = ("input", "estimators", "EKF", "smoother", "association", "outliers", "output", "live/checkpoint", "runs")
+"""Help groups, in the order ``--help`` and the docs list them."""
+ESTIMATOR_OWNERS = frozenset({"ekf", "smoother", "batch", "front-end", "association"})
+"""Owners of the estimator options: those ``replay``, ``compare``, ``sweep`` and ``Slam`` all accept."""
+_SHARED = frozenset({"front-end", "association"})
+"""Owners whose options apply to every estimator."""
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option: ``--window-distance`` on the command line, ``window_distance=`` for ``Slam``."""
+
+    name: str
+    """Python name (``Slam`` keyword, parsed attribute); the flag is ``--`` + the name with ``-`` for ``_``."""
+    help: str
+    """One line for ``--help`` and the docs."""
+    group: str
+    """Help group (one of :data:`GROUPS`)."""
+    owners: tuple[str, ...]
+    """What it configures: ``ekf``, ``smoother``, ``batch``, ``front-end``, ``association`` (the estimator
+    options), ``dataset``, ``replay`` (what runs and how it is scored) or ``cli`` (output, live, checkpoints)."""
+    kind: type = str
+    """Value type: ``int``, ``float``, ``str`` or ``bool`` (a flag without a value)."""
+    field: tuple[type, str] | None = None
+    """The configuration field the default is read from: (dataclass, field name)."""
+    default: Any = None
+    """The default of an option that is no configuration field (None: not given)."""
+    unset: str = ""
+    """What happens when the option is not given, for options whose default is None (e.g. ``detected``)."""
+    lands: tuple[str, ...] = ()
+    """Where the value goes in a :class:`ReplayConfig`: dotted field paths (a dict's key last)."""
+    choices: tuple[str, ...] = ()
+    """Allowed values of a ``str`` option (empty: any)."""
+    metavar: str | None = None
+    """Placeholder of the value in ``--help``."""
+    unit: str = ""
+    """Unit of a number (``rad`` defaults are shown in degrees too)."""
+    positive: bool = False
+    """The value must be > 0."""
+    commands: tuple[str, ...] = ("replay", "compare", "sweep")
+    """Commands that take it."""
+    nargs: str | None = None
+    """argparse ``nargs`` (a positional's ``?``/``+``, ``?`` for an optional value)."""
+    const: str | None = None
+    """Value of a flag given without its optional value."""
+
+    @property
+    def flag(self) -> str:
+        """The command-line spelling (a positional's name as is)."""
+        return self.name if self.positional else "--" + self.name.replace("_", "-")
+
+    @property
+    def positional(self) -> bool:
+        """A positional argument (the source)."""
+        return self.name in ("source", "sources")
+
+    @property
+    def value(self) -> Any:
+        """The default value (read from the configuration field when there is one)."""
+        if self.field is None or self.unset:
+            return self.default
+        value = _field_default(*self.field)
+        return ",".join(value) if isinstance(value, tuple) else value
+
+    @property
+    def estimator(self) -> bool:
+        """An estimator option (``Slam`` and ``sweep`` take it)."""
+        return set(self.owners) <= ESTIMATOR_OWNERS
+
+    def fits(self, estimator: str) -> bool:
+        """Whether it configures this estimator (or every estimator)."""
+        return estimator in self.owners or bool(_SHARED & set(self.owners))
+
+    def shown_default(self) -> str:
+        """The default as a user reads it (``0.35 rad (20.1 deg)``, ``off``...)."""
+        if self.unset and self.field is not None:
+            return f"{self.unset}; {readable(_field_default(*self.field), self.unit)} once another is given"
+        if self.unset or self.value is None:
+            return self.unset
+        return readable(self.value, self.unit)
+
+
+def _field_default(cls: type, name: str) -> Any:
+    """A dataclass field's default value (its factory's product when it has one)."""
+    spec = next(f for f in dataclasses.fields(cls) if f.name == name)
+    return spec.default if spec.default is not dataclasses.MISSING else spec.default_factory()  # type: ignore[misc]
+
+
+def readable(value: Any, unit: str = "") -> str:
+    """A value for people: ``0.5``, ``inf``, ``0.35 rad (20.1 deg)``, ``18 m``."""
+    if isinstance(value, bool) or value is None:
+        return {True: "on", False: "off", None: "none"}[value]
+    if isinstance(value, float) and math.isinf(value):
+        return "no limit"
+    text = f"{value:g}" if isinstance(value, float) else str(value)
+    if unit == "rad":
+        return f"{value:.3g} rad ({math.degrees(value):.3g} deg)"
+    return f"{text} {unit}" if unit else text
+
+
+def _estimator(name: str, help: str, group: str, owner: str, field: tuple[type, str], **kw: Any) -> Option:
+    """An estimator option read from a configuration field (its type is the field default's)."""
+    kind = type(_field_default(*field))
+    return Option(name, help, group, (owner,), kind=kind, field=field, **kw)
+
+
+_DATASET = ("replay", "compare", "convert")
+_WORLD_NAMES = ", ".join(WORLDS)
+
+OPTIONS: dict[str, Option] = {o.name: o for o in (
+    # -- input ----------------------------------------------------------------------------------------------
+    Option("source", f"stream file (.jsonl/.gz), '-' (stdin), dataset path, or world ({_WORLD_NAMES})", "input",
+           ("replay",), default="square", nargs="?", commands=("replay", "compare")),
+    Option("sources", f"stream files, dataset paths or worlds ({_WORLD_NAMES})", "input", ("replay",),
+           nargs="+", commands=("sweep",)),
+    Option("format", "dataset format", "input", ("dataset",), choices=DATASET_FORMATS, unset="detected",
+           lands=("dataset.format",), commands=("replay", "compare")),
+    Option("robot", "MRCLAM: robot number 1..5 (sweep: a list)", "input", ("dataset",), kind=int,
+           metavar="N", lands=("dataset.robot",), commands=(*_DATASET, "sweep")),
+    Option("noise", NOISE_HELP, "input", ("dataset",), choices=("builtin", "fit"),
+           lands=("dataset.noise",), commands=_DATASET),
+    Option("truth", "GTSAM/iSAM text: the noise-free twin file (truth)", "input", ("dataset",), metavar="PATH",
+           lands=("dataset.truth",), commands=_DATASET),
+    Option("dt", "seconds per pose for files without timestamps", "input", ("dataset",), kind=float, unit="s",
+           metavar="S", unset="1 s", positive=True, lands=("dataset.dt",), commands=_DATASET),
+    Option("convention", "GTSAM/iSAM text noise convention", "input", ("dataset",), choices=("gtsam", "isam"),
+           unset="detected", lands=("dataset.convention",), commands=_DATASET),
+    Option("on_error", "a bad line of a stream: stop there, or report it on stderr and skip it", "input",
+           ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin",
+           lands=("on_error",), commands=_DATASET),
+    # -- estimators -----------------------------------------------------------------------------------------
+    Option("estimators", "comma-separated estimators to run (ekf, smoother, batch)", "estimators", ("replay",),
+           field=(ReplayConfig, "estimators"), metavar="NAMES", lands=("estimators",)),
+    Option("align", "frame of the errors: first pose with truth, or least-squares SE(2) fit", "estimators",
+           ("replay",), field=(ReplayConfig, "alignment"), choices=("anchor", "se2"), lands=("alignment",),
+           commands=("replay", "compare")),
+    _estimator("first_observation_only", "keep only the first sighting of each landmark (the article's ablation)",
+               "estimators", "front-end", (FrontEndConfig, "first_observation_only"),
+               lands=("frontend.first_observation_only",)),
+    Option("keyframe_distance", "merge observation-free steps up to this distance", "estimators", ("front-end",),
+           kind=float, field=(KeyframeConfig, "max_distance"), unset="off", metavar="M", unit="m",
+           lands=("frontend.keyframing.max_distance",)),
+    Option("keyframe_angle", "... and up to this rotation", "estimators", ("front-end",), kind=float,
+           field=(KeyframeConfig, "max_angle"), unset="off", metavar="RAD", unit="rad",
+           lands=("frontend.keyframing.max_angle",)),
+    Option("keyframe_time", "... and up to this time span", "estimators", ("front-end",), kind=float,
+           field=(KeyframeConfig, "max_time"), unset="off", metavar="S", unit="s",
+           lands=("frontend.keyframing.max_time",)),
+    _estimator("batch_init", "batch: start from odometry or an online estimator's final estimate (auto: the "
+               "smoother's if it runs, else the EKF's, else odometry)", "estimators", "batch",
+               (BatchConfig, "initial"), choices=("auto", "odometry", "ekf", "smoother"), lands=("batch.initial",)),
+    _estimator("max_iterations", "batch: most Levenberg-Marquardt iterations", "estimators", "batch",
+               (SolverConfig, "max_iterations"), metavar="N", lands=("batch.solver.max_iterations",)),
+    # -- EKF ------------------------------------------------------------------------------------------------
+    _estimator("gate_probability", "chi-square gate on each sighting's NIS, 2 dof (1 = off)", "EKF", "ekf",
+               (EkfConfig, "gate_probability"), metavar="P", lands=("ekf.gate_probability",)),
+    _estimator("gate_persistence", "use a landmark's sighting after N-1 gated ones in a row (the filter drifted; "
+               "0 = always reject)", "EKF", "ekf", (EkfConfig, "gate_persistence"), metavar="N",
+               lands=("ekf.gate_persistence",)),
+    _estimator("ekf_update", "one update per step with all sightings (joint) or one per sighting", "EKF", "ekf",
+               (EkfConfig, "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
+    # -- smoother -------------------------------------------------------------------------------------------
+    _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
+               (SmootherConfig, "window"), metavar="W", lands=("smoother.window",)),
+    _estimator("window_distance", "keep poses beyond W until the window's path is this long, up to --window-max "
+               "poses (0 = exactly W poses)", "smoother", "smoother", (SmootherConfig, "window_distance"),
+               metavar="M", unit="m", lands=("smoother.window_distance",)),
+    _estimator("window_max", "most poses the window keeps for --window-distance", "smoother", "smoother",
+               (SmootherConfig, "window_max"), metavar="N", lands=("smoother.window_max",)),
+    _estimator("relinearize_every", "K: relinearize and solve every K steps (compare: a list)", "smoother",
+               "smoother", (SmootherConfig, "relinearize_every"), metavar="K", lands=("smoother.relinearize_every",)),
+    _estimator("global_every", "re-solve the whole history every N steps and re-anchor the prior (0 = never)",
+               "smoother", "smoother", (SmootherConfig, "global_every"), metavar="N", lands=("smoother.global_every",)),
+    _estimator("global_delay", "hand each global solve (a background thread) over D steps later, or N/50 after "
+               "step N if longer (0 = at once)", "smoother", "smoother", (SmootherConfig, "global_delay"),
+               metavar="D", lands=("smoother.global_delay",)),
+    _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "
+               "at most L landmarks (0 = never)", "smoother", "smoother",
+               (SmootherConfig, "global_information_max"), metavar="L", lands=("smoother.global_information_max",)),
+    # -- association ----------------------------------------------------------------------------------------
+    Option("association", "pair sightings by the stream's ids (known), nearest neighbour (nn) or joint "
+           "compatibility (jcbb); auto: known when the first sighting has an id, else jcbb (Slam: known)",
+           "association", ("association",), field=(ReplayConfig, "association"),
+           choices=("auto", *ASSOCIATION_CHOICES), lands=("association",)),
+    _estimator("new_density", "nn/jcbb: start a new landmark when a pairing is less likely than an unmapped "
+               "landmark at this density (0 = off)", "association", "association",
+               (AssociationConfig, "new_density"), metavar="D", unit="per m^2",
+               lands=("ekf.association.new_density", "smoother.association.new_density")),
+    # -- outliers -------------------------------------------------------------------------------------------
+    Option("robust", "smoother and batch: auto (Cauchy tail beyond 5.3 sigmas in the window, batch robust pass "
+           "when residuals show outliers), none (least squares), huber or cauchy (with --robust-scale)",
+           "outliers", ("smoother", "batch"), default=ROBUST_CHOICES[0], choices=ROBUST_CHOICES),
+    Option("robust_scale", "huber/cauchy threshold", "outliers", ("smoother", "batch"), kind=float,
+           field=(RobustLoss, "scale"), metavar="S", unit="sigmas", positive=True),
+    # -- output ---------------------------------------------------------------------------------------------
+    Option("json", "write the results as JSON ('-': stdout, the table then on stderr)", "output", ("cli",),
+           metavar="PATH", commands=("replay", "compare")),
+    Option("tum", "write TUM trajectories for evo (truth, odometry, each estimator final and _online)", "output",
+           ("cli",), metavar="DIR", commands=("replay",)),
+    Option("plot", "write the figures (map, error, NEES, latency) to this PNG", "output", ("cli",),
+           metavar="PATH", commands=("compare",)),
+    Option("rrd", "log every step (of every configuration) to a Rerun recording (.rrd)", "output", ("cli",),
+           metavar="PATH", commands=("replay", "compare")),
+    Option("out", "rows to .csv or .parquet, written as replays finish (resumable)", "output", ("cli",),
+           metavar="FILE", unset="memory only", commands=("sweep",)),
+    Option("quiet", "print no table, no summary and no progress", "output", ("cli",), kind=bool, default=False),
+    # -- live / checkpoint ----------------------------------------------------------------------------------
+    Option("connect", "stream the recording to a running Rerun viewer (default address, or a rerun+http:// URL)",
+           "live/checkpoint", ("cli",), metavar="ADDR", nargs="?", const="default",
+           commands=("replay", "compare")),
+    Option("rate", "pace the replay at R times the stream's clock", "live/checkpoint", ("cli",), kind=float,
+           metavar="R", unset="as fast as possible", commands=("replay",)),
+    Option("checkpoint", "save the whole replay state to DIR/replay.ckpt every --checkpoint-every steps",
+           "live/checkpoint", ("cli",), metavar="DIR", commands=("replay",)),
+    Option("checkpoint_every", "steps between checkpoints", "live/checkpoint", ("cli",), kind=int,
+           field=(Checkpointing, "every"), metavar="N", commands=("replay",)),
+    Option("resume", "continue from DIR's checkpoint (same source and options; figures equal an uninterrupted "
+           "run's)", "live/checkpoint", ("cli",), metavar="DIR", commands=("replay",)),
+    # -- runs -----------------------------------------------------------------------------------------------
+    Option("runs", "noise seeds per simulated world (compare: Monte Carlo runs)", "runs", ("cli",), kind=int,
+           field=(CompareConfig, "runs"), metavar="N", commands=("compare", "sweep")),
+    Option("workers", "processes (compare: Monte Carlo runs; sweep: local cluster)", "runs", ("cli",), kind=int,
+           metavar="N", unset="all cores", commands=("compare", "sweep")),
+    Option("scheduler", "a running Dask scheduler, e.g. tcp://host:8786", "runs", ("cli",), metavar="ADDRESS",
+           unset="a local cluster", commands=("sweep",)),
+)}  # fmt: skip
+"""Every option, by name, grouped by concern."""
+
+
+def estimator_options() -> dict[str, Option]:
+    """The estimator options (``Slam`` and ``sweep`` take exactly these; ``replay`` and ``compare`` too)."""
+    return {name: o for name, o in OPTIONS.items() if o.estimator}
+
+
+# -- values ---------------------------------------------------------------------------------------------------
+def check_value(option: Option, value: Any) -> None:
+    """Refuse a value of the wrong type or out of the option's choices (``Slam(**options)``, list items).
+
+    Raises:
+        ConfigError: Naming the option, what it expects and what it got.
+    """
+    kind = option.kind
+    ok = (
+        isinstance(value, bool)
+        if kind is bool
+        else isinstance(value, int) and not isinstance(value, bool)
+        if kind is int
+        else isinstance(value, (int, float)) and not isinstance(value, bool) and not math.isnan(value)
+        if kind is float
+        else isinstance(value, str)
+    )
+    if not ok:
+        raise ConfigError(f"option {option.name}: expected {kind.__name__}, got {value!r} ({option.help})")
+    if option.choices and value not in option.choices:
+        raise ConfigError(f"option {option.name}: expected one of {', '.join(option.choices)}, got {value!r}")
+
+
+def replay_config(values: Mapping[str, Any], naming: Callable[[str], str] = str) -> ReplayConfig:
+    """The replay configuration that option values ask for (missing or None values keep their defaults).
+
+    The one translation of options into configurations: ``replay``, ``compare``, ``sweep`` and ``Slam`` call it.
+
+    Args:
+        values: Option values by name (e.g. ``vars(args)``); names that are no option are ignored.
+        naming: How an option is named in error messages (the CLI passes its flag).
+
+    Raises:
+        ConfigError: A value out of range, naming the option.
+    """
+    config = ReplayConfig()
+    if any(values.get(name) is not None for name in ("keyframe_distance", "keyframe_angle", "keyframe_time")):
+        config = dataclasses.replace(config, frontend=dataclasses.replace(config.frontend, keyframing=KeyframeConfig()))
+    given = {name: v for name, v in values.items() if name in OPTIONS and v is not None}
+    given["on_error"] = on_error_of(given.get("on_error"), values.get("source"))
+    for name, value in given.items():
+        option = OPTIONS[name]
+        if option.positive and not value > 0:
+            raise ConfigError(f"{naming(name)}: must be > 0, got {value}")
+        if name == "estimators":
+            value = tuple(n.strip() for n in value.split(",") if n.strip())
+        try:
+            for path in option.lands:
+                config = _set(config, path.split("."), value)
+        except ValueError as exc:
+            raise ConfigError(f"{naming(name)}: {exc}") from None
+    robust, scale = given.get("robust", OPTIONS["robust"].value), given.get("robust_scale", RobustLoss.scale)
+    smoother, batch = robust_settings(robust, scale, config.smoother, config.batch)
+    return dataclasses.replace(config, smoother=smoother, batch=batch)
+
+
+def on_error_of(given: str | None, source: object) -> str:
+    """The ``--on-error`` policy asked for, or the default for this source (skip for stdin: a live stream goes
+    on; else stop)."""
+    return given or ("skip" if str(source) == "-" else "stop")
+
+
+def _set(target: Any, path: list[str], value: Any) -> Any:
+    """``target`` with the field (or dict key) at ``path`` replaced; every dataclass on the way re-validated."""
+    head, rest = path[0], path[1:]
+    if isinstance(target, dict):
+        return {**target, head: value}
+    inner = _set(getattr(target, head), rest, value) if rest else value
+    return dataclasses.replace(target, **{head: inner})
+
+
+# -- command line ---------------------------------------------------------------------------------------------
+def flag(name: str) -> str:
+    """An option's command-line spelling."""
+    return OPTIONS[name].flag
+
+
+def add_options(parser: argparse.ArgumentParser, command: str, lists: Iterable[str] = ()) -> None:
+    """Add the command's options to a parser, one argument group per concern.
+
+    Args:
+        parser: The command's parser.
+        command: ``replay``, ``compare``, ``sweep`` or ``convert``.
+        lists: Options that take comma-separated lists (compare's window grid, sweep's settings).
+    """
+    chosen = [o for o in OPTIONS.values() if command in o.commands]
+    groups = {g: parser.add_argument_group(g) for g in GROUPS if any(o.group == g for o in chosen)}
+    for option in chosen:
+        add_option(groups[option.group], option, option.name in set(lists))
+
+
+def add_option(group: Any, option: Option, listed: bool) -> None:
+    """Add one option to an argparse group."""
+    shown = option.shown_default()
+    text = f"{option.help} (default: {shown})" if shown and option.kind is not bool else option.help
+    kw: dict[str, Any] = {"help": text.replace("%", "%%")}
+    if option.kind is bool:
+        kw.update(action="store_const", const=(True,)) if listed else kw.update(action="store_true")
+    elif listed:
+        values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
+        kw.update(type=_list_of(option), metavar=f"{values}[,...]")
+    else:
+        kw.update(type=option.kind, metavar=option.metavar, choices=option.choices or None)
+        kw["default"] = option.value
+    if option.nargs is not None:
+        kw["nargs"] = option.nargs
+    if option.const is not None:
+        kw["const"] = option.const
+    if option.positional and option.metavar is None:
+        kw.pop("metavar", None)
+    group.add_argument(option.flag, **kw)
+
+
+def _list_of(option: Option) -> Callable[[str], tuple]:
+    """argparse type of a comma-separated list of the option's values."""
+
+    def parse(text: str) -> tuple:
+        try:
+            items = tuple(option.kind(v.strip()) for v in text.split(",") if v.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected comma-separated {option.kind.__name__}s, got {text!r}"
+            ) from None
+        if not items:
+            raise argparse.ArgumentTypeError("expected at least one value")
+        for item in items:
+            if option.choices and item not in option.choices:
+                raise argparse.ArgumentTypeError(f"{item!r} is not one of {', '.join(option.choices)}")
+        return items
+
+    return parse
+
+
+# -- docs -----------------------------------------------------------------------------------------------------
+def markdown() -> str:
+    """The docs' option list (``docs/options.md``), rendered from the table."""
+    lines = [
+        "# Options",
+        "",
+        "Generated from the option table in `online_slam/options.py` (its docstring says how); a test checks",
+        "that this page equals the rendering. Each option is a flag of the commands listed (`--window-distance`)",
+        'and, for the estimator options, a keyword of `Slam` (`Slam("smoother", window_distance=10.0)`) and a',
+        "comma-separated list of `sweep` (every combination runs). `compare --window` and",
+        "`compare --relinearize-every` take lists too: one smoother per (W, K), each row labelled with what ran",
+        "(`smoother W=20..120 D=18 K=1`: at least 20 poses, more until the window's path is 18 m, at most 120;",
+        "`smoother W=5 K=1` with `--window-distance 0`: exactly 5 poses).",
+        "",
+        "Owners: `ekf`, `smoother`, `batch`, `front-end` (how events become steps) and `association` configure the",
+        "estimators (a `Slam` takes those of its estimator, the front-end's and the association's); `dataset`",
+        "options read files; `replay` options choose what runs and how it is scored; `cli` options are about",
+        "output, live viewing, checkpoints and runs.",
+    ]
+    for group in GROUPS:
+        members = [o for o in OPTIONS.values() if o.group == group]
+        lines += ["", f"## {group}", "", "| option | type | default | owner | commands | what it does |"]
+        lines.append("|---|---|---|---|---|---|")
+        for o in members:
+            kind = " \\| ".join(f"`{c}`" for c in o.choices) if o.choices else o.kind.__name__
+            slam = o.estimator and (o.fits("ekf") or o.fits("smoother"))
+            commands = ", ".join((*o.commands, "Slam") if slam else o.commands)
+            shown, owners = o.shown_default() or "-", ", ".join(o.owners)
+            row = (f"`{o.flag}`", kind, shown, owners, commands, o.help.replace("|", "\\|"))
+            lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines) + "\n"
