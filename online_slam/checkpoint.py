@@ -53,7 +53,9 @@ T = TypeVar("T")
 
 # -- objects <-> trees ---------------------------------------------------------------------------------------
 def to_tree(value: Any) -> Any:
-    """The state tree of a value: dataclasses become dicts of their saved fields; arrays are copied.
+    """The state tree of a value: dataclasses become dicts of their saved fields, sets lists.
+
+    The tree shares the value's arrays: write it (:func:`write_checkpoint`) before the value changes.
 
     Raises:
         TypeError: A value that cannot be saved (an object array, a function, an object without ``to_tree``).
@@ -63,7 +65,7 @@ def to_tree(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         if value.dtype == object:
             raise TypeError("object arrays cannot be checkpointed")
-        return value.copy()
+        return value
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, dict):
@@ -81,6 +83,8 @@ def to_tree(value: Any) -> Any:
 
 def from_tree(hint: Any, tree: Any) -> Any:
     """Rebuild a value of type ``hint`` (a class or a type hint such as ``dict[int, list[Array]]``) from its tree.
+
+    Arrays are the tree's own (not copied).
 
     Raises:
         TypeError, ValueError, KeyError: The tree does not fit the type.
@@ -175,7 +179,7 @@ class Checkpointed:
         return to_tree(self)
 
     def load_state(self, tree: Any) -> None:
-        """Take the state of a :meth:`state_dict` (derived fields rebuilt)."""
+        """Take the state of a :meth:`state_dict` (derived fields rebuilt; the tree's arrays become its own)."""
         loaded = from_tree(type(self), tree)
         for f in dataclasses.fields(loaded):  # type: ignore[arg-type]
             setattr(self, f.name, getattr(loaded, f.name))
@@ -192,9 +196,13 @@ _ARRAY, _ARRAYS, _FLOATS, _FLOAT, _TUPLE, _PAIRS = (
 )
 
 
-def _ragged(items: list) -> bool:
-    """Whether a list is arrays of one dtype that differ only in their first dimension (stored as one)."""
+def _one_array(items: list) -> bool:
+    """Whether a list is stored as one array: floats, or arrays of one dtype differing only in their first dimension."""
+    if not items:
+        return False
     first = items[0]
+    if type(first) is float:
+        return all(type(v) is float for v in items)
     if not isinstance(first, np.ndarray) or first.ndim == 0 or first.dtype == object:
         return False
     return all(
@@ -215,16 +223,17 @@ def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
     if isinstance(value, float):
         return value if math.isfinite(value) else {_FLOAT: struct.pack("<d", value).hex()}
     if isinstance(value, dict):
-        if all(isinstance(k, str) and not k.startswith("__") for k in value):
+        keys, values = list(value), list(value.values())
+        if all(isinstance(k, str) and not k.startswith("__") for k in keys) and not _one_array(values):
             return {k: _pack(v, arrays) for k, v in value.items()}
-        return {_PAIRS: [[_pack(k, arrays), _pack(v, arrays)] for k, v in value.items()]}
+        return {_PAIRS: [_pack(keys, arrays), _pack(values, arrays)]}
     if isinstance(value, tuple):
         return {_TUPLE: [_pack(v, arrays) for v in value]}
     if isinstance(value, list):
-        if value and all(type(v) is float for v in value):
+        if _one_array(value) and type(value[0]) is float:
             arrays.append(np.array(value, dtype=np.float64))
             return {_FLOATS: len(arrays) - 1}
-        if value and _ragged(value):
+        if _one_array(value):
             arrays.append(np.concatenate(value))
             arrays.append(np.array([len(a) for a in value], dtype=np.int64))
             return {_ARRAYS: [len(arrays) - 2, len(arrays) - 1]}
@@ -253,12 +262,8 @@ def _unpack(value: Any, arrays: dict[int, np.ndarray]) -> Any:
         if tag == _TUPLE:
             return tuple(_unpack(v, arrays) for v in body)
         if tag == _PAIRS:
-            return {_hashable(_unpack(k, arrays)): _unpack(v, arrays) for k, v in body}
+            return dict(zip(_unpack(body[0], arrays), _unpack(body[1], arrays), strict=True))
     return {k: _unpack(v, arrays) for k, v in value.items()}
-
-
-def _hashable(value: Any) -> Any:
-    return tuple(_hashable(v) for v in value) if isinstance(value, list) else value
 
 
 def write_checkpoint(path: str | Path, kind: str, state: Any) -> None:

@@ -74,7 +74,7 @@ def test_kill_9_half_way_then_resume_gives_the_uninterrupted_figures(stream, tmp
         while steps < 500 and time.monotonic() < deadline:  # wait until it is half-way
             time.sleep(0.05)
             try:
-                steps = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"]
+                steps = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"]
             except Exception:  # noqa: BLE001 - not written yet
                 steps = 0
         assert process.poll() is None, "the replay ended before it could be killed"
@@ -85,7 +85,7 @@ def test_kill_9_half_way_then_resume_gives_the_uninterrupted_figures(stream, tmp
             process.kill()
             process.wait()
     assert process.returncode == -signal.SIGKILL
-    saved = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"]
+    saved = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"]
     assert 500 <= saved < 1000 and saved % 100 == 0
     out = tmp_path / "resumed.json"
     done = cli("replay", str(path), "--resume", str(folder), "--json", str(out), "--quiet")
@@ -174,15 +174,15 @@ def test_a_checkpoint_that_cannot_be_written_stops_the_replay_and_keeps_the_last
     written: list[int] = []
     real = pipeline.write_checkpoint
 
-    def disk_full(target: Path, kind: str, state: dict) -> None:
+    def disk_full(target: Path, kind: str, state: pipeline._ReplayCheckpoint) -> None:
         if len(written) == 2:
             raise OnlineSlamError(f"cannot write checkpoint {target}: No space left on device")
-        written.append(state["engine"]["steps"])
+        written.append(state.engine.state.steps)
         real(target, kind, state)
 
     monkeypatch.setattr(pipeline, "write_checkpoint", disk_full)
     results = pipeline.replay(str(path), checkpoint=pipeline.Checkpointing(folder, 50))
     assert results.error is not None and "No space left on device" in results.error
     assert results.poses == 151 and written == [50, 100]  # the pose pending at the failure is kept
-    assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"] == 100
+    assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"] == 100
     assert sorted(p.name for p in folder.iterdir()) == ["replay.ckpt"]
