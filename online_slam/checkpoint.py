@@ -216,7 +216,7 @@ def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
     if isinstance(value, np.ndarray):
         if value.dtype == object:
             raise TypeError("object arrays cannot be checkpointed")
-        arrays.append(np.ascontiguousarray(value))
+        arrays.append(np.asarray(value, order="C"))  # (ascontiguousarray would make a 0-d array 1-d)
         return {_ARRAY: len(arrays) - 1}
     if isinstance(value, np.generic):
         return _pack(value.item(), arrays)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from online_slam.checkpoint import read_checkpoint
+from online_slam.checkpoint import FORMAT_VERSION, read_checkpoint
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import GridConfig, grid_world
 
@@ -123,16 +123,17 @@ def test_damaged_foreign_and_other_version_checkpoints_are_one_line_exit_2(strea
     (cut / "replay.ckpt").write_bytes(data[: len(data) // 3])
     assert "not a usable checkpoint" in refused(cut, small)
     assert "another source" in refused(good, path)  # another file
-    version = tmp_path / "version"
-    version.mkdir()
+    for other in (FORMAT_VERSION - 1, 99):  # a file of the previous layout, one of a later version
+        version = tmp_path / f"version{other}"
+        version.mkdir()
 
-    def bump(members: dict) -> None:
-        manifest = json.loads(members["manifest.json"])
-        manifest["format_version"] = 99
-        members["manifest.json"] = json.dumps(manifest).encode()
+        def bump(members: dict, other: int = other) -> None:
+            manifest = json.loads(members["manifest.json"])
+            manifest["format_version"] = other
+            members["manifest.json"] = json.dumps(manifest).encode()
 
-    _rewrite(checkpoint, version / "replay.ckpt", bump)
-    assert "format version 99" in refused(version, small)
+        _rewrite(checkpoint, version / "replay.ckpt", bump)
+        assert f"format version {other}; this version reads {FORMAT_VERSION}" in refused(version, small)
     settings = refused(good, small, "--window", "7")
     assert "other settings" in settings
     missing = refused(tmp_path / "nowhere", small)
