@@ -73,12 +73,20 @@ def to_tree(value: Any) -> Any:
     if isinstance(value, tuple):
         return tuple(to_tree(v) for v in value)
     if isinstance(value, (list, set, frozenset)):
-        return [to_tree(v) for v in value]
+        items = list(value)
+        kinds = {type(v) for v in items}
+        if kinds <= _LEAVES:  # nothing to convert (the common case: a long list of numbers, ids or arrays)
+            return items
+        return [to_tree(v) for v in items]
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
     if callable(getattr(type(value), "to_tree", None)):
         return to_tree(value.to_tree())
     raise TypeError(f"cannot checkpoint a {type(value).__name__}")
+
+
+_LEAVES = {bool, int, float, str, type(None), np.ndarray}
+"""Types that are their own tree."""
 
 
 def from_tree(hint: Any, tree: Any) -> Any:
@@ -196,19 +204,21 @@ _ARRAY, _ARRAYS, _FLOATS, _FLOAT, _TUPLE, _PAIRS = (
 )
 
 
-def _one_array(items: list) -> bool:
-    """Whether a list is stored as one array: floats, or arrays of one dtype differing only in their first dimension."""
-    if not items:
-        return False
-    first = items[0]
-    if type(first) is float:
-        return all(type(v) is float for v in items)
-    if not isinstance(first, np.ndarray) or first.ndim == 0 or first.dtype == object:
-        return False
-    return all(
-        isinstance(a, np.ndarray) and a.dtype == first.dtype and a.ndim == first.ndim and a.shape[1:] == first.shape[1:]
-        for a in items
-    )
+_JSON = {bool, int, str, type(None)}
+"""Types JSON holds as they are (floats aside: NaN and infinities are not JSON)."""
+
+
+def _one_array(items: list) -> str | None:
+    """How a list is stored as one array: ``floats``, ``arrays`` (of one dtype, differing only in their first
+    dimension), or None (it is not)."""
+    kinds = {type(v) for v in items}
+    if kinds == {float}:
+        return _FLOATS
+    if kinds != {np.ndarray}:
+        return None
+    layouts = {(a.dtype.kind, a.dtype, a.ndim, a.shape[1:]) for a in items}
+    kind, _, ndim, _ = layouts.pop()
+    return _ARRAYS if not layouts and ndim > 0 and kind != "O" else None
 
 
 def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
@@ -230,13 +240,16 @@ def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
     if isinstance(value, tuple):
         return {_TUPLE: [_pack(v, arrays) for v in value]}
     if isinstance(value, list):
-        if _one_array(value) and type(value[0]) is float:
+        stored = _one_array(value)
+        if stored == _FLOATS:
             arrays.append(np.array(value, dtype=np.float64))
             return {_FLOATS: len(arrays) - 1}
-        if _one_array(value):
+        if stored == _ARRAYS:
             arrays.append(np.concatenate(value))
             arrays.append(np.array([len(a) for a in value], dtype=np.int64))
             return {_ARRAYS: [len(arrays) - 2, len(arrays) - 1]}
+        if {type(v) for v in value} <= _JSON:
+            return value
         return [_pack(v, arrays) for v in value]
     if value is None or isinstance(value, (bool, int, str)):
         return value

@@ -197,6 +197,8 @@ def test_trees_that_do_not_fit_the_type_are_refused(hint: Any, tree: Any, error:
 
 
 @pytest.mark.parametrize("value", [np.array([object()]), object(), lambda: 1])
-def test_values_that_are_not_data_are_refused(value: Any) -> None:
-    with pytest.raises(TypeError):
-        to_tree({"x": value})
+def test_values_that_are_not_data_are_refused(value: Any, tmp_path: Path) -> None:
+    for state in ({"x": value}, {"x": [1, value]}, {"x": [value, value]}):
+        with pytest.raises(TypeError):
+            write_checkpoint(tmp_path / "x.ckpt", "test", state)
+    assert not list(tmp_path.iterdir())
