@@ -53,7 +53,7 @@ T = TypeVar("T")
 
 # -- objects <-> trees ---------------------------------------------------------------------------------------
 def to_tree(value: Any) -> Any:
-    """The state tree of a value: dataclasses become dicts of their saved fields, sets lists.
+    """The state tree of a value: dataclasses become dicts of their saved fields, sets sorted lists.
 
     The tree shares the value's arrays: write it (:func:`write_checkpoint`) before the value changes.
 
@@ -73,7 +73,7 @@ def to_tree(value: Any) -> Any:
     if isinstance(value, tuple):
         return tuple(to_tree(v) for v in value)
     if isinstance(value, (list, set, frozenset)):
-        items = list(value)
+        items = list(value) if isinstance(value, list) else sorted(value, key=repr)  # same state, same file
         kinds = {type(v) for v in items}
         if kinds <= _LEAVES:  # nothing to convert (the common case: a long list of numbers, ids or arrays)
             return items
@@ -137,14 +137,15 @@ def _from_scalar(hint: type, tree: Any) -> Any:
 def _from_union(args: tuple, tree: Any) -> Any:
     if tree is None and type(None) in args:
         return None
+    errors = []
     for arg in args:
         if arg is type(None):
             continue
         try:
             return from_tree(arg, tree)
-        except (TypeError, ValueError, KeyError):
-            continue
-    raise TypeError(f"{type(tree).__name__} fits none of {args}")
+        except (TypeError, ValueError, KeyError) as exc:
+            errors.append(f"not {getattr(arg, '__name__', arg)}: {exc}")
+    raise TypeError("; ".join(errors) or f"expected None, got {type(tree).__name__}")
 
 
 def _from_container(container: type, args: tuple, tree: Any) -> Any:

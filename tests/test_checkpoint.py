@@ -16,8 +16,13 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from numpy.typing import NDArray
 
+from online_slam import pipeline
 from online_slam.checkpoint import Checkpointed, from_tree, read_checkpoint, to_tree, write_checkpoint
 from online_slam.estimators.history import PoseHistory
+from online_slam.estimators.smoother import SmootherConfig
+from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
+from online_slam.pipeline import ReplayConfig
+from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, without_ids
 
 DTYPES = (np.float64, np.float32, np.int64, np.int32, np.uint8, np.bool_, np.complex128)
 
@@ -202,3 +207,34 @@ def test_values_that_are_not_data_are_refused(value: Any, tmp_path: Path) -> Non
         with pytest.raises(TypeError):
             write_checkpoint(tmp_path / "x.ckpt", "test", state)
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("world", "config"),
+    [
+        ("ids", ReplayConfig()),
+        ("ids", ReplayConfig(frontend=FrontEndConfig(KeyframeConfig(1.0, 0.5), first_observation_only=True))),
+        ("contaminated", ReplayConfig(extra_smoothers=(SmootherConfig(window=5),))),
+        ("without ids", ReplayConfig(association="jcbb")),
+    ],
+)
+def test_every_state_a_replay_saves_is_rebuilt_by_its_types(
+    world: str, config: ReplayConfig, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Checkpoints every 7 steps of varied runs read back as their dataclasses (a wrong type hint fails here)."""
+    events: Any = grid_world(GridConfig(poses=120, seed=4))
+    if world == "contaminated":
+        events = contaminate(events, Contamination(wrong_ids=0.1, clutter=0.2, seed=2))
+    if world == "without ids":
+        events = without_ids(events)
+    read: list[int] = []
+
+    def write_and_read(target: Path, kind: str, state: Any) -> None:
+        write_checkpoint(target, kind, state)
+        back = read_checkpoint(target, kind, pipeline._ReplayCheckpoint)
+        read.append(back.engine.state.steps)
+        assert_identical(to_tree(back), to_tree(state))
+
+    monkeypatch.setattr(pipeline, "write_checkpoint", write_and_read)
+    pipeline.replay(list(events), config, checkpoint=pipeline.Checkpointing(tmp_path, 7), validate=False)
+    assert read == list(range(7, 121, 7))

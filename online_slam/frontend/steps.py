@@ -115,7 +115,7 @@ class PendingStep:
     prior: Array | None = None
     prior_cov: Array | None = None
     merged: int = 1
-    landmarks: list[LandmarkId] = field(default_factory=list)
+    landmarks: list[LandmarkId | None] = field(default_factory=list)
     z: list[tuple[float, float]] = field(default_factory=list)
     z_noise: list[Any] = field(default_factory=list)  # per sighting: its sigma (2,) or its covariance (2, 2)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
@@ -185,7 +185,7 @@ class FrontEnd:
     """The newest pose (None before the first event); ``pending.sealed`` once an estimator has seen it."""
     sightings: int = 0
     """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
-    _seen: set[LandmarkId] = field(default_factory=set)
+    _seen: set[LandmarkId | None] = field(default_factory=set)
     """Landmarks sighted so far (kept for ``first_observation_only``)."""
     _sigma_covariance: tuple[tuple[float, ...], Array] | None = field(default=None, init=False, repr=False)
     """The odometry covariance of the last sigma, shared while the sigma stays the same."""
