@@ -77,7 +77,7 @@ class Engine:
         if len(set(names)) != len(names):
             raise ValueError(f"estimator names repeat: {', '.join(names)}")
         self.estimators = list(estimators)
-        self.frontend = FrontEnd(frontend or FrontEndConfig())
+        self.frontend = FrontEnd(frontend)
         self.state = EngineState()
         self.records = records
         self._latest: dict[str, Snapshot] = {}

@@ -173,8 +173,8 @@ class FrontEnd:
     set by ``__init__`` are its whole state (a checkpoint holds them).
     """
 
-    config: FrontEndConfig = field(default_factory=FrontEndConfig)
-    """Keyframing and the first-observation-only ablation."""
+    config: FrontEndConfig | None = None
+    """Keyframing and the first-observation-only ablation (None: the defaults)."""
     header: Header | None = None
     """The stream's header, if it had one."""
     truth: GroundTruth = field(default_factory=GroundTruth)
@@ -189,6 +189,9 @@ class FrontEnd:
     """Landmarks sighted so far (kept for ``first_observation_only``)."""
     _sigma_covariance: tuple[tuple[float, ...], Array] | None = field(default=None, init=False, repr=False)
     """The odometry covariance of the last sigma, shared while the sigma stays the same."""
+
+    def __post_init__(self) -> None:
+        self.config = self.config or FrontEndConfig()
 
     def _count(self, key: str) -> None:
         self.counts[key] = self.counts.get(key, 0) + 1
