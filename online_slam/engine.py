@@ -14,14 +14,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from online_slam.estimators.protocol import Estimator, Snapshot
-from online_slam.frontend.steps import FrontEnd, FrontEndConfig, PendingStep, Step
-from online_slam.sources.events import Event, Header
+from online_slam.frontend.steps import FrontEnd, FrontEndConfig, Step
+from online_slam.sources.events import Event
 
 
 @dataclass(frozen=True)
@@ -34,6 +32,32 @@ class StepRecord:
     """Each estimator's estimate right after the step, by name."""
     seconds: dict[str, float]
     """Wall time each estimator spent on this step (all of its calls), by name."""
+
+
+@dataclass(eq=False)
+class EngineState:
+    """What the engine itself remembers between events (its front-end and estimators hold the rest)."""
+
+    steps: int = 0
+    """Complete steps so far."""
+    observations: int = 0
+    """Observations in complete steps so far."""
+    given: int = -1
+    """Observations of the pending step the estimators have (-1: not even its pose)."""
+    seconds: dict[str, float] = field(default_factory=dict)
+    """Wall time each estimator spent on the pending step so far, by name."""
+
+
+@dataclass(eq=False)
+class EngineCheckpoint:
+    """An engine's whole state (:meth:`Engine.checkpoint`, :meth:`Engine.restore`)."""
+
+    state: EngineState
+    """The engine's own counters."""
+    frontend: FrontEnd
+    """The front-end: its position in the stream, truth, the pending pose."""
+    estimators: dict[str, Any]
+    """Each estimator's ``state_dict()``, by name."""
 
 
 class Engine:
@@ -54,14 +78,19 @@ class Engine:
             raise ValueError(f"estimator names repeat: {', '.join(names)}")
         self.estimators = list(estimators)
         self.frontend = FrontEnd(frontend)
-        self.steps = 0
-        """Complete steps so far."""
-        self.observations = 0
-        """Observations in complete steps so far."""
+        self.state = EngineState()
         self.records = records
-        self._given = -1  # observations of the pending step the estimators have (-1: not even its pose)
         self._latest: dict[str, Snapshot] = {}
-        self._seconds: dict[str, float] = {}
+
+    @property
+    def steps(self) -> int:
+        """Complete steps so far."""
+        return self.state.steps
+
+    @property
+    def observations(self) -> int:
+        """Observations in complete steps so far."""
+        return self.state.observations
 
     def push(self, event: Event) -> StepRecord | None:
         """Consume one validated event.
@@ -99,9 +128,9 @@ class Engine:
     def _deliver(self, step: Step) -> None:
         """Give the estimators whatever of this (newest) step they have not seen."""
         k = len(step.landmarks)
-        if self._given >= 0 and k == self._given:
+        if self.state.given >= 0 and k == self.state.given:
             return
-        given, latest = self._given, self._latest
+        given, latest = self.state.given, self._latest
         for estimator in self.estimators:
             if not self.records:
                 latest[estimator.name] = estimator.step(step) if given < 0 else estimator.extend(step, given)
@@ -109,106 +138,33 @@ class Engine:
             started = time.perf_counter()
             latest[estimator.name] = estimator.step(step) if given < 0 else estimator.extend(step, given)
             elapsed = time.perf_counter() - started
-            self._seconds[estimator.name] = self._seconds.get(estimator.name, 0.0) + elapsed
-        self._given = k
+            self.state.seconds[estimator.name] = self.state.seconds.get(estimator.name, 0.0) + elapsed
+        self.state.given = k
 
     def _complete(self, step: Step) -> StepRecord | None:
         self._deliver(step)
-        self.steps += 1
-        self.observations += len(step.landmarks)
+        self.state.steps += 1
+        self.state.observations += len(step.landmarks)
         if not self.records:
-            self._given, self._latest = -1, {}
+            self.state.given, self._latest = -1, {}
             return None
         for estimator in self.estimators:  # after a checkpoint was loaded mid-step, nothing new to deliver
             if estimator.name not in self._latest:
                 self._latest[estimator.name] = estimator.snapshot(step)
-                self._seconds.setdefault(estimator.name, 0.0)
-        record = StepRecord(step, self._latest, self._seconds)
-        self._given, self._latest, self._seconds = -1, {}, {}
+                self.state.seconds.setdefault(estimator.name, 0.0)
+        record = StepRecord(step, self._latest, self.state.seconds)
+        self.state.given, self._latest, self.state.seconds = -1, {}, {}
         return record
 
     # -- checkpoints -------------------------------------------------------------------------------
-    def state_dict(self) -> dict[str, Any]:
-        """The front-end's position and every estimator's state (numbers, strings, lists, dicts, arrays)."""
-        fe = self.frontend
-        pending = fe.pending
-        return {
-            "steps": self.steps,
-            "observations": self.observations,
-            "given": self._given,
-            "seconds": dict(self._seconds),
-            "frontend": {
-                "header": None if fe.header is None else {"name": fe.header.name, "meta": fe.header.meta},
-                "truth_indices": np.array(list(fe.truth.poses), dtype=np.int64),
-                "truth_poses": np.array(list(fe.truth.poses.values()), dtype=float).reshape(-1, 3),
-                "truth_landmark_ids": list(fe.truth.landmarks),
-                "truth_landmarks": np.array(list(fe.truth.landmarks.values()), dtype=float).reshape(-1, 2),
-                "counts": dict(fe.counts),
-                "sightings": fe.sightings,
-                "outliers": {str(k): v for k, v in fe.truth.outliers.items()},
-                "seen": list(fe._seen),
-                "pending": None if pending is None else _pending_state(pending),
-            },
-            "estimators": {e.name: e.state_dict() for e in self.estimators},
-        }
+    def checkpoint(self) -> EngineCheckpoint:
+        """The whole state: the engine's, the front-end's and every estimator's (sharing their arrays)."""
+        return EngineCheckpoint(self.state, self.frontend, {e.name: e.state_dict() for e in self.estimators})
 
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Restore a :meth:`state_dict` into an engine built with the same estimators and configuration."""
-        if sorted(state["estimators"]) != sorted(e.name for e in self.estimators):
+    def restore(self, saved: EngineCheckpoint) -> None:
+        """Continue from a :meth:`checkpoint` of an engine built with the same estimators and configuration."""
+        if sorted(saved.estimators) != sorted(e.name for e in self.estimators):
             raise ValueError("the checkpoint holds other estimators")
-        self.steps, self.observations = int(state["steps"]), int(state["observations"])
-        self._given = int(state["given"])
-        self._seconds = {str(k): float(v) for k, v in state["seconds"].items()}
-        self._latest = {}
-        fe, saved = self.frontend, state["frontend"]
-        header = saved["header"]
-        fe.header = None if header is None else Header(name=header["name"], meta=dict(header["meta"]))
-        poses = np.array(saved["truth_poses"], dtype=float).reshape(-1, 3)
-        fe.truth.poses = {int(i): p.copy() for i, p in zip(saved["truth_indices"], poses)}
-        positions = np.array(saved["truth_landmarks"], dtype=float).reshape(-1, 2)
-        fe.truth.landmarks = {lid: p.copy() for lid, p in zip(saved["truth_landmark_ids"], positions)}
-        fe.counts = {str(k): int(v) for k, v in saved["counts"].items()}
-        fe.sightings = int(saved["sightings"])
-        fe.truth.outliers = {int(k): str(v) for k, v in saved["outliers"].items()}
-        fe._seen = set(saved["seen"])
-        fe.pending = None if saved["pending"] is None else _pending_from(saved["pending"])
+        self.state, self.frontend, self._latest = saved.state, saved.frontend, {}
         for estimator in self.estimators:
-            estimator.load_state(state["estimators"][estimator.name])
-
-
-def _pending_state(p: PendingStep) -> dict[str, Any]:
-    return {
-        "index": p.index,
-        "t": p.t,
-        "t_begin": p.t_begin,
-        "odometry": p.odometry,
-        "odometry_cov": p.odometry_cov,
-        "prior": p.prior,
-        "prior_cov": p.prior_cov,
-        "merged": p.merged,
-        "landmarks": list(p.landmarks),
-        "z": np.array(p.z, dtype=float).reshape(-1, 2),
-        "z_cov": p.z_covariances(),
-        "sealed": p.sealed,
-    }
-
-
-def _pending_from(s: dict[str, Any]) -> PendingStep:
-    def array(value: Any) -> np.ndarray | None:
-        return None if value is None else np.array(value, dtype=float)
-
-    return PendingStep(
-        index=int(s["index"]),
-        t=float(s["t"]),
-        t_begin=float(s["t_begin"]),
-        odometry=array(s["odometry"]),
-        odometry_cov=array(s["odometry_cov"]),
-        prior=array(s["prior"]),
-        prior_cov=array(s["prior_cov"]),
-        merged=int(s["merged"]),
-        landmarks=list(s["landmarks"]),
-        z=[(float(r), float(b)) for r, b in np.array(s["z"], dtype=float).reshape(-1, 2)],
-        z_noise=[c.copy() for c in np.array(s["z_cov"], dtype=float).reshape(-1, 2, 2)],
-        full_covariance=True,
-        sealed=bool(s["sealed"]),
-    )
+            estimator.load_state(saved.estimators[estimator.name])

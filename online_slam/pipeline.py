@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
-from online_slam.engine import Engine, StepRecord
+from online_slam.engine import Engine, EngineCheckpoint, StepRecord
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
@@ -34,7 +34,7 @@ from online_slam.evaluation.scoring import evaluate, online_figures, outlier_rep
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.importers.resolve import open_source
 from online_slam.sinks.protocol import ReplaySink
-from online_slam.sources.events import Event, Observation, Scan
+from online_slam.sources.events import Event, LandmarkId, Observation, Scan
 from online_slam.sources.validate import validate_events
 
 Array = NDArray[np.float64]
@@ -155,16 +155,20 @@ def estimator_names(config: ReplayConfig) -> tuple[tuple[str, ...], tuple[str, .
     return online, tuple(e.name for e in estimators if not e.online)
 
 
-@dataclass
+@dataclass(eq=False)
 class _Track:
-    """What the pipeline records of one estimator while it runs."""
+    """What the pipeline records of one estimator while it runs (a checkpoint holds it)."""
 
-    estimator: Estimator
     poses: list[Array] = field(default_factory=list)
+    """The newest pose after each step, shape (3,)."""
     covariances: list[Array | None] = field(default_factory=list)
+    """Its covariance (3, 3), or None."""
     seconds: list[float] = field(default_factory=list)
+    """Wall time of each step."""
     times: list[float] = field(default_factory=list)
+    """Time of each step."""
     nis: list[float] = field(default_factory=list)
+    """Mean NIS of each step's sightings (NaN without)."""
 
     def record(self, snapshot: Snapshot, seconds: float) -> None:
         self.poses.append(snapshot.pose)
@@ -217,32 +221,28 @@ class _SourcePosition:
         return f"{self.consumed}:{self._head.hexdigest()}:{hashlib.sha256(self.last.encode()).hexdigest()}"
 
 
-def _tracks_state(tracks: dict[str, _Track]) -> dict[str, Any]:
-    out = {}
-    for name, track in tracks.items():
-        covs = np.array([np.full((3, 3), np.nan) if c is None else c for c in track.covariances]).reshape(-1, 3, 3)
-        out[name] = {
-            "poses": np.array(track.poses).reshape(-1, 3),
-            "covariances": covs,
-            "has_covariance": np.array([c is not None for c in track.covariances], dtype=bool),
-            "seconds": np.array(track.seconds, dtype=float),
-            "times": np.array(track.times, dtype=float),
-            "nis": np.array(track.nis, dtype=float),
-        }
-    return out
+@dataclass(eq=False)
+class _ReplayCheckpoint:
+    """What a replay's checkpoint holds."""
 
-
-def _load_tracks(tracks: dict[str, _Track], state: dict[str, Any]) -> None:
-    if sorted(state) != sorted(tracks):
-        raise ValueError("the checkpoint holds other estimators")
-    for name, track in tracks.items():
-        saved = state[name]
-        track.poses = [row.copy() for row in np.array(saved["poses"], dtype=float).reshape(-1, 3)]
-        covs = np.array(saved["covariances"], dtype=float).reshape(-1, 3, 3)
-        track.covariances = [c.copy() if ok else None for c, ok in zip(covs, saved["has_covariance"])]
-        track.seconds = [float(v) for v in saved["seconds"]]
-        track.times = [float(v) for v in saved["times"]]
-        track.nis = [float(v) for v in saved["nis"]]
+    source: str
+    """The source's name (a resumed replay must read the same)."""
+    settings: str
+    """The replay's configuration (``repr``; a resumed replay must have the same)."""
+    consumed: int
+    """Events taken from the source."""
+    fingerprint: str
+    """Of those events (see :class:`_SourcePosition`)."""
+    skipped: dict[str, int]
+    """Lines skipped so far, by reason."""
+    engine: EngineCheckpoint
+    """The engine, its front-end and its estimators."""
+    tracks: dict[str, _Track]
+    """What was recorded of each estimator, by name."""
+    step_times: list[float]
+    """Time of each complete step."""
+    sighting_ids: list[LandmarkId | None]
+    """The stream's id of every sighting (association scoring)."""
 
 
 def replay(
@@ -308,42 +308,35 @@ def replay(
     sighting_ids: list = []  # the stream's id of every sighting, to score association (nn/jcbb) with
     odometry = DeadReckoning()
     engine = Engine([odometry, *estimators], cfg.frontend)
-    tracks = {e.name: _Track(e) for e in estimators}
+    tracks = {e.name: _Track() for e in estimators}
     step_times: list[float] = []
     settings = repr(cfg)
     expected_fingerprint = None
     if resume is not None:
         where = Path(resume) / CHECKPOINT_FILE
-        state = read_checkpoint(where, "replay")
+        saved = read_checkpoint(where, "replay", _ReplayCheckpoint)
+        if saved.source != label:
+            raise InputError(str(where), 0, "", f"checkpoint of another source ({saved.source!r}, not {label!r})")
+        if saved.settings != settings:
+            raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
         try:
-            if state["source"] != label:
-                raise InputError(
-                    str(where), 0, "", f"checkpoint of another source ({state['source']!r}, not {label!r})"
-                )
-            if state["settings"] != settings:
-                raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
-            engine.load_state(state["engine"])
-            _load_tracks(tracks, state["tracks"])
-            step_times.extend(float(t) for t in state["step_times"])
-            sighting_ids.extend(state["sighting_ids"])
-            skipped.update({str(k): int(v) for k, v in state["skipped"].items()})
-            catching_up, expected_fingerprint = int(state["consumed"]), str(state["fingerprint"])
+            if sorted(saved.tracks) != sorted(tracks):
+                raise ValueError("the checkpoint holds other estimators")
+            engine.restore(saved.engine)
+            tracks.update(saved.tracks)
+            step_times.extend(saved.step_times)
+            sighting_ids.extend(saved.sighting_ids)
+            skipped.update(saved.skipped)
+            catching_up, expected_fingerprint = saved.consumed, saved.fingerprint
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             raise InputError(str(where), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
 
     def save() -> None:
         assert checkpoint is not None
-        state = {
-            "source": label,
-            "settings": settings,
-            "consumed": position.consumed,
-            "fingerprint": position.fingerprint,
-            "skipped": dict(skipped),
-            "engine": engine.state_dict(),
-            "tracks": _tracks_state(tracks),
-            "step_times": np.array(step_times, dtype=float),
-            "sighting_ids": list(sighting_ids),
-        }
+        state = _ReplayCheckpoint(
+            label, settings, position.consumed, position.fingerprint, skipped, engine.checkpoint(), tracks,
+            step_times, sighting_ids,
+        )  # fmt: skip
         try:
             write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
         except OnlineSlamError as exc:  # stop here as at a bad line: report what was estimated
@@ -392,13 +385,11 @@ def replay(
     truth = engine.frontend.truth
     header_meta = engine.frontend.header.meta if engine.frontend.header is not None else {}
     estimates: dict[str, Estimate] = {"odometry": odometry.finish()}
-    ordered = sorted(
-        tracks.values(), key=lambda tr: isinstance(tr.estimator, BatchEstimator)
-    )  # batch may start from another
+    ordered = sorted(estimators, key=lambda e: isinstance(e, BatchEstimator))  # batch may start from another
     figures: dict[str, EstimatorResult] = {}
     series: dict[str, Series] = {}
-    for track in ordered:
-        estimator = track.estimator
+    for estimator in ordered:
+        track = tracks[estimator.name]
         started = time.perf_counter()
         source = cfg.batch.initial
         if source == "auto":  # the (first) smoother's estimate, else the EKF's, else composed odometry

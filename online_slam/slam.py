@@ -9,7 +9,6 @@ replay gives the same numbers).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -21,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
-from online_slam.engine import Engine
+from online_slam.engine import Engine, EngineCheckpoint
 from online_slam.errors import ConfigError, InputError
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.estimators.protocol import Snapshot
@@ -279,12 +278,9 @@ class Slam:
     # -- checkpoints ---------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:
         """Write the whole state to ``path`` atomically (data only; see :mod:`online_slam.checkpoint`)."""
-        state = {
-            "estimator": self.estimator_name,
-            "options": dict(self.options),
-            "validator": dataclasses.asdict(self._validator.state),
-            "engine": self._engine.state_dict(),
-        }
+        state = SlamCheckpoint(
+            self.estimator_name, dict(self.options), self._validator.state, self._engine.checkpoint()
+        )
         write_checkpoint(path, _CHECKPOINT_KIND, state)
 
     @classmethod
@@ -294,11 +290,25 @@ class Slam:
         Raises:
             InputError: Missing, truncated, damaged or altered file, or one of another kind or version.
         """
-        state = read_checkpoint(path, _CHECKPOINT_KIND)
+        saved = read_checkpoint(path, _CHECKPOINT_KIND, SlamCheckpoint)
         try:
-            slam = cls(state["estimator"], **state["options"])
-            slam._validator.state = ValidatorState(**state["validator"])
-            slam._engine.load_state(state["engine"])
+            slam = cls(saved.estimator, **saved.options)
+            slam._validator.state = saved.validator
+            slam._engine.restore(saved.engine)
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
+
+
+@dataclass(eq=False)
+class SlamCheckpoint:
+    """What :meth:`Slam.save` writes."""
+
+    estimator: str
+    """The estimator's name."""
+    options: dict[str, Any]
+    """The options it was built with."""
+    validator: ValidatorState
+    """What the input checks remember (time, first pose)."""
+    engine: EngineCheckpoint
+    """The engine's, the front-end's and the estimator's state."""

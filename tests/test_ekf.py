@@ -143,7 +143,7 @@ def test_a_moved_landmark_is_reanchored_and_a_drifted_filter_uses_persistent_sig
     for index in range(2, 2 + REANCHOR_AFTER - 1):
         assert ekf.step(step_with(index, ("a", "b"), moved, odometry=np.zeros(3))).info["gated"] == ("a",)
     snap = ekf.step(step_with(2 + REANCHOR_AFTER - 1, ("a", "b"), moved, odometry=np.zeros(3)))
-    assert snap.info["gated"] == () and ekf.reanchored == 1
+    assert snap.info["gated"] == () and ekf.state.reanchored == 1
     expected = 3.0 * np.array([np.cos(1.5), np.sin(1.5)])
     assert np.allclose(snap.landmarks[0], expected, atol=1e-6) and np.allclose(snap.pose, 0.0, atol=1e-6)
     # Every confirmed landmark fails by one robot offset: the filter drifted. After gate_persistence - 1
@@ -161,7 +161,7 @@ def test_a_moved_landmark_is_reanchored_and_a_drifted_filter_uses_persistent_sig
             "c",
         )
     snap = ekf.step(step_with(1 + persistence, ("a", "b", "c"), shifted, odometry=np.zeros(3)))
-    assert snap.info["gated"] == () and snap.pose[2] < -0.5 and ekf.reanchored == 0
+    assert snap.info["gated"] == () and snap.pose[2] < -0.5 and ekf.state.reanchored == 0
     strict = EkfSlam(EkfConfig(gate_persistence=0))
     strict.step(step_with(0, ("a", "b"), [[3.0, 0.5], [4.0, -0.5]]))
     for index in range(1, persistence + 3):

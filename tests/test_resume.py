@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from online_slam.checkpoint import read_checkpoint
+from online_slam.checkpoint import FORMAT_VERSION, read_checkpoint
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import GridConfig, grid_world
 
@@ -74,7 +74,7 @@ def test_kill_9_half_way_then_resume_gives_the_uninterrupted_figures(stream, tmp
         while steps < 500 and time.monotonic() < deadline:  # wait until it is half-way
             time.sleep(0.05)
             try:
-                steps = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"]
+                steps = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"]
             except Exception:  # noqa: BLE001 - not written yet
                 steps = 0
         assert process.poll() is None, "the replay ended before it could be killed"
@@ -85,7 +85,7 @@ def test_kill_9_half_way_then_resume_gives_the_uninterrupted_figures(stream, tmp
             process.kill()
             process.wait()
     assert process.returncode == -signal.SIGKILL
-    saved = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"]
+    saved = read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"]
     assert 500 <= saved < 1000 and saved % 100 == 0
     out = tmp_path / "resumed.json"
     done = cli("replay", str(path), "--resume", str(folder), "--json", str(out), "--quiet")
@@ -123,16 +123,17 @@ def test_damaged_foreign_and_other_version_checkpoints_are_one_line_exit_2(strea
     (cut / "replay.ckpt").write_bytes(data[: len(data) // 3])
     assert "not a usable checkpoint" in refused(cut, small)
     assert "another source" in refused(good, path)  # another file
-    version = tmp_path / "version"
-    version.mkdir()
+    for other in (FORMAT_VERSION - 1, 99):  # a file of the previous layout, one of a later version
+        version = tmp_path / f"version{other}"
+        version.mkdir()
 
-    def bump(members: dict) -> None:
-        manifest = json.loads(members["manifest.json"])
-        manifest["format_version"] = 99
-        members["manifest.json"] = json.dumps(manifest).encode()
+        def bump(members: dict, other: int = other) -> None:
+            manifest = json.loads(members["manifest.json"])
+            manifest["format_version"] = other
+            members["manifest.json"] = json.dumps(manifest).encode()
 
-    _rewrite(checkpoint, version / "replay.ckpt", bump)
-    assert "format version 99" in refused(version, small)
+        _rewrite(checkpoint, version / "replay.ckpt", bump)
+        assert f"format version {other}; this version reads {FORMAT_VERSION}" in refused(version, small)
     settings = refused(good, small, "--window", "7")
     assert "other settings" in settings
     missing = refused(tmp_path / "nowhere", small)
@@ -174,15 +175,15 @@ def test_a_checkpoint_that_cannot_be_written_stops_the_replay_and_keeps_the_last
     written: list[int] = []
     real = pipeline.write_checkpoint
 
-    def disk_full(target: Path, kind: str, state: dict) -> None:
+    def disk_full(target: Path, kind: str, state: pipeline._ReplayCheckpoint) -> None:
         if len(written) == 2:
             raise OnlineSlamError(f"cannot write checkpoint {target}: No space left on device")
-        written.append(state["engine"]["steps"])
+        written.append(state.engine.state.steps)
         real(target, kind, state)
 
     monkeypatch.setattr(pipeline, "write_checkpoint", disk_full)
     results = pipeline.replay(str(path), checkpoint=pipeline.Checkpointing(folder, 50))
     assert results.error is not None and "No space left on device" in results.error
     assert results.poses == 151 and written == [50, 100]  # the pose pending at the failure is kept
-    assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["steps"] == 100
+    assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"] == 100
     assert sorted(p.name for p in folder.iterdir()) == ["replay.ckpt"]

@@ -42,7 +42,8 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 from threadpoolctl import ThreadpoolController
 
-from online_slam.estimators.history import PoseHistory
+from online_slam.checkpoint import from_tree, to_tree
+from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.estimators.protocol import Estimate, Snapshot
@@ -107,29 +108,44 @@ class EkfSlam(ExtendedKalmanFilter):
     online = True
 
     def __init__(self, config: EkfConfig | None = None) -> None:
-        super().__init__(dim_x=3, dim_z=2)
         self.config = config or EkfConfig()
+        self.state = EkfState(LandmarkBook(self.config.association, inside=True))
+        super().__init__(dim_x=3, dim_z=2)
         self.P = np.zeros((3, 3))
         self.Q = np.zeros((3, 3))
-        self.landmark_ids: list[LandmarkId] = []
-        self._index: dict[LandmarkId, int] = {}
         self._gate = (
             math.inf if self.config.gate_probability >= 1.0 else float(chi2.ppf(self.config.gate_probability, 2))
         )
-        self.gated_total = 0
-        self.reanchored = 0
-        self._recent: dict[int, list[tuple[Array, Array]]] = {}  # recent gated sightings as (position, cov)
-        self._streak = np.zeros(0, dtype=np.int64)  # consecutive gated sightings per landmark
-        self._confirmed = np.zeros(0, dtype=bool)  # has passed the gate since it was (re)initialised
-        self._agreement: list[tuple[int, int]] = []  # (failing, passing) confirmed sightings of recent updates
-        self._history = PoseHistory()  # every pose before the newest, as it was when newest
-        self._step_nis: list[Array] = []  # what the newest step's observations did (for its snapshot)
-        self._step_gated: list[LandmarkId] = []
-        self._step_new: list[LandmarkId] = []
-        self._rejected: list[NDArray[np.bool_]] = []  # gated sightings, per update call, in step order
         self._blas = ThreadpoolController()
-        self.book = LandmarkBook(self.config.association, inside=True)
-        self._step_ids: list[LandmarkId | None] = []  # the newest step's sightings as paired (None: not used)
+
+    # filterpy's names for the state's mean and covariance, and the parts others read
+    @property
+    def x(self) -> Array:
+        """State mean ``[x, y, theta, l1x, l1y, ...]``, shape (n, 1)."""
+        return self.state.x
+
+    @x.setter
+    def x(self, value: Array) -> None:
+        self.state.x = value
+
+    @property
+    def P(self) -> Array:  # noqa: N802 - filterpy's name
+        """State covariance, shape (n, n)."""
+        return self.state.P
+
+    @P.setter
+    def P(self, value: Array) -> None:  # noqa: N802
+        self.state.P = value
+
+    @property
+    def landmark_ids(self) -> list[LandmarkId]:
+        """Landmark ids in state order."""
+        return self.state.landmark_ids
+
+    @property
+    def book(self) -> LandmarkBook:
+        """Association state (tentative landmarks, ids given out, each sighting's label)."""
+        return self.state.book
 
     @classmethod
     def from_state(cls, x: Array, P: Array, landmark_ids: list[LandmarkId], config: EkfConfig | None = None) -> EkfSlam:
@@ -142,18 +158,26 @@ class EkfSlam(ExtendedKalmanFilter):
             config: Filter settings.
         """
         ekf = cls(config)
-        x = np.asarray(x, dtype=float).reshape(-1, 1)
-        n = len(x)
-        if n != 3 + 2 * len(landmark_ids) or np.shape(P) != (n, n):
-            raise ValueError("x, P and landmark_ids disagree in size")
-        ekf.x, ekf.P, ekf.dim_x = x.copy(), np.array(P, dtype=float), n
-        ekf._I = ekf.F = np.eye(n)
-        ekf.Q = np.zeros((n, n))
-        ekf.landmark_ids = list(landmark_ids)
-        ekf._index = {lid: j for j, lid in enumerate(landmark_ids)}
-        ekf._streak = np.zeros(len(landmark_ids), dtype=np.int64)
-        ekf._confirmed = np.ones(len(landmark_ids), dtype=bool)
+        m = len(landmark_ids)
+        ekf.state = EkfState(
+            ekf.book,
+            x=np.array(x, dtype=float).reshape(-1, 1),
+            P=np.array(P, dtype=float),
+            landmark_ids=list(landmark_ids),
+            streak=np.zeros(m, dtype=np.int64),
+            confirmed=np.ones(m, dtype=bool),
+        )
+        ekf._resized()
         return ekf
+
+    def load_state(self, state: Any) -> None:
+        """Restore a :meth:`state_dict` (this filter's config is kept)."""
+        self.state = from_tree(EkfState, state)
+        self._resized()
+
+    def state_dict(self) -> Any:
+        """Everything needed to continue exactly where the filter is: the tree of :class:`EkfState`."""
+        return to_tree(self.state)
 
     def single_threaded(self) -> object:
         """Context manager limiting BLAS to one thread, as every ``step`` runs (see the module docstring)."""
@@ -178,7 +202,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self._I = np.eye(self.dim_x)
         self.F = self._I
         Q = np.zeros((self.dim_x, self.dim_x))
-        Q[:3, :3] = self.Q[:3, :3]
+        Q[:3, :3] = self.state.Q
         self.Q = Q
         self.K = np.zeros((self.dim_x, self.K.shape[1] if self.K.ndim == 2 else 1))
 
@@ -188,7 +212,7 @@ class EkfSlam(ExtendedKalmanFilter):
 
         Only the robot block and its cross-covariances change: ``P_rr = F P_rr F^T + G Q G^T``, ``P_rm = F P_rm``.
         """
-        Q = self.Q[:3, :3] if Q is None else np.asarray(Q, dtype=float)
+        Q = self.state.Q if Q is None else np.asarray(Q, dtype=float)
         pose, F, G = compose_with_jacobians(self.x[:3, 0], u)
         self.x[:3, 0] = pose
         P = self.P
@@ -196,6 +220,7 @@ class EkfSlam(ExtendedKalmanFilter):
         P[3:, :3] = P[:3, 3:].T
         P_rr = F @ P[:3, :3] @ F.T + G @ Q @ G.T
         P[:3, :3] = 0.5 * (P_rr + P_rr.T)
+        self.state.Q = Q
         self.Q[:3, :3] = Q
 
     # -- landmarks -------------------------------------------------------------------------------
@@ -207,15 +232,15 @@ class EkfSlam(ExtendedKalmanFilter):
         position, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
         cross = G_r @ self.P[:3, :]
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
-        self._index[landmark] = len(self.landmark_ids)
+        self.state.index[landmark] = len(self.landmark_ids)
         self.landmark_ids.append(landmark)
-        self._streak = np.append(self._streak, 0)
-        self._confirmed = np.append(self._confirmed, False)
+        self.state.streak = np.append(self.state.streak, 0)
+        self.state.confirmed = np.append(self.state.confirmed, False)
         self._grow(position, cross, 0.5 * (block + block.T))
 
     def remove_landmarks(self, ids: list[LandmarkId]) -> None:
         """Delete landmarks from the state: their rows and columns (exact marginalization in covariance form)."""
-        gone = np.array(sorted(self._index[lid] for lid in ids), dtype=np.int64)
+        gone = np.array(sorted(self.state.index[lid] for lid in ids), dtype=np.int64)
         m = len(self.landmark_ids)
         kept = np.setdiff1d(np.arange(m), gone)
         rows = np.r_[0, 1, 2, _landmark_columns(kept)]
@@ -224,10 +249,10 @@ class EkfSlam(ExtendedKalmanFilter):
         self._resized()
         renumber = np.full(m, -1, dtype=np.int64)
         renumber[kept] = np.arange(len(kept))
-        self.landmark_ids = [self.landmark_ids[j] for j in kept]
-        self._index = {lid: j for j, lid in enumerate(self.landmark_ids)}
-        self._streak, self._confirmed = self._streak[kept], self._confirmed[kept]
-        self._recent = {int(renumber[j]): v for j, v in self._recent.items() if renumber[j] >= 0}
+        self.state.landmark_ids = [self.landmark_ids[j] for j in kept]
+        self.state.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
+        self.state.streak, self.state.confirmed = self.state.streak[kept], self.state.confirmed[kept]
+        self.state.recent = {int(renumber[j]): v for j, v in self.state.recent.items() if renumber[j] >= 0}
 
     def _mapped(self) -> NDArray[np.bool_] | None:
         """Which landmarks belong to the reported map (None: all; tentative ones do not)."""
@@ -272,15 +297,15 @@ class EkfSlam(ExtendedKalmanFilter):
         passed = nis <= self._gate
         accepted = passed.copy()
         reanchor = np.zeros(k, dtype=bool)
-        streak = self._streak[indices]
-        confirmed = self._confirmed[indices]
+        streak = self.state.streak[indices]
+        confirmed = self.state.confirmed[indices]
         if self.config.gate_persistence and not passed.all():
             # Drift: sightings of confirmed landmarks (ones that passed the gate since they were placed) fail,
             # and few of them pass. Unconfirmed landmarks are no evidence either way.
             failing, agreeing = int((confirmed & ~passed).sum()), int((confirmed & passed).sum())
             # over the last few updates: a lone failing sighting is no drift while others nearby in time agree
-            recent_fail = failing + sum(f for f, _ in self._agreement)
-            recent_agree = agreeing + sum(a for _, a in self._agreement)
+            recent_fail = failing + sum(f for f, _ in self.state.agreement)
+            recent_agree = agreeing + sum(a for _, a in self.state.agreement)
             drifted = failing > 0 and recent_agree < max(2.0, 0.25 * (recent_fail + recent_agree))
             if drifted and failing >= 2:  # several: drift moves them all by one robot correction
                 f = confirmed & ~passed
@@ -291,12 +316,12 @@ class EkfSlam(ExtendedKalmanFilter):
                 due = ~passed & (streak >= REANCHOR_AFTER - 1)
                 if due.any():
                     reanchor = due & self._recent_agree(indices, z, R)
-        self._agreement.append((int((confirmed & ~passed).sum()), int((confirmed & passed).sum())))
-        del self._agreement[:-AGREEMENT_UPDATES]
-        self._confirmed[indices[passed]] = True
+        self.state.agreement.append((int((confirmed & ~passed).sum()), int((confirmed & passed).sum())))
+        del self.state.agreement[:-AGREEMENT_UPDATES]
+        self.state.confirmed[indices[passed]] = True
         if not passed.all():
             self._remember(indices[~passed], z[~passed], R[~passed])
-        self._streak[indices] = np.where(accepted | reanchor, 0, self._streak[indices] + 1)
+        self.state.streak[indices] = np.where(accepted | reanchor, 0, self.state.streak[indices] + 1)
         if not accepted.all():
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
@@ -342,7 +367,7 @@ class EkfSlam(ExtendedKalmanFilter):
         points, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
         covs = G_r @ self.P[:3, :3] @ G_r.transpose(0, 2, 1) + G_z @ R @ G_z.transpose(0, 2, 1)
         for j, point, cov in zip(indices.tolist(), points, covs):
-            recent = self._recent.setdefault(j, [])
+            recent = self.state.recent.setdefault(j, [])
             recent.append((point, cov))
             del recent[: -max(1, self.config.gate_persistence)]
 
@@ -351,7 +376,7 @@ class EkfSlam(ExtendedKalmanFilter):
         out = np.zeros(len(indices), dtype=bool)
         bound = outlier_threshold(1e-3)
         for i, j in enumerate(indices.tolist()):
-            recent = self._recent.get(j, [])
+            recent = self.state.recent.get(j, [])
             if len(recent) < 2:
                 continue
             points = np.array([r[0] for r in recent])
@@ -376,9 +401,9 @@ class EkfSlam(ExtendedKalmanFilter):
         self.P[:, cols] = cross.T
         self.P[np.ix_(cols, cols)] = 0.5 * (block + block.T)
         self.x[cols, 0] = position
-        self._recent.pop(index, None)
-        self._confirmed[index] = False
-        self.reanchored += 1
+        self.state.recent.pop(index, None)
+        self.state.confirmed[index] = False
+        self.state.reanchored += 1
 
     def _apply(self, PHt: Array, S: Array, y: Array) -> None:
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
@@ -408,9 +433,9 @@ class EkfSlam(ExtendedKalmanFilter):
             self.x[:3, 0] = step.prior
             self.P[:3, :3] = 0.0 if step.prior_cov is None else step.prior_cov
         else:
-            self._history.append(self.x[:3, 0])  # the previous pose is complete
+            self.state.history.append(self.x[:3, 0])  # the previous pose is complete
             self.predict(step.odometry, step.odometry_cov)
-        self._step_nis, self._step_gated, self._step_new, self._step_ids = [], [], [], []
+        self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
         return self.snapshot(step)
 
@@ -420,15 +445,15 @@ class EkfSlam(ExtendedKalmanFilter):
         k = len(ids)
         if self.book.needs(ids):
             ids = self._associate(step.index, ids, z_all, R_all)
-        self._step_ids += ids
+        self.state.step_ids += ids
         nis = np.full(k, np.nan)
         held = np.array([lid is None for lid in ids], dtype=bool)
         rejected = held.copy()  # a sighting association kept back is not used
         gated: list[LandmarkId] = []
-        known = np.array([lid in self._index for lid in ids], dtype=bool)
+        known = np.array([lid in self.state.index for lid in ids], dtype=bool)
         if known.any():
             where = np.flatnonzero(known)
-            indices = np.array([self._index[ids[i]] for i in where], dtype=np.int64)
+            indices = np.array([self.state.index[ids[i]] for i in where], dtype=np.int64)
             if self.config.update == "joint":
                 nis[where], accepted = self.update_structured(indices, z_all[where], R_all[where])
             else:
@@ -442,9 +467,9 @@ class EkfSlam(ExtendedKalmanFilter):
         new: list[LandmarkId] = []
         for i in np.flatnonzero(~known & ~held):
             lid = ids[i]
-            if lid in self._index:  # seen twice in this step: the first sighting initialised it
+            if lid in self.state.index:  # seen twice in this step: the first sighting initialised it
                 nis[i : i + 1], ok = self.update_structured(
-                    np.array([self._index[lid]]), z_all[i : i + 1], R_all[i : i + 1]
+                    np.array([self.state.index[lid]]), z_all[i : i + 1], R_all[i : i + 1]
                 )
                 if not ok[0]:
                     gated.append(lid)
@@ -452,11 +477,11 @@ class EkfSlam(ExtendedKalmanFilter):
                 continue
             self.add_landmark(lid, z_all[i], R_all[i])
             new.append(lid)
-        self.gated_total += len(gated)
-        self._rejected.append(rejected)
-        self._step_nis.append(nis)
-        self._step_gated += gated
-        self._step_new += new
+        self.state.gated_total += len(gated)
+        self.state.rejected.append(rejected)
+        self.state.step_nis.append(nis)
+        self.state.step_gated += gated
+        self.state.step_new += new
 
     def _associate(
         self, step_index: int, ids: tuple[LandmarkId | None, ...], z: Array, R: Array
@@ -474,69 +499,16 @@ class EkfSlam(ExtendedKalmanFilter):
         positions = self.x[3:, 0].reshape(-1, 2)
         pose = self.x[:3, 0].copy()
         return self.book.assign_ids(
-            step_index, ids, z, R, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, known=self._index
+            step_index, ids, z, R, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, known=self.state.index
         )
 
     def trajectory_parts(self) -> tuple[Array, Array]:
         """(poses that no longer change, read-only (N - 1, 3) view; the newest pose, a copy (1, 3))."""
-        return self._history.view(), self.x[:3, 0].reshape(1, 3).copy()
+        return self.state.history.view(), self.x[:3, 0].reshape(1, 3).copy()
 
     def trajectory(self) -> Array:
         """Estimate of every pose so far (each as it was when newest), shape (N, 3)."""
         return np.concatenate(self.trajectory_parts())
-
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue exactly where the filter is (numbers and arrays only)."""
-        return {
-            "x": self.x[:, 0].copy(),
-            "P": self.P.copy(),
-            "Q": self.Q[:3, :3].copy(),
-            "landmark_ids": list(self.landmark_ids),
-            "streak": self._streak.copy(),
-            "confirmed": self._confirmed.copy(),
-            "agreement": np.array(self._agreement, dtype=np.int64).reshape(-1, 2),
-            "gated_total": self.gated_total,
-            "reanchored": self.reanchored,
-            "recent": [[j, np.array([r[0] for r in v]), np.array([r[1] for r in v])] for j, v in self._recent.items()],
-            "poses": self.trajectory(),
-            "step_nis": list(self._step_nis),
-            "step_gated": list(self._step_gated),
-            "step_new": list(self._step_new),
-            "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
-            "book": self.book.state_dict(),
-            "step_ids": list(self._step_ids),
-        }
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Restore a :meth:`state_dict` (this filter's config is kept)."""
-        x = np.array(state["x"], dtype=float).reshape(-1, 1)
-        n = len(x)
-        landmark_ids = list(state["landmark_ids"])
-        if n != 3 + 2 * len(landmark_ids) or np.shape(state["P"]) != (n, n):
-            raise ValueError("x, P and landmark_ids disagree in size")
-        self.x, self.P, self.dim_x = x, np.array(state["P"], dtype=float), n
-        self._I = self.F = np.eye(n)
-        self.Q = np.zeros((n, n))
-        self.Q[:3, :3] = state["Q"]
-        self.K = np.zeros((n, 1))
-        self.landmark_ids = landmark_ids
-        self._index = {lid: j for j, lid in enumerate(landmark_ids)}
-        self._streak = np.array(state["streak"], dtype=np.int64).reshape(len(landmark_ids))
-        self._confirmed = np.array(state["confirmed"], dtype=bool).reshape(len(landmark_ids))
-        self._agreement = [(int(f), int(a)) for f, a in np.array(state["agreement"], dtype=np.int64).reshape(-1, 2)]
-        self.gated_total = int(state["gated_total"])
-        self.reanchored = int(state["reanchored"])
-        self._recent = {
-            int(j): [(p.copy(), c.copy()) for p, c in zip(np.array(pts).reshape(-1, 2), np.array(cs).reshape(-1, 2, 2))]
-            for j, pts, cs in state["recent"]
-        }
-        self._history = PoseHistory(np.array(state["poses"], dtype=float).reshape(-1, 3)[:-1])
-        self._step_nis = [np.array(a, dtype=float) for a in state["step_nis"]]
-        self._step_gated = list(state["step_gated"])
-        self._step_new = list(state["step_new"])
-        self._rejected = [np.array(state["rejected"], dtype=bool)]
-        self.book.load_state(state["book"])
-        self._step_ids = list(state["step_ids"])
 
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
@@ -559,10 +531,10 @@ class EkfSlam(ExtendedKalmanFilter):
             landmarks=landmarks,
             landmark_covs=covs,
             info={
-                "nis": np.concatenate(self._step_nis) if self._step_nis else np.zeros(0),
-                "observed": tuple(self._step_ids),
-                "gated": tuple(self._step_gated),
-                "new_landmarks": tuple(self._step_new),
+                "nis": np.concatenate(self.state.step_nis) if self.state.step_nis else np.zeros(0),
+                "observed": tuple(self.state.step_ids),
+                "gated": tuple(self.state.step_gated),
+                "new_landmarks": tuple(self.state.step_new),
             },
         )
 
@@ -584,10 +556,10 @@ class EkfSlam(ExtendedKalmanFilter):
             ids,
             landmarks,
             {
-                "gated_observations": self.gated_total,
-                "landmarks_reanchored": self.reanchored,
+                "gated_observations": self.state.gated_total,
+                "landmarks_reanchored": self.state.reanchored,
                 "state_size": self.dim_x,
-                "rejected": np.concatenate(self._rejected) if self._rejected else np.zeros(0, dtype=bool),
+                "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),
                 **self.book.info(),
             },
             landmark_covs=covs,

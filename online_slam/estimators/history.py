@@ -13,7 +13,7 @@ class PoseHistory:
 
     :meth:`view` returns a read-only view of the rows so far; later appends and replacements never change those
     rows (a growth or a replacement moves to a new buffer, and an old view keeps the old one), so a view is a
-    valid snapshot for as long as it lives.
+    valid snapshot for as long as it lives. A checkpoint holds its rows (:meth:`to_tree`, :meth:`from_tree`).
     """
 
     def __init__(self, rows: Array | None = None) -> None:
@@ -39,6 +39,17 @@ class PoseHistory:
         out = self._buffer[: self._n]
         out.flags.writeable = False
         return out
+
+    def to_tree(self) -> Array:
+        """Its state for a checkpoint: the rows, shape (N, 3)."""
+        return self._buffer[: self._n]
+
+    @classmethod
+    def from_tree(cls, tree: Array) -> PoseHistory:
+        """The history holding a checkpoint's rows."""
+        if not isinstance(tree, np.ndarray):
+            raise TypeError(f"expected the rows of a pose history, got {type(tree).__name__}")
+        return cls(tree)
 
     def replace(self, rows: Array) -> None:
         """Rewrite every pose at once (a global relinearization revised them), shape (N, 3), N = len(self)."""

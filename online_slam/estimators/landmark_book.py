@@ -29,13 +29,14 @@ stream has them, and for the batch solver, which solves with these associations.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
+from online_slam.checkpoint import Checkpointed
 from online_slam.frontend.association import Association, Belief, associate, individual_log_likelihoods
 from online_slam.models.range_bearing import landmark_from_observation
 from online_slam.sources.events import LandmarkId
@@ -108,45 +109,69 @@ def _point_covariance(pose: Array, z: Array, R: Array) -> Array:
     return J @ R @ np.swapaxes(J, 1, 2)
 
 
-class LandmarkBook:
+def _rows(*shape: int, dtype: type = float) -> Any:
+    """A default of no rows of the given shape."""
+    return field(default_factory=lambda: np.zeros((0, *shape), dtype=dtype))
+
+
+@dataclass(eq=False)
+class LandmarkBook(Checkpointed):
     """Association state of one estimator: tentative landmarks, ids given out, each sighting's label.
 
-    Args:
-        config: Method, gates, confirmation.
-        inside: Tentative landmarks live in the estimator's state (True) or in the book (False).
-        prefix: Ids of new landmarks are ``f"{prefix}{n}"`` (n = 0, 1, ...), skipping ids already known.
+    Every field is state a checkpoint keeps (:meth:`state_dict`, :meth:`load_state`) but the gates, derived
+    from the configuration.
     """
 
-    def __init__(self, config: AssociationConfig, inside: bool, prefix: str = "u") -> None:
-        self.config = config
-        self.inside = inside
-        self.prefix = prefix
-        self._gate = float(chi2.isf(1.0 - config.gate_probability, 2))
-        self._new_gate = float(chi2.isf(1.0 - config.new_probability, 2))
-        self._next_key = 0
-        self._next_id = 0
-        # inside: tentative landmarks of the estimator, id -> [sightings, first step, last step]
-        self._pending: dict[LandmarkId, list[int]] = {}
-        self._deleted: set[LandmarkId] = set()
-        # outside: tentative landmarks of the book, one row each, and their sightings
-        self._keys = np.zeros(0, dtype=np.int64)
-        self._points = np.zeros((0, 2))
-        self._covs = np.zeros((0, 2, 2))
-        self._counts = np.zeros(0, dtype=np.int64)
-        self._first = np.zeros(0, dtype=np.int64)
-        self._last = np.zeros(0, dtype=np.int64)
-        self._pose_covs = np.zeros((0, 3, 3))  # the pose's covariance when each was last seen
-        self._sightings: dict[int, list[tuple[int, Array, Array]]] = {}
-        self._confirmed_keys: dict[int, LandmarkId] = {}
-        self._labels: list[Any] = []  # per sighting: a landmark id, -(key + 1) for a book-tentative one, or None
-        self.retro: list[tuple[LandmarkId, int, Array, Array]] = []
-        """Outside: earlier sightings ``(id, step, z, R)`` of the landmarks the last :meth:`assign` confirmed."""
-        self.dropped = 0
-        """Tentative landmarks dropped unconfirmed."""
-        self.ambiguous = 0
-        """Sightings kept out: no landmark took them, but one was too close for a new landmark."""
-        self.unlikely = 0
-        """Sightings JCBB paired that were likelier of an unmapped landmark (``new_density``): made new ones."""
+    config: AssociationConfig
+    """Method, gates, confirmation."""
+    inside: bool
+    """Tentative landmarks live in the estimator's state (True) or in the book (False)."""
+    prefix: str = "u"
+    """Ids of new landmarks are ``f"{prefix}{n}"`` (n = 0, 1, ...), skipping ids already known."""
+    _next_key: int = 0
+    """Key of the next tentative landmark of the book (outside)."""
+    _next_id: int = 0
+    """Number of the next landmark id given out."""
+    _pending: dict[LandmarkId, list[int]] = field(default_factory=dict)
+    """Inside: the estimator's tentative landmarks, id -> [sightings, first step, last step]."""
+    _deleted: set[LandmarkId] = field(default_factory=set)
+    """Inside: tentative landmarks dropped unconfirmed (deleted from the estimator's state)."""
+    _keys: Index = _rows(dtype=np.int64)
+    """Outside: the book's tentative landmarks, one row each: their keys, shape (T,)."""
+    _points: Array = _rows(2)
+    """Their world points fused from their sightings, shape (T, 2)."""
+    _covs: Array = _rows(2, 2)
+    """The points' covariances, shape (T, 2, 2)."""
+    _counts: Index = _rows(dtype=np.int64)
+    """Sightings of each, shape (T,)."""
+    _first: Index = _rows(dtype=np.int64)
+    """Step of each one's first sighting, shape (T,)."""
+    _last: Index = _rows(dtype=np.int64)
+    """Step of each one's last sighting, shape (T,)."""
+    _pose_covs: Array = _rows(3, 3)
+    """The pose's covariance when each was last seen, shape (T, 3, 3)."""
+    _sightings: dict[int, list[tuple[int, Array, Array]]] = field(default_factory=dict)
+    """Outside: the sightings ``(step, z, R)`` of each tentative landmark, by key."""
+    _confirmed_keys: dict[int, LandmarkId] = field(default_factory=dict)
+    """Outside: the id each confirmed tentative landmark was given, by key."""
+    _labels: list[LandmarkId | None] = field(default_factory=list)
+    """Per sighting: a landmark id, -(key + 1) for a book-tentative one, or None."""
+    retro: list[tuple[LandmarkId, int, Array, Array]] = field(default_factory=list)
+    """Outside: earlier sightings ``(id, step, z, R)`` of the landmarks the last :meth:`assign` confirmed."""
+    dropped: int = 0
+    """Tentative landmarks dropped unconfirmed."""
+    ambiguous: int = 0
+    """Sightings kept out: no landmark took them, but one was too close for a new landmark."""
+    unlikely: int = 0
+    """Sightings JCBB paired that were likelier of an unmapped landmark (``new_density``): made new ones."""
+    _gate: float = field(init=False)
+    """Individual gate on a sighting's chi-square (2 dof)."""
+    _new_gate: float = field(init=False)
+    """The wider gate a sighting must fail with every landmark to start a new one."""
+
+    def __post_init__(self) -> None:
+        self._gate = float(chi2.isf(1.0 - self.config.gate_probability, 2))
+        self._new_gate = float(chi2.isf(1.0 - self.config.new_probability, 2))
 
     # -- the scan ----------------------------------------------------------------------------------
     def expire(self, step_index: int) -> list[LandmarkId]:
@@ -428,58 +453,3 @@ class LandmarkBook:
             "ambiguous_sightings": self.ambiguous,
             "unlikely_pairings": self.unlikely,
         }
-
-    # -- checkpoints -------------------------------------------------------------------------------
-    def state_dict(self) -> dict[str, Any]:
-        """The whole book (numbers, strings, lists and arrays)."""
-        sightings = [
-            [key, [g for g, _, _ in rows], np.array([zz for _, zz, _ in rows]), np.array([RR for _, _, RR in rows])]
-            for key, rows in self._sightings.items()
-        ]
-        return {
-            "next_key": self._next_key,
-            "next_id": self._next_id,
-            "pending": [[lid, *entry] for lid, entry in self._pending.items()],
-            "deleted": list(self._deleted),
-            "keys": self._keys.copy(),
-            "points": self._points.copy(),
-            "covs": self._covs.copy(),
-            "counts": self._counts.copy(),
-            "first": self._first.copy(),
-            "last": self._last.copy(),
-            "pose_covs": self._pose_covs.copy(),
-            "sightings": sightings,
-            "labels": list(self._labels),
-            "confirmed_keys": [[k, v] for k, v in self._confirmed_keys.items()],
-            "retro": [[lid, g, zz, RR] for lid, g, zz, RR in self.retro],
-            "dropped": self.dropped,
-            "ambiguous": self.ambiguous,
-            "unlikely": self.unlikely,
-        }
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Restore a :meth:`state_dict`."""
-        self._next_key, self._next_id = int(state["next_key"]), int(state["next_id"])
-        self._pending = {entry[0]: [int(v) for v in entry[1:]] for entry in state["pending"]}
-        self._deleted = set(state["deleted"])
-        self._keys = np.array(state["keys"], dtype=np.int64).reshape(-1)
-        self._points = np.array(state["points"], dtype=float).reshape(-1, 2)
-        self._covs = np.array(state["covs"], dtype=float).reshape(-1, 2, 2)
-        self._counts = np.array(state["counts"], dtype=np.int64).reshape(-1)
-        self._first = np.array(state["first"], dtype=np.int64).reshape(-1)
-        self._last = np.array(state["last"], dtype=np.int64).reshape(-1)
-        self._pose_covs = np.array(state["pose_covs"], dtype=float).reshape(-1, 3, 3)
-        self._sightings = {
-            int(key): [
-                (int(g), np.array(zz, dtype=float), np.array(RR, dtype=float))
-                for g, zz, RR in zip(steps, np.array(z).reshape(-1, 2), np.array(R).reshape(-1, 2, 2))
-            ]
-            for key, steps, z, R in state["sightings"]
-        }
-        self._labels = list(state["labels"])
-        self._confirmed_keys = {int(k): v for k, v in state["confirmed_keys"]}
-        self.retro = [
-            (lid, int(g), np.array(zz, dtype=float), np.array(RR, dtype=float)) for lid, g, zz, RR in state["retro"]
-        ]
-        self.dropped, self.ambiguous = int(state["dropped"]), int(state["ambiguous"])
-        self.unlikely = int(state.get("unlikely", 0))

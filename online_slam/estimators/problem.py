@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.checkpoint import Checkpointed
 from online_slam.estimators.protocol import Snapshot
 from online_slam.factors.graph import FactorGraph, sqrt_information
 from online_slam.frontend.steps import Step
@@ -27,40 +28,59 @@ def _extended(cached: tuple[np.ndarray, ...], new: tuple[np.ndarray, ...]) -> tu
     return tuple(np.concatenate([a, b]) for a, b in zip(cached, new)) if cached else new
 
 
-class ProblemLog:
+@dataclass(eq=False)
+class ProblemLog(Checkpointed):
     """Every factor seen so far, plus initial values: poses by composed odometry, landmarks by first sight.
 
-    Attributes:
-        poses: Initial pose values in step order.
-        landmark_ids: Landmark ids in order of first observation.
+    Every field set by ``__init__`` is state a checkpoint keeps (:meth:`state_dict`, :meth:`load_state`); the
+    others are derived from them.
     """
 
-    def __init__(self, keep_factors: bool = True, use_ids: bool = True) -> None:
-        self.keep_factors = keep_factors
-        """False: keep initial values only (dead reckoning needs no factor), so memory grows with the path alone."""
-        self.use_ids = use_ids
-        """False: the stream's ids are not used (association decides later); every sighting is kept unpaired."""
-        self.poses: list[Array] = []
-        self.landmark_ids: tuple[LandmarkId, ...] = ()
-        self._landmark_index: dict[LandmarkId, int] = {}
-        self._landmarks: list[Array] = []
-        self.prior: tuple[Array, Array | None] | None = None
-        self._odo_delta: list[Array] = []
-        self._odo_cov: list[Array] = []
-        self._obs_pose: list[Array] = []
-        self._obs_landmark: list[Array] = []
-        self._obs_z: list[Array] = []
-        self._obs_cov: list[Array] = []
+    keep_factors: bool = True
+    """False: keep initial values only (dead reckoning needs no factor), so memory grows with the path alone."""
+    use_ids: bool = True
+    """False: the stream's ids are not used (association decides later); every sighting is kept unpaired."""
+    poses: list[Array] = field(default_factory=list)
+    """Initial pose values in step order, each shape (3,)."""
+    landmark_ids: tuple[LandmarkId, ...] = ()
+    """Landmark ids in order of first observation."""
+    _landmarks: list[Array] = field(default_factory=list)
+    """Initial landmark values (from their first sight), each shape (2,)."""
+    prior: tuple[Array, Array | None] | None = None
+    """The start pose and its covariance (None: held fixed), once step 0 arrived."""
+    _odo_delta: list[Array] = field(default_factory=list)
+    """Odometry increments, each shape (3,)."""
+    _odo_cov: list[Array] = field(default_factory=list)
+    """Their covariances, each shape (3, 3)."""
+    _obs_pose: list[Array] = field(default_factory=list)
+    """Sightings in chunks (one per call): the pose of each, shape (k,)."""
+    _obs_landmark: list[Array] = field(default_factory=list)
+    """The landmark index of each (-1: without id), shape (k,)."""
+    _obs_z: list[Array] = field(default_factory=list)
+    """The measurements ``[range, bearing]``, shape (k, 2)."""
+    _obs_cov: list[Array] = field(default_factory=list)
+    """Their covariances, shape (k, 2, 2)."""
+    _landmark_index: dict[LandmarkId, int] = field(init=False)
+    """Index of each landmark id in ``landmark_ids``."""
+    _cached_obs: int = field(init=False)
+    """Observation chunks the concatenations cover."""
+    _cat_obs: tuple[Array, ...] = field(init=False)
+    """Concatenated observation arrays (see :meth:`_observation_arrays`)."""
+    _cached_odo: int = field(init=False)
+    """Odometry entries the concatenations cover."""
+    _cat_odo: tuple[Array, ...] = field(init=False)
+    """Concatenated odometry arrays (see :meth:`_odometry_arrays`)."""
+
+    def __post_init__(self) -> None:
+        self._landmark_index = {lid: k for k, lid in enumerate(self.landmark_ids)}
         self._reset_cache()
 
     def _reset_cache(self) -> None:
         """Forget the concatenated factor arrays (rebuilt on demand)."""
         # The chunk lists only grow and their arrays never change, so the concatenations (and the square-root
         # information, computed per matrix) are extended with the chunks added since, never recomputed.
-        self._cached_obs = 0  # chunks covered
-        self._cat_obs: tuple[Array, ...] = ()
-        self._cached_odo = 0
-        self._cat_odo: tuple[Array, ...] = ()
+        self._cached_obs, self._cat_obs = 0, ()
+        self._cached_odo, self._cat_odo = 0, ()
 
     def _observation_arrays(self) -> tuple[Array, ...]:
         """Every sighting's pose, landmark index, z, covariance and square-root information, concatenated."""
@@ -153,60 +173,11 @@ class ProblemLog:
 
     def frozen(self) -> ProblemLog:
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
-        copy = ProblemLog(self.keep_factors, self.use_ids)
-        copy.poses = list(self.poses)
-        copy.landmark_ids = self.landmark_ids
-        copy._landmark_index = dict(self._landmark_index)
-        copy._landmarks = list(self._landmarks)
-        copy.prior = self.prior
-        for name in ("_odo_delta", "_odo_cov", "_obs_pose", "_obs_landmark", "_obs_z", "_obs_cov"):
-            setattr(copy, name, list(getattr(self, name)))
+        values = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+        copy = replace(self, **{name: list(v) for name, v in values.items() if isinstance(v, list)})
         copy._cached_obs, copy._cat_obs = self._cached_obs, self._cat_obs
         copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
         return copy
-
-    def state_dict(self) -> dict[str, Any]:
-        """Every factor and initial value (numbers and arrays only)."""
-        return {
-            "poses": np.array(self.poses).reshape(-1, 3),
-            "landmark_ids": list(self.landmark_ids),
-            "landmarks": self.landmarks,
-            "prior": None if self.prior is None else list(self.prior),
-            "odo_delta": np.array(self._odo_delta).reshape(-1, 3),
-            "odo_cov": np.array(self._odo_cov).reshape(-1, 3, 3),
-            "obs_sizes": np.array([len(c) for c in self._obs_pose], dtype=np.int64),
-            "obs_pose": _concat(self._obs_pose, (), np.int64),
-            "obs_landmark": _concat(self._obs_landmark, (), np.int64),
-            "obs_z": _concat(self._obs_z, (2,), float),
-            "obs_cov": _concat(self._obs_cov, (2, 2), float),
-        }
-
-    def load_state(self, state: dict[str, Any]) -> None:
-        """Restore a :meth:`state_dict`."""
-        rows = lambda a, n: [r.copy() for r in np.array(a, dtype=float).reshape(-1, *n)]  # noqa: E731
-        self.poses = rows(state["poses"], (3,))
-        self.landmark_ids = tuple(state["landmark_ids"])
-        self._landmark_index = {lid: k for k, lid in enumerate(self.landmark_ids)}
-        self._landmarks = rows(state["landmarks"], (2,))
-        prior = state["prior"]
-        self.prior = (
-            None
-            if prior is None
-            else (np.array(prior[0], dtype=float), None if prior[1] is None else np.array(prior[1], dtype=float))
-        )
-        self._odo_delta, self._odo_cov = rows(state["odo_delta"], (3,)), rows(state["odo_cov"], (3, 3))
-        cuts = np.cumsum(np.array(state["obs_sizes"], dtype=np.int64))[:-1]
-
-        def split(key: str, shape: tuple[int, ...], dtype: type) -> list[np.ndarray]:
-            if not len(state["obs_sizes"]):
-                return []
-            return [c.copy() for c in np.split(np.array(state[key], dtype=dtype).reshape(-1, *shape), cuts)]
-
-        self._obs_pose = split("obs_pose", (), np.int64)
-        self._obs_landmark = split("obs_landmark", (), np.int64)
-        self._obs_z = split("obs_z", (2,), float)
-        self._obs_cov = split("obs_cov", (2, 2), float)
-        self._reset_cache()
 
     def sightings(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
         """Every sighting recorded, in order: (pose, landmark index or -1 without id, z (k, 2), cov (k, 2, 2))."""
@@ -282,10 +253,10 @@ class LoggedEstimator:
         """The composed trajectory so far (the initial values), shape (N, 3)."""
         return np.array(self.log.poses).reshape(-1, 3)
 
-    def state_dict(self) -> dict[str, Any]:
-        """Everything recorded (numbers and arrays only)."""
+    def state_dict(self) -> Any:
+        """Everything recorded: the log's state tree."""
         return self.log.state_dict()
 
-    def load_state(self, state: dict[str, Any]) -> None:
+    def load_state(self, state: Any) -> None:
         """Restore a :meth:`state_dict`."""
         self.log.load_state(state)

@@ -93,11 +93,11 @@ class Estimator(Protocol):
         """Current estimate of every pose so far, shape (N, 3)."""
         ...
 
-    def state_dict(self) -> dict[str, Any]:
-        """The whole state as numbers, strings, lists, dicts and numpy arrays (a checkpoint holds it)."""
+    def state_dict(self) -> Any:
+        """The whole state as a tree (:func:`online_slam.checkpoint.to_tree` of its state dataclasses)."""
         ...
 
-    def load_state(self, state: dict[str, Any]) -> None:
+    def load_state(self, state: Any) -> None:
         """Restore a :meth:`state_dict` into an estimator built with the same configuration."""
         ...
 

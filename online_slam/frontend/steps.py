@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -114,12 +115,12 @@ class PendingStep:
     prior: Array | None = None
     prior_cov: Array | None = None
     merged: int = 1
-    landmarks: list[LandmarkId] = field(default_factory=list)
+    landmarks: list[LandmarkId | None] = field(default_factory=list)
     z: list[tuple[float, float]] = field(default_factory=list)
-    z_noise: list = field(default_factory=list)  # per observation: its sigma (2,) or its full covariance (2, 2)
+    z_noise: list[Any] = field(default_factory=list)  # per sighting: its sigma (2,) or its covariance (2, 2)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
     full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
-    _frozen: tuple | None = field(default=None, repr=False, compare=False)
+    _frozen: tuple | None = field(default=None, init=False, repr=False, compare=False)  # freeze's cache
 
     def z_covariances(self) -> Array:
         """Observation covariances, shape (k, 2, 2): ``diag(sigma^2)`` (vectorized) or the full matrix given."""
@@ -162,30 +163,35 @@ class PendingStep:
         )
 
 
+@dataclass(eq=False)
 class FrontEnd:
     """Turns events into steps, one event at a time; collects header, truth and counts on the way.
 
     :meth:`push` takes one validated event and returns the step it completed, if any (an odometry event
     completes the newest pose); :attr:`pending` is the newest pose, still open for observations; :meth:`close`
-    completes it at the end of the stream. :meth:`steps` wraps the three for an iterable of events.
-
-    Attributes:
-        header: The stream's header, if it had one.
-        truth: Ground truth met so far.
-        counts: Events seen by type, and observations dropped by ``first_observation_only``.
-        pending: The newest pose (None before the first event); ``pending.sealed`` once an estimator has seen it.
+    completes it at the end of the stream. :meth:`steps` wraps the three for an iterable of events. Its fields
+    set by ``__init__`` are its whole state (a checkpoint holds them).
     """
 
-    def __init__(self, config: FrontEndConfig | None = None) -> None:
-        self.config = config or FrontEndConfig()
-        self.header: Header | None = None
-        self.truth = GroundTruth()
-        self.counts: dict[str, int] = {}
-        self.pending: PendingStep | None = None
-        self.sightings = 0
-        """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
-        self._seen: set[LandmarkId] = set()
-        self._sigma_covariance: tuple[tuple[float, ...], Array] | None = None
+    config: FrontEndConfig | None = None
+    """Keyframing and the first-observation-only ablation (None: the defaults)."""
+    header: Header | None = None
+    """The stream's header, if it had one."""
+    truth: GroundTruth = field(default_factory=GroundTruth)
+    """Ground truth met so far."""
+    counts: dict[str, int] = field(default_factory=dict)
+    """Events seen by type, and observations dropped by ``first_observation_only``."""
+    pending: PendingStep | None = None
+    """The newest pose (None before the first event); ``pending.sealed`` once an estimator has seen it."""
+    sightings: int = 0
+    """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
+    _seen: set[LandmarkId | None] = field(default_factory=set)
+    """Landmarks sighted so far (kept for ``first_observation_only``)."""
+    _sigma_covariance: tuple[tuple[float, ...], Array] | None = field(default=None, init=False, repr=False)
+    """The odometry covariance of the last sigma, shared while the sigma stays the same."""
+
+    def __post_init__(self) -> None:
+        self.config = self.config or FrontEndConfig()
 
     def _count(self, key: str) -> None:
         self.counts[key] = self.counts.get(key, 0) + 1

@@ -1,0 +1,68 @@
+"""The EKF's state as data: what :class:`~online_slam.estimators.ekf.EkfSlam` knows, and a checkpoint holds."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.estimators.history import PoseHistory
+from online_slam.estimators.landmark_book import LandmarkBook
+from online_slam.sources.events import LandmarkId
+
+Array = NDArray[np.float64]
+
+
+def _zeros(*shape: int, dtype: type = float) -> Any:
+    """A default of zeros of the given shape."""
+    return field(default_factory=lambda: np.zeros(shape, dtype=dtype))
+
+
+@dataclass(eq=False)
+class EkfState:
+    """Everything the filter knows (a checkpoint holds exactly this; filterpy's view of the last update aside)."""
+
+    book: LandmarkBook
+    """Association state (tentative landmarks, ids given out, each sighting's label)."""
+    x: Array = _zeros(3, 1)
+    """Mean ``[x, y, theta, l1x, l1y, ...]``, shape (n, 1)."""
+    P: Array = _zeros(3, 3)
+    """Covariance, shape (n, n)."""
+    Q: Array = _zeros(3, 3)
+    """Covariance of the last odometry increment (filterpy's ``Q`` is this block, padded with zeros)."""
+    landmark_ids: list[LandmarkId] = field(default_factory=list)
+    """The M landmark ids in state order."""
+    streak: NDArray[np.int64] = _zeros(0, dtype=np.int64)
+    """Consecutive gated sightings per landmark, shape (M,)."""
+    confirmed: NDArray[np.bool_] = _zeros(0, dtype=bool)
+    """Per landmark: has passed the gate since it was (re)initialised, shape (M,)."""
+    recent: dict[int, list[tuple[Array, Array]]] = field(default_factory=dict)
+    """Recent gated sightings per landmark index, as (position (2,), its covariance (2, 2))."""
+    agreement: list[tuple[int, int]] = field(default_factory=list)
+    """(failing, passing) confirmed sightings of the last updates."""
+    gated_total: int = 0
+    """Sightings rejected by the gate so far."""
+    reanchored: int = 0
+    """Landmarks restarted from a sighting so far."""
+    history: PoseHistory = field(default_factory=PoseHistory)
+    """Every pose before the newest, as it was when newest."""
+    step_nis: list[Array] = field(default_factory=list)
+    """NIS of the newest step's sightings, per update call."""
+    step_gated: list[LandmarkId] = field(default_factory=list)
+    """Landmarks whose sightings the gate rejected in the newest step."""
+    step_new: list[LandmarkId] = field(default_factory=list)
+    """Landmarks the newest step added."""
+    step_ids: list[LandmarkId | None] = field(default_factory=list)
+    """The newest step's sightings as paired (None: not used)."""
+    rejected: list[NDArray[np.bool_]] = field(default_factory=list)
+    """Sightings not used (gated, or kept back by association), per update call, in step order."""
+    index: dict[LandmarkId, int] = field(init=False)
+    """State index of each landmark id."""
+
+    def __post_init__(self) -> None:
+        n, m = len(self.x), len(self.landmark_ids)
+        if n != 3 + 2 * m or self.P.shape != (n, n) or len(self.streak) != m or len(self.confirmed) != m:
+            raise ValueError("x, P, landmark_ids and the per-landmark arrays disagree in size")
+        self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
