@@ -3,8 +3,8 @@
 Every estimator keeps one look across the panels: its colour (:mod:`online_slam.reports.palette`, shared with
 Rerun recordings), a line style and a marker of its own, so that two estimators never differ by hue alone.
 Uncertainty is drawn as light bands and thin ellipses of the estimator's colour, never as a line that could be
-read as another estimator. Logarithmic axes are fitted to every value drawn (nothing is clipped) and labelled at
-1, 2 and 5 times a power of ten.
+read as another estimator. Logarithmic axes are fitted to every value drawn (nothing is clipped), span at least
+a decade and are labelled at 1, 2, 5 x 10^k (more sparsely on tall spans).
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ _EXTRA_LOOKS: list[tuple[Any, str]] = [
 ]
 """Looks of further estimators (more smoother configurations), in order of appearance."""
 _TRUTH = (0.45, 0.45, 0.45)
+_MARKED_POSES = 60
+"""Trajectories of at most this many poses mark each pose."""
 _EXACT_M = 1e-9
 """Errors below this are exact by construction (the pose the alignment anchors on): not drawn on a log axis."""
 
@@ -121,10 +123,6 @@ def log_axis(ax: Any, values: list[Array], keep: tuple[float, ...] = (), most: i
     return low, high
 
 
-def _short(estimate_poses: int) -> bool:
-    return estimate_poses <= 60  # few poses: mark each one
-
-
 def draw_map(ax: Any, r: Results, look: dict[str, Look]) -> None:
     """Final trajectories and landmarks against truth, with 2-sigma ellipses of the landmarks and of the last pose."""
     if r.truth_poses is not None:
@@ -134,7 +132,7 @@ def draw_map(ax: Any, r: Results, look: dict[str, Look]) -> None:
         ax.scatter(*truth_lm.T, marker="x", color="0.15", s=45, lw=1.4, zorder=4)
     for name, estimate in r.estimates.items():
         s = look[name]
-        marker = s.marker if _short(len(estimate.poses)) else None
+        marker = s.marker if len(estimate.poses) <= _MARKED_POSES else None
         ax.plot(*estimate.poses[:, :2].T, color=s.color, ls=s.dashes, lw=s.width, marker=marker, ms=3.5, zorder=2)
         if name != "odometry" and len(estimate.landmarks):
             ax.scatter(*estimate.landmarks.T, marker="+", color=s.color, s=55, lw=1.3, zorder=3)
@@ -155,18 +153,18 @@ def draw_map(ax: Any, r: Results, look: dict[str, Look]) -> None:
     ax.set_aspect("equal", adjustable="datalim")
 
 
-def _no_truth(ax: Any) -> None:
-    ax.text(0.5, 0.5, "no ground truth in this stream", ha="center", va="center", transform=ax.transAxes)
+def _note(ax: Any, text: str = "no ground truth in this stream") -> None:
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
 
 
 def draw_online_error(axes: list[Any], r: Results, look: dict[str, Look]) -> list[Array]:
     """Each online estimator in its own strip: its error as estimated when newest, over a band up to 2 sigma.
 
     Args:
-        axes: One axes per series of ``r`` (top to bottom), sharing their y axis.
+        axes: One axes per series of ``r`` (top to bottom).
 
     Returns:
-        The values drawn (for the shared y axis).
+        The values drawn (to give every error axis the same limits).
     """
     drawn: list[Array] = []
     for ax, (name, s) in zip(axes, r.series.items()):
@@ -182,8 +180,10 @@ def draw_online_error(axes: list[Any], r: Results, look: dict[str, Look]) -> lis
         drawn += [bound, error]
     axes[0].set_title("online error of the newest pose (band: up to its 2-sigma bound)")
     axes[-1].set_xlabel("step")
-    if r.truth_poses is None or not r.series:
-        _no_truth(axes[0])
+    if not r.series:
+        _note(axes[0], "no online estimator")
+    elif r.truth_poses is None:
+        _note(axes[0])
     return drawn
 
 
@@ -191,7 +191,7 @@ def draw_final_error(ax: Any, r: Results, look: dict[str, Look]) -> list[Array]:
     """Each pose's error in the final estimate (batch and odometry included), aligned as the table aligns it.
 
     Returns:
-        The values drawn (for a shared y axis).
+        The values drawn (to give every error axis the same limits).
     """
     drawn: list[Array] = []
     for name, estimate in r.estimates.items():
@@ -202,7 +202,7 @@ def draw_final_error(ax: Any, r: Results, look: dict[str, Look]) -> list[Array]:
         drawn.append(error)
     ax.set(xlabel="step", ylabel="position error (m)", title="final error (each pose in the final estimate)")
     if r.truth_poses is None:
-        _no_truth(ax)
+        _note(ax)
     return drawn
 
 
@@ -227,15 +227,11 @@ def draw_nees(ax: Any, r: Results, look: dict[str, Look]) -> None:
     if shown:
         log_axis(ax, shown, keep=(low, high))
     else:
-        _no_truth(ax)
+        _note(ax)
 
 
-def draw_latency(ax: Any, r: Results, look: dict[str, Look]) -> Array:
-    """Wall time of every step on a log axis (every spike shown), each estimator's slowest step marked.
-
-    Returns:
-        Every latency drawn, ms.
-    """
+def draw_latency(ax: Any, r: Results, look: dict[str, Look]) -> None:
+    """Wall time of every step on a log axis (every spike shown), each estimator's slowest step marked."""
     drawn = []
     for k, (name, s) in enumerate(r.series.items()):
         step, ms, st = np.arange(len(s.t)), s.step_ms, look[name]
@@ -247,9 +243,7 @@ def draw_latency(ax: Any, r: Results, look: dict[str, Look]) -> Array:
                         va="center", fontsize=8, color=st.color)  # fmt: skip
         drawn.append(ms)
     ax.set(xlabel="step", ylabel="ms (log scale)", title="step latency, every step (marker: slowest)")
-    values = np.concatenate(drawn) if drawn else np.zeros(0)
-    log_axis(ax, [values])
-    return values
+    log_axis(ax, drawn)
 
 
 def _m(value: float | None) -> str:
