@@ -457,6 +457,7 @@ def replay(
         error=error,
         input=InputReport(sum(skipped.values()), skipped),
         step_times=np.array(step_times, dtype=float),
+        robot=header_meta.get("robot"),
     )
     for sink in sinks:
         sink.on_finish(results, truth)

@@ -126,6 +126,9 @@ class Series:
     """Distance to the true position after the replay's alignment, shape (N,)."""
     position_sigma_m: Array
     """Square root of the trace of the 2x2 position covariance (the RMS of the radial error), shape (N,)."""
+    position_cov: Array
+    """The 2x2 position covariance of each pose as estimated when it was the newest, in the estimator's frame,
+    shape (N, 2, 2); NaN where the estimator gave none."""
     nees: Array
     """Pose NEES, 3 dof, shape (N,)."""
     nis: Array
@@ -181,6 +184,8 @@ class Results:
     """Lines skipped by the reader (``--on-error skip``)."""
     step_times: Array | None = field(default=None, repr=False)
     """Time of every step, seconds, shape (N,)."""
+    robot: int | str | None = None
+    """The robot the stream's header names (``"robot"`` in its metadata, e.g. an MRCLAM robot), or None."""
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON schema of ``online-slam replay --json``."""

@@ -131,8 +131,41 @@ def online_figures(
             nees_mean = float(np.nanmean(nees)) if np.isfinite(nees).any() else None
     ms = np.asarray(seconds, dtype=float) * 1e3
     latency = Latency(float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max()))
-    series = Series(np.asarray(times, dtype=float), poses, error_m, sigma, nees, np.asarray(nis, dtype=float), ms)
+    position_cov = np.array([c[:2, :2] if c is not None else np.full((2, 2), np.nan) for c in covariances])
+    series = Series(
+        t=np.asarray(times, dtype=float),
+        poses=poses,
+        position_error_m=error_m,
+        position_sigma_m=sigma,
+        position_cov=position_cov.reshape(n, 2, 2),
+        nees=nees,
+        nis=np.asarray(nis, dtype=float),
+        step_ms=ms,
+    )
     return OnlineFigures(errors.rmse_m, nees_mean, latency, series)
+
+
+def position_errors(poses: Array, truth_poses: Array | None, alignment: str) -> Array:
+    """Distance of each pose to its true position, after the alignment the table's RMSE uses (:func:`evaluate`).
+
+    Args:
+        poses: Estimated poses by step, in the estimator's frame, shape (N, 3).
+        truth_poses: True poses by step, NaN rows where there is none (:func:`truth_array`), or None.
+        alignment: ``anchor`` or ``se2``.
+
+    Returns:
+        Shape (N,), NaN where a pose has no truth.
+    """
+    out = np.full(len(poses), np.nan)
+    if truth_poses is None:
+        return out
+    known = {i: pose for i, pose in enumerate(truth_poses) if np.isfinite(pose[:2]).all()}
+    errors = evaluate(Estimate("", poses, (), np.zeros((0, 2))), GroundTruth(poses=known), alignment)
+    if errors.indices is not None and errors.transform is not None:
+        idx = errors.indices
+        moved = apply_transform(errors.transform, poses[idx])
+        out[idx] = np.hypot(*(moved[:, :2] - truth_poses[idx, :2]).T)
+    return out
 
 
 def truth_array(truth: GroundTruth, steps: int) -> Array | None:
