@@ -163,6 +163,18 @@ def test_lists_of_arrays_are_one_member_and_come_back_as_separate_arrays(tmp_pat
     assert back[4][0, 0] == 4.0  # one array each
 
 
+def test_lists_of_rows_are_stored_by_columns(tmp_path: Path) -> None:
+    """A list of equal-length tuples (a smoother's outlier decisions: (pose, mask) per pose) is its columns: the
+    ints in JSON and the arrays one member; a list of one array is that array alone."""
+    rows = [(k, np.arange(k) % 3 == 0) for k in range(300)]
+    write_checkpoint(tmp_path / "t.ckpt", "test", {"rows": rows, "one": [np.ones(2)]})
+    with zipfile.ZipFile(tmp_path / "t.ckpt") as archive:
+        assert sum(name.endswith(".npy") for name in archive.namelist()) == 3  # the masks, their lengths, the one
+    back = read_checkpoint(tmp_path / "t.ckpt", "test")
+    assert_identical(from_tree(list[tuple[int, NDArray[np.bool_]]], back["rows"]), rows)
+    assert_identical(back["one"], [np.ones(2)])
+
+
 @dataclasses.dataclass(eq=False)
 class _Book(Checkpointed):
     inside: bool
