@@ -11,7 +11,8 @@ edit: the field, with its default.
 A checkpoint file is a zip archive holding ``manifest.json`` (kind, format version, package version, and the
 SHA-256 of every other member), ``state.json`` (the tree, with arrays replaced by references) and one ``.npy``
 file per array (read back with ``allow_pickle=False``); a list of arrays that differ only in their first
-dimension is one ``.npy`` file (their concatenation) and its lengths, a list of floats one float64 ``.npy``.
+dimension is one ``.npy`` file (their concatenation) and its lengths, a list of floats one float64 ``.npy``, a
+list of tuples of one length its columns (so a list of ``(int, array)`` pairs is a list of ints and one array).
 Nothing in it executes on load. A truncated, damaged or altered file, a file of another kind or of another
 format version raises :class:`~online_slam.errors.InputError`. Floats survive bit for bit (arrays in binary,
 finite JSON floats by shortest round-trip repr, NaN and infinities by their bits), so a run continued from a
@@ -195,13 +196,14 @@ class Checkpointed:
 
 
 # -- trees <-> JSON and arrays -------------------------------------------------------------------------------
-_ARRAY, _ARRAYS, _FLOATS, _FLOAT, _TUPLE, _PAIRS = (
+_ARRAY, _ARRAYS, _FLOATS, _FLOAT, _TUPLE, _PAIRS, _COLUMNS = (
     "__array__",
     "__arrays__",
     "__floats__",
     "__float__",
     "__tuple__",
     "__pairs__",
+    "__columns__",
 )
 
 
@@ -211,7 +213,9 @@ _JSON = {bool, int, str, type(None)}
 
 def _one_array(items: list) -> str | None:
     """How a list is stored as one array: ``floats``, ``arrays`` (of one dtype, differing only in their first
-    dimension), or None (it is not)."""
+    dimension), or None (it is not, or it has fewer than two items: as it is, it takes no more members)."""
+    if len(items) < 2:
+        return None
     kinds = {type(v) for v in items}
     if kinds == {float}:
         return _FLOATS
@@ -220,6 +224,11 @@ def _one_array(items: list) -> str | None:
     layouts = {(a.dtype.kind, a.dtype, a.ndim, a.shape[1:]) for a in items}
     kind, _, ndim, _ = layouts.pop()
     return _ARRAYS if not layouts and ndim > 0 and kind != "O" else None
+
+
+def _is_table(items: list) -> bool:
+    """Whether a list is rows of one length (tuples, not empty), stored column by column."""
+    return bool(items) and {type(v) for v in items} == {tuple} and len({len(v) for v in items}) == 1 and bool(items[0])
 
 
 def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
@@ -251,6 +260,8 @@ def _pack(value: Any, arrays: list[np.ndarray]) -> Any:
             return {_ARRAYS: [len(arrays) - 2, len(arrays) - 1]}
         if {type(v) for v in value} <= _JSON:
             return value
+        if _is_table(value):
+            return {_COLUMNS: [_pack(list(column), arrays) for column in zip(*value)]}
         return [_pack(v, arrays) for v in value]
     if value is None or isinstance(value, (bool, int, str)):
         return value
@@ -277,6 +288,8 @@ def _unpack(value: Any, arrays: dict[int, np.ndarray]) -> Any:
             return tuple(_unpack(v, arrays) for v in body)
         if tag == _PAIRS:
             return dict(zip(_unpack(body[0], arrays), _unpack(body[1], arrays), strict=True))
+        if tag == _COLUMNS:
+            return list(zip(*(_unpack(column, arrays) for column in body), strict=True))
     return {k: _unpack(v, arrays) for k, v in value.items()}
 
 

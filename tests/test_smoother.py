@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
+import copy
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
 import online_slam
+from online_slam.checkpoint import read_checkpoint, to_tree, write_checkpoint
 from online_slam.estimators import BatchConfig, BatchEstimator, SlidingWindowSmoother, SmootherConfig
+from online_slam.estimators.landmark_book import AssociationConfig
+from online_slam.estimators.smoother.state import SmootherState
 from online_slam.evaluation.metrics import align_se2
 from online_slam.factors import RobustLoss, layout, linearize
 from online_slam.frontend import FrontEnd, FrontEndConfig
 from online_slam.geometry import wrap
 from online_slam.pipeline import ReplayConfig
 from online_slam.sources import GridConfig, Observation, Odometry, Truth, grid_world, square_world
+from online_slam.sources.worlds import without_ids
 
 
 def run(events, config: SmootherConfig, frontend: FrontEndConfig | None = None):
@@ -245,26 +253,53 @@ def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
     assert ratio_revised <= 1.02 and ratio_revised < ratio_frozen
 
 
-def test_background_global_relinearization_is_deterministic_and_survives_a_checkpoint() -> None:
+def test_background_global_relinearization_is_deterministic_and_survives_a_checkpoint(tmp_path: Path) -> None:
     """The hand-over step is fixed, so results never depend on thread timing; a checkpoint taken while a global
-    solve is pending carries its result, and the run continues identically."""
+    solve is pending carries its result (in memory, and through a file), and the run continues identically."""
     steps = list(FrontEnd().steps(grid_world(GridConfig(poses=400, seed=5))))
     config = SmootherConfig(window=10, global_every=100, global_delay=30)
 
-    def run_all(cut: int | None = None) -> np.ndarray:
+    def run_all(cut: int | None = None, through_file: bool = False) -> np.ndarray:
         smoother = SlidingWindowSmoother(config)
         for k, step in enumerate(steps):
             if k == cut:  # a global solve started at step 300 is pending until 330
                 assert smoother.relinearization.job is not None
                 state = smoother.state_dict()
+                assert smoother.relinearization.job.result is not None  # finished, its result saved
+                if through_file:
+                    write_checkpoint(tmp_path / "smoother.ckpt", "test", state)
+                    state = read_checkpoint(tmp_path / "smoother.ckpt", "test")
                 smoother = SlidingWindowSmoother(config)
                 smoother.load_state(state)
+                assert smoother.relinearization.job is not None and smoother.relinearization.job.thread is None
             smoother.step(step)
         return smoother.finish().poses
 
-    first, again, resumed = run_all(), run_all(), run_all(cut=310)
+    first, again = run_all(), run_all()
     np.testing.assert_array_equal(first, again)
-    np.testing.assert_array_equal(first, resumed)
+    np.testing.assert_array_equal(first, run_all(cut=310))
+    np.testing.assert_array_equal(first, run_all(cut=310, through_file=True))
+
+
+def test_state_dict_is_the_tree_of_the_state_and_load_state_rebuilds_it() -> None:
+    """``state_dict`` is the tree of :class:`SmootherState` (its groups' fields, derived ones left out: plain data,
+    it shares the smoother's arrays); ``load_state`` rebuilds the same state, derived fields included."""
+    events = without_ids(grid_world(GridConfig(poses=80, seed=2)))
+    config = SmootherConfig(window=6, global_every=20, global_delay=5, association=AssociationConfig("jcbb"))
+    smoother = SlidingWindowSmoother(config)
+    for step in FrontEnd().steps(events):
+        smoother.step(step)
+    tree = smoother.state_dict()
+    assert set(tree) == {f.name for f in dataclasses.fields(SmootherState)}
+    assert "index" not in tree["window"] and "thread" not in (tree["relinearization"]["job"] or {})
+    again = SlidingWindowSmoother(config)
+    again.load_state(copy.deepcopy(tree))
+    assert again.window.index == smoother.window.index and again.prior is not None and smoother.prior is not None
+    assert again.association.solved is not None
+    assert again.association.book.labels() == smoother.association.book.labels()
+    np.testing.assert_array_equal(again.prior.Sigma, smoother.prior.Sigma)
+    assert to_tree(again.state).keys() == tree.keys()
+    np.testing.assert_array_equal(again.finish().poses, smoother.finish().poses)
 
 
 def test_window_sized_by_motion_keeps_poses_until_its_path_is_long_enough() -> None:

@@ -24,8 +24,8 @@ from the last solve (:mod:`.covariance`).
 
 Parts: :mod:`.config` (settings), :mod:`.window` (variables, factors, the window system, consensus),
 :mod:`.prior` (the marginal prior), :mod:`.covariance` (covariance recovery), :mod:`.global_solve` (the
-background global relinearization), :mod:`.relinearize` (its whole-history math), :mod:`.state` (state groups
-and checkpoint packing), :mod:`.core` (the estimator).
+background global relinearization), :mod:`.relinearize` (its whole-history math), :mod:`.state` (the state as
+data), :mod:`.core` (the estimator).
 """
 
 from online_slam.estimators.smoother.config import SmootherConfig

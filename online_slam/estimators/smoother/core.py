@@ -1,9 +1,10 @@
 """The sliding-window smoother: the estimator that drives the window, its prior, covariance recovery and the
 global relinearization (see :mod:`online_slam.estimators.smoother`).
 
-Its state is in a few groups, each a dataclass: the window (:class:`~.window.Window`), the marginal prior
-(:class:`~.prior.Prior`), progress (:class:`~.state.Progress`), the global relinearization
-(:class:`~.global_solve.Relinearization`) and association (:class:`~.state.AssociationState`).
+Its state is one dataclass (:class:`~.state.SmootherState`) of a few groups: the window
+(:class:`~.window.Window`), the marginal prior (:class:`~.prior.Prior`), progress (:class:`~.state.Progress`),
+the global relinearization (:class:`~.global_solve.Relinearization`) and association
+(:class:`~.state.AssociationState`); a checkpoint is its tree (:func:`~online_slam.checkpoint.to_tree`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
+from online_slam.checkpoint import from_tree, to_tree
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
@@ -37,16 +39,7 @@ from online_slam.estimators.smoother.global_solve import (
     start_job,
 )
 from online_slam.estimators.smoother.prior import Prior, initial_prior, marginalize, release
-from online_slam.estimators.smoother.state import (
-    AssociationState,
-    Progress,
-    pack,
-    unpack_association,
-    unpack_prior,
-    unpack_progress,
-    unpack_relinearization,
-    unpack_window,
-)
+from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
 from online_slam.estimators.smoother.window import (
     Window,
     active,
@@ -73,12 +66,11 @@ class SlidingWindowSmoother:
     def __init__(self, config: SmootherConfig | None = None, name: str = "smoother") -> None:
         self.config = config or SmootherConfig()
         self.name = name
-        self.window = Window()
-        self.prior: Prior | None = None
-        self.progress = Progress()
-        # every factor, for global solves
-        self.relinearization = Relinearization(ProblemLog(keep_factors=self.config.global_every > 0))
-        self.association = AssociationState(LandmarkBook(self.config.association, inside=False))
+        self.state = SmootherState(
+            Window(),
+            Relinearization(ProblemLog(keep_factors=self.config.global_every > 0)),  # every factor, for global solves
+            AssociationState(LandmarkBook(self.config.association, inside=False)),
+        )
         self._reject_bound = (
             outlier_threshold(self.config.reject_false_alarm) if self.config.reject_false_alarm > 0 else np.inf
         )
@@ -88,6 +80,36 @@ class SlidingWindowSmoother:
     def landmarks(self) -> Array:
         """Current landmark estimates, shape (M, 2)."""
         return self.window.landmarks
+
+    # the state's groups
+    @property
+    def window(self) -> Window:
+        """The window's poses and factors, the poses that left it, every landmark."""
+        return self.state.window
+
+    @property
+    def prior(self) -> Prior | None:
+        """The marginal prior, once a pose left the window."""
+        return self.state.prior
+
+    @prior.setter
+    def prior(self, value: Prior | None) -> None:
+        self.state.prior = value
+
+    @property
+    def progress(self) -> Progress:
+        """Counts, and what the newest step did."""
+        return self.state.progress
+
+    @property
+    def relinearization(self) -> Relinearization:
+        """Every factor seen so far and the global relinearizations."""
+        return self.state.relinearization
+
+    @property
+    def association(self) -> AssociationState:
+        """Association's state, and the last solve's information it reads."""
+        return self.state.association
 
     # -- protocol --------------------------------------------------------------------------------
     def step(self, step: Step) -> Snapshot:
@@ -132,21 +154,17 @@ class SlidingWindowSmoother:
         """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3))."""
         return self.window.history.view(), self.window.values().reshape(-1, 3)
 
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue exactly where the smoother is (numbers and arrays only).
+    def state_dict(self) -> Any:
+        """Everything needed to continue exactly where the smoother is: the tree of :class:`~.state.SmootherState`.
 
         A pending global solve is finished first: its result is part of the state.
         """
         finish_job(self.relinearization.job)
-        return pack(self.window, self.prior, self.progress, self.relinearization, self.association)
+        return to_tree(self.state)
 
-    def load_state(self, state: dict[str, Any]) -> None:
+    def load_state(self, state: Any) -> None:
         """Restore a :meth:`state_dict` (this smoother's config is kept)."""
-        self.window = unpack_window(state)
-        self.prior = unpack_prior(state)
-        self.progress = unpack_progress(state)
-        self.relinearization = unpack_relinearization(state, self.relinearization.log)
-        self.association = unpack_association(state, self.association.book, self.window)
+        self.state = from_tree(SmootherState, state)
 
     def snapshot(self, step: Step) -> Snapshot:
         """The current estimate as an immutable snapshot."""

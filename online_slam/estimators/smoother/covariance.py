@@ -34,7 +34,7 @@ def locate(ids: Index, wanted: Index) -> tuple[Index, NDArray[np.bool_]]:
     return where, ids[where] == wanted
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Solved:
     """The last window solve's factored information, for association covariances until the state moves."""
 

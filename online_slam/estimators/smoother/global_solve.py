@@ -30,23 +30,24 @@ Decisions = list[tuple[int, NDArray[np.bool_]]]
 """(pose, which of its sightings were judged outliers) for each pose when it left the window."""
 
 
-@dataclass
+@dataclass(eq=False)
 class GlobalJob:
-    """A global solve running in the background (or finished, or restored from a checkpoint)."""
+    """A global solve running in the background (or finished, or restored from a checkpoint: a checkpoint holds a
+    finished job, its result or its error)."""
 
     handover: int
     """Step count at which its result is applied."""
     n_poses: int
     """Poses in the state it started from (0 .. n_poses - 1)."""
-    thread: threading.Thread | None = None
-    """The thread solving it, until it is joined."""
     result: SolveResult | None = None
     """Its solution, once solved."""
     error: str | None = None
     """Why it gave no solution, if it failed."""
+    thread: threading.Thread | None = field(default=None, init=False)
+    """The thread solving it, until it is joined (:func:`finish_job`)."""
 
 
-@dataclass
+@dataclass(eq=False)
 class Relinearization:
     """What global relinearizations need and how they went."""
 

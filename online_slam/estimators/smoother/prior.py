@@ -41,7 +41,7 @@ Appended = tuple[Array, Array, Array, Array]
 new variable's linearization point)."""
 
 
-@dataclass
+@dataclass(eq=False)
 class Prior:
     """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[landmarks..., pose]``.
 

@@ -38,7 +38,7 @@ Array = NDArray[np.float64]
 Index = NDArray[np.int64]
 
 
-@dataclass
+@dataclass(eq=False)
 class Window:
     """The window's poses and factors, the poses that left it, and every landmark."""
 
@@ -50,8 +50,6 @@ class Window:
     """Final estimates of the poses that left the window."""
     landmark_ids: list[LandmarkId] = field(default_factory=list)
     """Landmark ids in order of first sighting."""
-    index: dict[LandmarkId, int] = field(default_factory=dict)
-    """Each landmark id's row in ``landmarks``."""
     landmarks: Array = field(default_factory=lambda: np.zeros((0, 2)))
     """Current estimate of every landmark, shape (M, 2)."""
     odometry: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
@@ -66,6 +64,11 @@ class Window:
     """Window poses with factors added since the last solve."""
     since_solve: int = 0
     """Steps since the last solve."""
+    index: dict[LandmarkId, int] = field(init=False)
+    """Each landmark id's row in ``landmarks``."""
+
+    def __post_init__(self) -> None:
+        self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
 
     def values(self) -> Array:
         """The window poses' estimates, oldest first, shape (P, 3)."""
