@@ -1,4 +1,8 @@
-"""The package's exceptions: one base, and the input error that names file, line and field."""
+"""The package's exceptions: one base, and the input error that names file, line and field.
+
+:class:`InputError` and :class:`ConfigError` are also ``ValueError``s: a caller catching bad values the Python way
+catches them too.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +11,8 @@ class OnlineSlamError(Exception):
     """Base of every error this package raises on purpose."""
 
 
-class InputError(OnlineSlamError):
-    """A bad input line: names the file, the line number, the field and what was expected.
+class InputError(OnlineSlamError, ValueError):
+    """A bad input line or call: names the file (or method), the line number, the field and what was expected.
 
     Attributes:
         source: File name (or ``<stdin>``) the line came from.
@@ -35,7 +39,7 @@ class InputError(OnlineSlamError):
             (message.startswith("unknown field"), "unknown_field"),
             (message.startswith("missing"), "missing_field"),
             ("a finite number" in message, "not_finite"),
-            ("magnitude" in message, "out_of_range"),
+            ("magnitude" in message or "in degrees?" in message, "out_of_range"),
             ("range > 0" in message, "range_not_positive"),
             (field.startswith(("sigma", "cov")), "bad_noise"),
             (field == "t", "time_order"),

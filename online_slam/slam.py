@@ -1,14 +1,16 @@
 """``online_slam.Slam``: the engine as a library — push odometry and sightings, read the estimate at once.
 
-Each ``add_*`` call is validated by the same rules as a stream-v1 line (one of sigma/cov, finite numbers,
-range > 0, non-decreasing time, ``start`` first); bad input raises :class:`~online_slam.errors.InputError`
-naming the field and changes nothing. :meth:`Slam.estimate` reflects every event added so far: sightings of the
-newest pose are used before its successor's odometry arrives (see :mod:`online_slam.engine` for how, and why a
-replay gives the same numbers).
+Each ``add_*`` call (and :meth:`Slam.add`, which takes stream-v1 event objects or their ``dict`` records) is
+validated by the same rules as a stream-v1 line (one of sigma/cov, finite numbers, range > 0, bearings in
+radians, non-decreasing time, ``start`` first); bad input raises :class:`~online_slam.errors.InputError` naming
+the field and changes nothing. A sighting at time ``t`` belongs to the newest pose with time <= ``t``.
+:meth:`Slam.estimate` reflects every event added so far: sightings of the newest pose are used before its
+successor's odometry arrives (see :mod:`online_slam.engine` for how, and why a replay gives the same numbers).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -23,7 +25,7 @@ from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, EngineCheckpoint
 from online_slam.errors import ConfigError, InputError
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
-from online_slam.estimators.protocol import Snapshot
+from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.options import Option, check_value, estimator_options, replay_config
@@ -33,7 +35,13 @@ from online_slam.sources.validate import EventValidator, ValidatorState, plain
 Array = NDArray[np.float64]
 
 ESTIMATORS = ("ekf", "smoother")
-"""Estimators a :class:`Slam` can run."""
+"""Estimators a :class:`Slam` can run (names are case-insensitive)."""
+NOT_ONLINE = {
+    "batch": "the batch solver is not an online estimator: it solves the whole stream at its end. Run it with "
+    'online_slam.replay(events, online_slam.ReplayConfig(estimators=("batch",))) (events: a list of event objects '
+    "or stream-v1 records, a stream path or a world name) and read .estimates['batch']",
+}
+"""Estimators of a replay that a :class:`Slam` cannot run, and what to do instead."""
 
 OPTIONS: dict[str, Option] = estimator_options()
 """Options of :class:`Slam`: the estimator options of :mod:`online_slam.options`, named as the CLI's flags
@@ -45,7 +53,10 @@ _CHECKPOINT_KIND = "slam"
 @dataclass(frozen=True)
 class SlamEstimate:
     """The estimate after every event added so far. Arrays are read-only; everything is read from data captured
-    at query time, and ``trajectory``, ``landmarks`` and ``landmark_covs`` are assembled on first access."""
+    at query time, and ``trajectory``, ``landmarks`` and ``landmark_covs`` are assembled on first access.
+
+    Before any event there is no pose yet: the estimate is empty, with ``index`` -1, ``t``, ``pose`` and
+    ``pose_cov`` NaN, a (0, 3) ``trajectory`` and no landmarks."""
 
     snapshot: Snapshot
     """The estimator's snapshot after the newest event (its arrays belong to this estimate alone)."""
@@ -56,17 +67,17 @@ class SlamEstimate:
 
     @property
     def t(self) -> float:
-        """Time of the newest pose, seconds."""
+        """Time of the newest pose, seconds (NaN before any pose)."""
         return self.snapshot.t
 
     @property
     def index(self) -> int:
-        """Index of the newest pose (0 is the start)."""
+        """Index of the newest pose (0 is the start; -1 before any pose)."""
         return self.snapshot.index
 
     @cached_property
     def pose(self) -> Array:
-        """Newest pose ``[x, y, theta]``, shape (3,)."""
+        """Newest pose ``[x, y, theta]``, shape (3,) (NaN before any pose)."""
         return _locked(self.snapshot.pose)
 
     @cached_property
@@ -117,6 +128,8 @@ def _locked(array: Array) -> Array:
 
 def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | SmootherConfig, FrontEndConfig]:
     """Check the options and build the estimator's and the front-end's configurations (the CLI's translation)."""
+    if estimator in NOT_ONLINE:
+        raise ConfigError(f"Slam({estimator!r}): {NOT_ONLINE[estimator]}")
     if estimator not in ESTIMATORS:
         raise ConfigError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
     for key, value in options.items():
@@ -138,7 +151,8 @@ class Slam:
     """Online 2D landmark SLAM in a robot's loop: push events, query the estimate.
 
     Args:
-        estimator: ``"smoother"`` (sliding-window least squares, default) or ``"ekf"``.
+        estimator: ``"smoother"`` (sliding-window least squares, default) or ``"ekf"``, in any case. The batch
+            solver is no online estimator: run it with :func:`online_slam.replay`.
         **options: Settings named as the CLI's flags (see :data:`OPTIONS`), e.g. ``window=50``,
             ``robust="cauchy"``, ``gate_probability=0.999``.
 
@@ -154,6 +168,7 @@ class Slam:
     """
 
     def __init__(self, estimator: str = "smoother", **options: Any) -> None:
+        estimator = estimator.strip().lower() if isinstance(estimator, str) else estimator
         config, frontend = _configs(estimator, options)
         self.estimator_name = estimator
         self.options: dict[str, Any] = dict(options)
@@ -188,14 +203,15 @@ class Slam:
     def add_observation(
         self, t: float, landmark: LandmarkId | None, range: float, bearing: float, sigma: Any = None, cov: Any = None
     ) -> None:
-        """A range-bearing sighting of a landmark; belongs to the newest pose with time <= ``t``.
+        """A range-bearing sighting of a landmark; it attaches to the newest pose with time <= ``t``.
 
         Args:
-            t: Time, seconds.
+            t: Time, seconds (never before the previous event).
             landmark: Landmark id (int or non-empty string; ``3`` and ``"3"`` differ), or None when unknown (the
                 estimator associates it; with ``association="nn"``/``"jcbb"`` every id is ignored).
             range: Distance, metres (> 0).
-            bearing: Angle from the heading, radians.
+            bearing: Angle from the heading, radians, within [-2 pi, 2 pi] (a larger one is refused as likely
+                degrees).
             sigma: ``[s_range, s_bearing]``, or None when ``cov`` is given.
             cov: Full 2x2 covariance, or None when ``sigma`` is given.
         """
@@ -211,13 +227,14 @@ class Slam:
         sigma: Any = None,
         cov: Any = None,
     ) -> None:
-        """A scan: k sightings taken at one time, checked as a whole (all are added, or none).
+        """A scan: k sightings taken at one time, checked as a whole (all are added, or none); they attach to the
+        newest pose with time <= ``t``.
 
         Args:
-            t: Time, seconds.
+            t: Time, seconds (never before the previous event).
             landmarks: k landmark ids (None for an unknown one), or None: all unknown.
             ranges: k distances, metres (> 0).
-            bearings: k angles from the heading, radians.
+            bearings: k angles from the heading, radians, within [-2 pi, 2 pi].
             sigma: ``[s_range, s_bearing]`` shared by all, or one per sighting (k, 2).
             cov: A 2x2 covariance shared by all, or one per sighting (k, 2, 2).
 
@@ -232,13 +249,33 @@ class Slam:
         )
         self._engine.push(scan)
 
-    def add(self, event: Event) -> None:
-        """Add any stream-v1 event object (e.g. from :func:`~online_slam.sources.stream.read_stream`).
+    def add(self, event: Event | Mapping[str, Any]) -> None:
+        """Add one stream-v1 event: an event object (e.g. from :func:`~online_slam.sources.stream.read_stream`)
+        or its record, a ``dict`` as on a stream line (numpy arrays allowed for lists).
 
-        Truth events are kept apart for evaluation, as in a replay; no estimator sees them.
+        An ``odometry`` event makes a new pose at its time; an ``observation`` attaches to the newest pose with
+        time <= its ``t``; a ``start`` must come first. Truth events are kept apart for evaluation, as in a
+        replay; no estimator sees them.
+
+        Example:
+            >>> slam = Slam("ekf")
+            >>> slam.add({"type": "odometry", "t": 1.0, "delta": [1.0, 0.0, 0.0], "sigma": [0.05, 0.05, 0.01]})
+            >>> slam.estimate().index
+            1
+
+        Raises:
+            InputError: The record breaks a rule of the stream format (naming the field, e.g. ``delta``), or the
+                item is neither an event nor a ``dict``; nothing changes.
         """
-        record = event.to_record()
-        self._push(f"add({record['type']})", record, None, None)
+        if isinstance(event, Mapping):
+            record = dict(event)
+        elif callable(getattr(event, "to_record", None)):
+            record = event.to_record()
+        else:
+            problem = f"expected an event or a stream-v1 record, got {type(event).__name__}"
+            raise InputError("Slam.add", 0, "", problem)
+        kind = record.get("type")
+        self._push(f"add({kind})" if isinstance(kind, str) else "add", record, None, None)
 
     def _push(self, method: str, record: dict[str, Any], sigma: Any, cov: Any) -> None:
         record = {key: plain(value) for key, value in record.items()}
@@ -258,12 +295,12 @@ class Slam:
             landmark_covs: Also give each landmark's 2x2 marginal covariance (the smoother computes them on
                 request: one linearization of its window; pass False to skip).
 
-        Raises:
-            InputError: Before any event (there is no pose yet).
+        Returns:
+            The estimate; before any event an empty one (``index`` -1, no trajectory, no landmarks).
         """
         snapshot = self._engine.sync().get(self._estimator.name)
         if snapshot is None:
-            raise InputError("Slam.estimate", 0, "", "no pose yet: add an event first")
+            return _empty_estimate(self._estimator, landmark_covs)
         covs = _read_only(self._estimator.landmark_marginals()) if landmark_covs else None
         frozen, tail = self._estimator.trajectory_parts()
         tail.flags.writeable = False
@@ -298,6 +335,14 @@ class Slam:
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
+
+
+def _empty_estimate(estimator: Estimator, landmark_covs: bool) -> SlamEstimate:
+    """The estimate before any pose: index -1, NaN time and pose, nothing else."""
+    nothing = _read_only(np.zeros((0, 3)))
+    snapshot = Snapshot(estimator.name, -1, math.nan, np.full(3, math.nan), None, (), np.zeros((0, 2)))
+    covs = _read_only(np.zeros((0, 2, 2))) if landmark_covs else None
+    return SlamEstimate(snapshot, covs, (nothing, nothing))
 
 
 @dataclass(eq=False)

@@ -101,8 +101,73 @@ def test_options_are_validated() -> None:
     with pytest.raises(ConfigError, match="estimator must be"):
         Slam("particle")
     assert Slam("smoother", window=50, relinearize_every=2, robust="cauchy", robust_scale=3.0).options["window"] == 50
-    with pytest.raises(InputError, match="no pose yet"):
-        Slam().estimate()
+
+
+def test_estimator_names_ignore_case_and_batch_points_to_replay() -> None:
+    assert Slam("EKF").estimator_name == "ekf" and Slam(" Smoother ").estimator_name == "smoother"
+    with pytest.raises(ConfigError, match=r"batch solver is not an online estimator.*online_slam\.replay"):
+        Slam("Batch")
+
+
+def test_input_and_config_errors_are_value_errors_of_ours() -> None:
+    for error in (InputError, ConfigError):
+        assert issubclass(error, ValueError) and issubclass(error, OnlineSlamError)
+    with pytest.raises(ValueError, match="range > 0"):
+        Slam().add_observation(0.0, 1, -1.0, 0.0, sigma=[0.1, 0.01])
+
+
+@pytest.mark.parametrize("estimator", ["ekf", "smoother"])
+def test_estimate_before_any_event_is_empty(estimator: str) -> None:
+    empty = Slam(estimator).estimate()
+    assert empty.index == -1 and math.isnan(empty.t)
+    assert empty.trajectory.shape == (0, 3) and empty.landmark_array.shape == (0, 2)
+    assert np.isnan(empty.pose).all() and empty.pose.shape == (3,) and np.isnan(empty.pose_cov).all()
+    assert dict(empty.landmarks) == {} and dict(empty.landmark_covs) == {} and empty.landmark_ids == ()
+    assert Slam(estimator).estimate(landmark_covs=False).landmark_covs is None
+
+
+def test_add_takes_stream_records_as_well_as_events() -> None:
+    events = list(square_world())
+    by_object, by_record = Slam("ekf"), Slam("ekf")
+    for event in events:
+        by_object.add(event)
+        by_record.add({key: np.asarray(v) if isinstance(v, list) else v for key, v in event.to_record().items()})
+    np.testing.assert_array_equal(by_object.estimate().trajectory, by_record.estimate().trajectory)
+    assert by_record.poses == 25
+    by_record.add({"type": "odometry", "t": 25.0, "delta": [1.0, 0.0, 0.0], "sigma": [0.05, 0.05, 0.01]})
+    assert by_record.poses == 26
+
+
+@pytest.mark.parametrize(
+    ("item", "field", "message"),
+    [
+        ({"type": "odometry", "t": 100.0, "delta": [1.0, 0.0], "sigma": [0.1, 0.1, 0.1]}, "delta", "list of 3"),
+        ({"type": "odometry", "t": 100.0, "delta": [1.0, 0.0, 0.0]}, "sigma", "missing noise"),
+        ({"type": "odometry", "t": 100.0, "delta": [1.0, 0.0, 0.0], "sigmas": [0.1] * 3}, "sigmas", "unknown field"),
+        ({"t": 100.0, "delta": [1.0, 0.0, 0.0], "sigma": [0.1, 0.1, 0.1]}, "type", "unknown event type"),
+        ({"type": "observation", "t": 100.0, "range": 2.0, "bearing": 45.0, "sigma": [0.1, 0.01]}, "bearing", "deg"),
+        ("odometry", "", "expected an event or a stream-v1 record, got str"),
+    ],
+)
+def test_add_refuses_a_bad_record_naming_its_field(item, field: str, message: str) -> None:
+    slam = _warm_slam("ekf")
+    before = _fingerprint(slam)
+    with pytest.raises(InputError, match=message) as caught:
+        slam.add(item)
+    assert caught.value.field == field and caught.value.source.startswith("Slam.add")
+    assert _fingerprint(slam) == before
+
+
+def test_bearings_in_degrees_are_refused() -> None:
+    slam = Slam("ekf")
+    slam.add_observation(0.0, 1, 2.0, -2 * math.pi, sigma=[0.1, 0.01])  # the limits themselves are radians
+    with pytest.raises(InputError, match=r"\[-2 pi, 2 pi\].*degrees") as caught:
+        slam.add_observation(0.0, 1, 2.0, 45.0, sigma=[0.1, 0.01])
+    assert caught.value.field == "bearing" and caught.value.reason == "out_of_range"
+    with pytest.raises(InputError, match="degrees") as caught:
+        slam.add_observations(0.0, [1, 2], [2.0, 3.0], [0.5, -90.0], sigma=[0.1, 0.01])
+    assert caught.value.field == "bearing[1]"
+    assert slam.estimate().landmark_ids == (1,)  # the scan changed nothing
 
 
 def test_smoother_landmark_covariances_equal_batch_marginals_with_a_covering_window() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gzip
 import io
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from online_slam.sources import (
 
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 positive = st.floats(1e-6, 1e3, allow_nan=False)
+bearings = st.floats(-2 * math.pi, 2 * math.pi)
 ids = st.one_of(st.integers(-1000, 10**12), st.text(min_size=1, max_size=8))
 
 
@@ -47,7 +49,7 @@ def streams(draw: st.DrawFn) -> list:
             events.append(Odometry(t=t, delta=(1.0, 0.0, 0.5), cov=((a, 0.0, 0.0), (0.0, b, 0.0), (0.0, 0.0, a))))
         elif kind == "observation":
             events.append(
-                Observation(t=t, landmark=draw(ids), range=draw(positive), bearing=draw(finite), sigma=(0.1, 0.01))
+                Observation(t=t, landmark=draw(ids), range=draw(positive), bearing=draw(bearings), sigma=(0.1, 0.01))
             )
         elif kind == "truth":
             events.append(Truth(t=t, pose=draw(st.tuples(finite, finite, finite))))
@@ -107,6 +109,8 @@ BAD_LINES = [
     ('{"type": "observation", "t": 1, "landmark": 3, "range": Infinity, "bearing": 0, "sigma": [1, 1]}', "range", ""),
     (json.dumps({**OK_OBS, "range": -2.0}), "range", "range > 0"),
     (json.dumps({**OK_OBS, "range": 0}), "range", "range > 0"),
+    (json.dumps({**OK_OBS, "bearing": 45.0}), "bearing", "in degrees?"),
+    (json.dumps({**OK_OBS, "bearing": -6.3}), "bearing", "in degrees?"),
     (json.dumps({**OK_OBS, "sigma": [0.1, 0.0]}), "sigma[1]", "> 0"),
     (json.dumps({**OK_OBS, "landmark": 1.5}), "landmark", "integer or a non-empty string"),
     (json.dumps({**OK_OBS, "landmark": True}), "landmark", "integer or a non-empty string"),
@@ -217,3 +221,6 @@ def test_events_given_as_an_iterable_are_checked_like_a_files_lines() -> None:
     assert records.poses == 4 and records.observations == 2
     with pytest.raises(InputError, match=r"<events>:1: expected an event or a stream-v1 record, got str"):
         replay(["start"])
+    in_degrees = {"type": "observation", "t": 1.0, "landmark": 1, "range": 2.0, "bearing": 45.0, "sigma": [0.1, 0.01]}
+    refused = replay([e.to_record() for e in good[:3]] + [in_degrees], ReplayConfig(estimators=("ekf",)))
+    assert refused.error.startswith("<events>:4: bearing: expected radians within [-2 pi, 2 pi], got 45.0")

@@ -78,6 +78,8 @@ MIN_RANGE = 1e-6
 """Smallest range, metres: the range-bearing Jacobian divides by it (a landmark at the sensor has no bearing)."""
 SIGMA_RANGE = (1e-8, 1e8)
 """Allowed standard deviations (and square roots of covariance eigenvalues)."""
+MAX_BEARING = 2 * math.pi
+"""Largest magnitude of a bearing, radians: a larger one is most likely in degrees (45.0 for pi/4), so refused."""
 
 
 def _plain_floats(delta: Any, sigma: Any) -> bool:
@@ -274,7 +276,7 @@ class EventValidator:
             if type(r) is not float or not low <= r <= high:
                 return None
         for b in bearings:
-            if type(b) is not float or not -high <= b <= high:
+            if type(b) is not float or not -MAX_BEARING <= b <= MAX_BEARING:
                 return None
         return tuple(ranges), tuple(bearings)
 
@@ -414,6 +416,10 @@ class EventValidator:
         if rng < MIN_RANGE:
             raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")
         bearing = self.number(record, "bearing", line)
+        if not -MAX_BEARING <= bearing <= MAX_BEARING:
+            raise self.fail(
+                line, "bearing", f"expected radians within [-2 pi, 2 pi], got {bearing} (in degrees? convert them)"
+            )
         sigma, cov = self.noise(record, 2, line)
         mark = record.get("truth_outlier")
         if mark is not None and mark not in OUTLIER_KINDS:

@@ -5,16 +5,26 @@ This package is the only place that imports rerun.
 """
 
 from online_slam.sinks.recording.layout import Layout
-from online_slam.sinks.recording.reader import BlueprintView, Recording, RecordingSummary, blueprint_views, check_rrd
+from online_slam.sinks.recording.reader import (
+    BlueprintView,
+    Recording,
+    RecordingSeries,
+    RecordingSummary,
+    blueprint_views,
+    check_rrd,
+    read_recording,
+)
 from online_slam.sinks.recording.writer import RerunConfig, RerunSink
 
 __all__ = [
     "BlueprintView",
     "Layout",
     "Recording",
+    "RecordingSeries",
     "RecordingSummary",
     "RerunConfig",
     "RerunSink",
     "blueprint_views",
     "check_rrd",
+    "read_recording",
 ]

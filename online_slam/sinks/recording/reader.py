@@ -1,4 +1,4 @@
-"""Reading a recording back: summary, per-step figures, state at a step, the blueprint's views.
+"""Reading a recording back: summary, per-step figures and poses as arrays, state at a step, the blueprint's views.
 
 Through Rerun's dataframe API (a local server on the loopback) and ``rerun.chunk.RrdReader``; the estimators and
 their entities come from the layout the writer stored in the summary.
@@ -8,15 +8,22 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import rerun as rr
+from numpy.typing import NDArray
 
 from online_slam.errors import OnlineSlamError
 from online_slam.sinks.recording.layout import TRUTH, Layout
+
+if TYPE_CHECKING:
+    import pandas
+
+Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -40,6 +47,84 @@ class RecordingSummary:
     figures: dict[str, dict[str, float]]
     """Per online estimator, recomputed from the logged series: online RMSE (sqrt of the mean squared
     ``position_error_m``) and mean ``nees``, to compare with the stored table."""
+
+
+@dataclass(frozen=True)
+class RecordingSeries:
+    """A recording's per-step series as arrays (S steps), for plots and analysis: what ``inspect`` reads."""
+
+    source: str
+    """Name of the replayed source."""
+    results: dict[str, Any]
+    """The results JSON stored in the recording (the table's figures, see ``docs/formats.md``)."""
+    step: NDArray[np.int64]
+    """Step numbers 0 .. S-1, shape (S,)."""
+    t: Array
+    """Stream time of each step, seconds, shape (S,)."""
+    poses: Mapping[str, Array]
+    """Online estimator (dead reckoning ``odometry`` included) or ``truth`` -> its newest pose ``[x, y, theta]``
+    at each step, shape (S, 3), as logged (float32 precision); NaN where none was logged."""
+    metrics: Mapping[str, Mapping[str, Array]]
+    """Online estimator -> figure -> its value at each step, shape (S,), NaN where none was logged. Figures:
+    ``position_error_m``, ``nees`` and ``step_ms`` for each, ``nis`` for the EKF, ``cost_before``,
+    ``cost_after`` and ``iterations`` for smoothers (the table's figures are computed from the same values)."""
+
+    def to_pandas(self) -> pandas.DataFrame:
+        """One row per (estimator, step): columns ``step``, ``t``, ``estimator``, ``x``, ``y``, ``theta`` and one
+        per figure (NaN where the estimator has none).
+
+        Raises:
+            ImportError: pandas is not installed (online-slam does not need it otherwise).
+        """
+        try:
+            import pandas
+        except ImportError:
+            raise ImportError("RecordingSeries.to_pandas needs pandas, which online-slam does not install: "
+                              "pip install pandas") from None  # fmt: skip
+        figures = sorted({figure for values in self.metrics.values() for figure in values})
+        missing = np.full(len(self.step), np.nan)
+        frames = []
+        for name in dict.fromkeys([*self.poses, *self.metrics]):
+            pose = self.poses.get(name, np.full((len(self.step), 3), np.nan))
+            columns = {"step": self.step, "t": self.t, "estimator": name, "x": pose[:, 0], "y": pose[:, 1]}
+            columns["theta"] = pose[:, 2]
+            values = self.metrics.get(name, {})
+            columns.update({figure: values.get(figure, missing) for figure in figures})
+            frames.append(pandas.DataFrame(columns))
+        return pandas.concat(frames, ignore_index=True)
+
+
+def read_recording(path: str | Path) -> RecordingSeries:
+    """Load a recording written by ``online-slam replay --rrd`` or ``compare --rrd`` into arrays.
+
+    It is read as ``online-slam inspect`` reads it (Rerun's query API, a local server on the loopback), nothing is
+    re-run. ``read_recording("run.rrd").to_pandas()`` gives a DataFrame.
+
+    Raises:
+        OnlineSlamError: No such file, not a (complete) Rerun recording, or not one written by online-slam.
+    """
+    with Recording(path) as recording:
+        return recording.series()
+
+
+def _steps(table: Any, count: int) -> list[tuple[int, int]]:
+    """(row, step) of every row on the step timeline."""
+    steps = table.column("step").to_pylist() if "step" in table.column_names else []
+    return [(row, step) for row, step in enumerate(steps) if step is not None and 0 <= step < count]
+
+
+def _poses(table: Any, root: str, rows: list[tuple[int, int]], count: int) -> Array | None:
+    """An entity's logged pose arrows as ``[x, y, theta]`` per step (None when it logged none)."""
+    origins = _column(table, f"{root}/pose:Arrows2D:origins")
+    vectors = _column(table, f"{root}/pose:Arrows2D:vectors")
+    poses = np.full((count, 3), np.nan)
+    found = False
+    for row, step in rows:
+        if origins[row] and vectors[row]:
+            (x, y), (vx, vy) = origins[row][0], vectors[row][0]
+            poses[step] = (x, y, math.atan2(vy, vx))
+            found = True
+    return poses if found else None
 
 
 def check_rrd(path: str | Path, complete: bool = True) -> Path:
@@ -149,6 +234,39 @@ class Recording:
             results=results,
             latency_ms=latency,
             figures=figures,
+        )
+
+    def series(self) -> RecordingSeries:
+        """Every estimator's (and the truth's) pose and logged figures at every step (see :func:`read_recording`)."""
+        summary = self.summary()
+        layout, count = summary.layout, summary.steps
+        roots = {name: f"/{layout.world(name)}" for name in layout.online} | {TRUTH: "/world/truth"}
+        table = self._table([f"{root}/pose" for root in roots.values()], "step")
+        rows = _steps(table, count)
+        times = table.column("time").to_pylist()
+        t = np.full(count, np.nan)
+        for row, step in rows:
+            t[step] = _seconds(times[row])
+        poses = {name: _poses(table, root, rows, count) for name, root in roots.items()}
+        metrics_table = self._table(["/metrics/**"], "step")
+        metric_rows = _steps(metrics_table, count)
+        metrics: dict[str, dict[str, Array]] = {}
+        for name in layout.online:
+            root = f"/{layout.metrics(name)}/"
+            for column in metrics_table.column_names:
+                if column.startswith(root) and column.endswith(":Scalars:scalars"):
+                    values, at_steps = metrics_table.column(column).to_pylist(), np.full(count, np.nan)
+                    for row, step in metric_rows:
+                        if values[row]:
+                            at_steps[step] = values[row][0]
+                    metrics.setdefault(name, {})[column[len(root) :].split(":")[0]] = at_steps
+        return RecordingSeries(
+            source=summary.source,
+            results=summary.results,
+            step=np.arange(count),
+            t=t,
+            poses={name: value for name, value in poses.items() if value is not None},
+            metrics=metrics,
         )
 
     def metric(self, estimator: str, name: str, layout: Layout | None = None) -> tuple[list[int], list[float]]:
