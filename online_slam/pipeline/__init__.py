@@ -2,7 +2,7 @@
 
 :func:`replay` is the library call behind ``online-slam replay``; it returns one :class:`Results` that the table,
 the JSON file and later sinks all read. Its parts: :mod:`~online_slam.pipeline.config` (what a replay runs),
-:mod:`~online_slam.pipeline.open` (the source as events, the association method),
+:mod:`~online_slam.pipeline.source` (the source opened as events, the association method),
 :mod:`~online_slam.pipeline.run` (the engine, its records, checkpoints) and :mod:`~online_slam.pipeline.score`
 (the results).
 """
@@ -15,9 +15,9 @@ from pathlib import Path
 from online_slam.errors import InputError
 from online_slam.evaluation.results import Results
 from online_slam.pipeline.config import ESTIMATORS, ReplayConfig, estimator_names
-from online_slam.pipeline.open import open_events
 from online_slam.pipeline.run import Checkpointing, ReplayRun
-from online_slam.pipeline.score import score
+from online_slam.pipeline.score import score_run
+from online_slam.pipeline.source import open_events
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event
 
@@ -66,7 +66,7 @@ def replay(
     if resume is not None:
         run.resume(resume)
     run.run()
-    results = score(run, cfg)
+    results = score_run(run, cfg)
     for sink in sinks:
         sink.on_finish(results, run.engine.frontend.truth)
     return results

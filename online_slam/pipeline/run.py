@@ -19,7 +19,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.protocol import Snapshot
 from online_slam.pipeline.config import ReplayConfig, build_estimators
-from online_slam.pipeline.open import OpenedSource
+from online_slam.pipeline.source import OpenedSource
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.events import Event, LandmarkId
 
@@ -129,7 +129,14 @@ class _Resumption:
 
 class ReplayRun:
     """A replay as it runs: the engine (front-end, dead reckoning, estimators), what is recorded of each estimator,
-    the position in the source and the lines skipped; it writes checkpoints of all of it and resumes from one."""
+    the position in the source and the lines skipped; it writes checkpoints of all of it and resumes from one.
+
+    Args:
+        opened: The source, opened.
+        config: What the replay runs (its estimators set to associate as ``opened`` says).
+        sinks: Given every step with all estimators' snapshots (``wall_s`` set).
+        checkpoint: Where and how often to write checkpoints (None: never).
+    """
 
     def __init__(
         self,

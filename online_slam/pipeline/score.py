@@ -19,7 +19,7 @@ from online_slam.pipeline.run import ReplayRun
 from online_slam.sources.events import LandmarkId
 
 
-def score(run: ReplayRun, config: ReplayConfig) -> Results:
+def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
     """Finish every estimator of a run (batch last: it may start from another's estimate) and score them."""
     truth = run.engine.frontend.truth
     estimates: dict[str, Estimate] = {"odometry": run.odometry.finish()}
