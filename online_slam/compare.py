@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.smoother import SmootherConfig
-from online_slam.evaluation.results import Results
+from online_slam.evaluation.results import Results, Row
 from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sinks.protocol import ReplaySink
@@ -48,30 +48,6 @@ class CompareConfig:
             raise ValueError("windows and relinearize_every must be >= 1")
         if self.runs < 1 or (self.workers is not None and self.workers < 1):
             raise ValueError("runs and workers must be >= 1")
-
-
-@dataclass(frozen=True)
-class Row:
-    """One estimator's line of the comparison table."""
-
-    online_rmse_m: float | None
-    """RMSE of each pose as estimated when newest (None for batch)."""
-    final_rmse_m: float | None
-    """RMSE of the final estimate."""
-    landmark_rmse_m: float | None
-    """Landmark RMSE."""
-    endpoint_gap_m: float
-    """Last-to-first distance of the final estimate."""
-    nees_mean: float | None
-    """Mean pose NEES over steps with truth (3 = consistent)."""
-    nees_in_bounds: float | None
-    """Fraction of steps whose NEES lies inside the two-sided 95% chi-square interval (3 dof)."""
-    nis_mean: float | None
-    """Mean NIS of the observations (2 = consistent), where the estimator computes one."""
-    step_ms: dict[str, float] | None
-    """Step latency median / p95 / max, ms."""
-    total_s: float
-    """Total wall time of the estimator."""
 
 
 @dataclass(frozen=True)
@@ -115,12 +91,21 @@ class Comparison:
             "landmarks": self.results.landmarks,
             "observations": self.results.observations,
             "alignment": self.results.alignment,
-            "estimators": {name: row.__dict__ for name, row in self.rows.items()},
+            "estimators": {name: _row_json(row) for name, row in self.rows.items()},
             "input": self.results.input.to_json(),
         }
         if self.monte_carlo is not None:
             out["monte_carlo"] = dict(self.monte_carlo.__dict__, seeds=list(self.monte_carlo.seeds))
         return _json_safe(out)
+
+
+def _row_json(row: Row) -> dict[str, Any]:
+    """A row as ``compare --json`` writes it: its step times as one ``step_ms`` object (median, p95, max) or null."""
+    figures = dict(row.__dict__)
+    median, p95, longest = (figures.pop(k) for k in ("step_median_ms", "step_p95_ms", "step_max_ms"))
+    total_s = figures.pop("total_s")
+    step_ms = None if median is None else {"median": median, "p95": p95, "max": longest}
+    return {**figures, "step_ms": step_ms, "total_s": total_s}
 
 
 def _json_safe(value: Any) -> Any:
@@ -132,42 +117,6 @@ def _json_safe(value: Any) -> Any:
     if isinstance(value, float) and not np.isfinite(value):
         return None
     return value
-
-
-def _finite_mean(values: Array) -> float | None:
-    return float(np.nanmean(values)) if np.isfinite(values).any() else None
-
-
-def rows_of(results: Results) -> dict[str, Row]:
-    """The table lines of a replay's results."""
-    rows = {
-        "odometry": Row(
-            results.odometry.rmse_m,
-            results.odometry.rmse_m,
-            results.odometry.landmark_rmse_m,
-            results.odometry.endpoint_gap_m,
-            None,
-            None,
-            None,
-            None,
-            0.0,
-        )  # fmt: skip
-    }
-    for name, r in results.estimators.items():
-        s = results.series.get(name)
-        in_bounds = share_in_bounds(s.nees) if s is not None else None
-        rows[name] = Row(
-            online_rmse_m=r.online_rmse_m,
-            final_rmse_m=r.final_rmse_m,
-            landmark_rmse_m=r.landmark_rmse_m,
-            endpoint_gap_m=r.endpoint_gap_m,
-            nees_mean=r.nees_mean,
-            nees_in_bounds=in_bounds,
-            nis_mean=_finite_mean(s.nis) if s is not None else None,
-            step_ms=r.step_ms.to_json() if r.step_ms is not None else None,
-            total_s=r.total_s,
-        )
-    return rows
 
 
 def replay_config(config: CompareConfig) -> ReplayConfig:
@@ -189,7 +138,7 @@ def _world(source: str) -> World:
 def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict[str, Array]]:
     source, seed, config = args
     results = replay(_world(source).events(seed), config, name=source, validate=False)
-    return rows_of(results), {name: s.nees for name, s in results.series.items()}
+    return results.rows(), {name: s.nees for name, s in results.series.items()}
 
 
 def compare(
@@ -213,7 +162,7 @@ def compare(
     cfg = config or CompareConfig()  # validated when made (windows, periods, runs, workers >= 1)
     one_replay = replay_config(cfg)
     results = replay(source, one_replay, on_skip=on_skip, sinks=sinks)
-    rows = rows_of(results)
+    rows = results.rows()
     monte_carlo = None
     if cfg.runs > 1:
         name = str(source)

@@ -39,7 +39,8 @@ FIGURES = (
     "step_p95_ms",
     "total_s",
 )
-"""Figures of a row (floats; empty where an estimator has none)."""
+"""Figures of a row: fields of :class:`~online_slam.evaluation.results.Row` (floats; empty where an estimator has
+none)."""
 SETTINGS = tuple(estimator_options())
 """Settings a sweep varies: the estimator options (each row holds every one's value, given or default)."""
 COLUMNS = ("cell", "source", "robot", "seed", *SETTINGS, "estimator", *FIGURES, "error")
@@ -144,24 +145,11 @@ def run_cell(cell: Cell) -> list[dict[str, Any]]:
             results = replay(cell.source, config)
     except Exception as exc:  # noqa: BLE001 - a failing cell is a row with its error, whatever it raised
         return [{**head, "estimator": "", **{f: None for f in FIGURES}, "error": f"{type(exc).__name__}: {exc}"}]
-    rows = []
-    for name, r in results.estimators.items():
-        rows.append(
-            {
-                **head,
-                "estimator": name,
-                "online_rmse_m": r.online_rmse_m,
-                "final_rmse_m": r.final_rmse_m,
-                "landmark_rmse_m": r.landmark_rmse_m,
-                "endpoint_gap_m": r.endpoint_gap_m,
-                "nees_mean": r.nees_mean,
-                "step_median_ms": r.step_ms.median if r.step_ms is not None else None,
-                "step_p95_ms": r.step_ms.p95 if r.step_ms is not None else None,
-                "total_s": r.total_s,
-                "error": "",
-            }
-        )
-    return rows
+    rows = results.rows()  # dead reckoning's is left out: no setting changes it
+    return [
+        {**head, "estimator": name, **{f: getattr(rows[name], f) for f in FIGURES}, "error": ""}
+        for name in results.estimators
+    ]
 
 
 # -- output -----------------------------------------------------------------------------------------------

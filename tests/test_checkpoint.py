@@ -16,13 +16,13 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from numpy.typing import NDArray
 
-from online_slam import pipeline
 from online_slam.checkpoint import Checkpointed, from_tree, read_checkpoint, to_tree, write_checkpoint
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
-from online_slam.pipeline import ReplayConfig
+from online_slam.pipeline import Checkpointing, ReplayConfig, replay, run
+from online_slam.pipeline.config import build_estimators
 from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, without_ids
 
 DTYPES = (np.float64, np.float32, np.int64, np.int32, np.uint8, np.bool_, np.complex128)
@@ -242,11 +242,11 @@ def test_every_state_a_replay_saves_is_rebuilt_by_its_types(
     if world == "without ids":
         events = without_ids(events)
     read: list[int] = []
-    estimators = {e.name: e for e in [DeadReckoning(), *pipeline.build_estimators(config)]}
+    estimators = {e.name: e for e in [DeadReckoning(), *build_estimators(config)]}
 
     def write_and_read(target: Path, kind: str, state: Any) -> None:
         write_checkpoint(target, kind, state)
-        back = read_checkpoint(target, kind, pipeline._ReplayCheckpoint)
+        back = read_checkpoint(target, kind, run.ReplayCheckpoint)
         read.append(back.engine.state.steps)
         assert_identical(to_tree(back), to_tree(state))
         assert sorted(back.engine.estimators) == sorted(estimators)
@@ -254,6 +254,6 @@ def test_every_state_a_replay_saves_is_rebuilt_by_its_types(
             estimators[name].load_state(tree)
             assert_identical(to_tree(estimators[name].state_dict()), state.engine.estimators[name], name)
 
-    monkeypatch.setattr(pipeline, "write_checkpoint", write_and_read)
-    pipeline.replay(list(events), config, checkpoint=pipeline.Checkpointing(tmp_path, 7), validate=False)
+    monkeypatch.setattr(run, "write_checkpoint", write_and_read)
+    replay(list(events), config, checkpoint=Checkpointing(tmp_path, 7), validate=False)
     assert read == list(range(7, 121, 7))

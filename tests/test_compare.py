@@ -16,6 +16,7 @@ import online_slam
 from online_slam.compare import CompareConfig, compare, nees_bounds
 from online_slam.estimators import SmootherConfig
 from online_slam.estimators.presets import smoother_label
+from online_slam.evaluation.scoring import share_in_bounds
 from online_slam.pipeline import ReplayConfig
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -53,6 +54,27 @@ def test_compare_equals_replay_for_the_same_configuration(tmp_path: Path) -> Non
     for name in ("ekf", "batch"):
         assert compared.rows[name].final_rmse_m == replayed.estimators[name].final_rmse_m
     assert compared.rows["odometry"].final_rmse_m == replayed.odometry.rmse_m
+
+
+def test_rows_flatten_every_estimators_figures_odometry_first() -> None:
+    """Results.rows(): the one flat record compare's table and JSON and the sweep's columns read."""
+    results = online_slam.replay("square")
+    rows = results.rows()
+    assert list(rows) == ["odometry", "ekf", "smoother", "batch"]
+    odometry = rows["odometry"]
+    assert odometry.online_rmse_m == odometry.final_rmse_m == results.odometry.rmse_m and odometry.total_s == 0.0
+    for name, result in results.estimators.items():
+        row = rows[name]
+        assert (row.final_rmse_m, row.total_s, row.nees_mean) == (result.final_rmse_m, result.total_s, result.nees_mean)
+        series = results.series.get(name)
+        if series is None:  # batch: no per-step figures
+            assert row.step_median_ms is row.nees_in_bounds is row.nis_mean is None
+            continue
+        assert (row.step_median_ms, row.step_p95_ms, row.step_max_ms) == (
+            result.step_ms.median, result.step_ms.p95, result.step_ms.max,
+        )  # fmt: skip
+        assert row.nees_in_bounds == share_in_bounds(series.nees)
+    assert rows["ekf"].nis_mean == float(np.nanmean(results.series["ekf"].nis)) and rows["smoother"].nis_mean is None
 
 
 def test_figures_are_written_and_every_panel_has_content(tmp_path: Path) -> None:

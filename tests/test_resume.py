@@ -167,22 +167,22 @@ def test_a_checkpoint_that_cannot_be_written_stops_the_replay_and_keeps_the_last
     stream, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A full disk at the third write (step 150): the figures so far, the error, step 100's checkpoint."""
-    from online_slam import pipeline
     from online_slam.errors import OnlineSlamError
+    from online_slam.pipeline import Checkpointing, replay, run
 
     path, _ = stream
     folder = tmp_path / "ck"
     written: list[int] = []
-    real = pipeline.write_checkpoint
+    real = run.write_checkpoint
 
-    def disk_full(target: Path, kind: str, state: pipeline._ReplayCheckpoint) -> None:
+    def disk_full(target: Path, kind: str, state: run.ReplayCheckpoint) -> None:
         if len(written) == 2:
             raise OnlineSlamError(f"cannot write checkpoint {target}: No space left on device")
         written.append(state.engine.state.steps)
         real(target, kind, state)
 
-    monkeypatch.setattr(pipeline, "write_checkpoint", disk_full)
-    results = pipeline.replay(str(path), checkpoint=pipeline.Checkpointing(folder, 50))
+    monkeypatch.setattr(run, "write_checkpoint", disk_full)
+    results = replay(str(path), checkpoint=Checkpointing(folder, 50))
     assert results.error is not None and "No space left on device" in results.error
     assert results.poses == 151 and written == [50, 100]  # the pose pending at the failure is kept
     assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"] == 100

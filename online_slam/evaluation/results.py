@@ -69,6 +69,34 @@ class OutlierReport:
 
 
 @dataclass(frozen=True)
+class Row:
+    """One estimator's figures as a flat record: a line of ``compare``'s table and JSON, of a sweep's output."""
+
+    online_rmse_m: float | None
+    """RMSE of each pose as estimated when newest (None for batch)."""
+    final_rmse_m: float | None
+    """RMSE of the final estimate."""
+    landmark_rmse_m: float | None
+    """Landmark RMSE."""
+    endpoint_gap_m: float
+    """Last-to-first distance of the final estimate."""
+    nees_mean: float | None
+    """Mean pose NEES over steps with truth (3 = consistent)."""
+    nees_in_bounds: float | None
+    """Share of steps whose NEES lies inside the two-sided 95% chi-square interval (3 dof)."""
+    nis_mean: float | None
+    """Mean NIS of the sightings (2 = consistent), where the estimator computes one."""
+    step_median_ms: float | None
+    """Median step time, ms (None for estimators whose work is all at the end)."""
+    step_p95_ms: float | None
+    """95th percentile of the step time, ms."""
+    step_max_ms: float | None
+    """Longest step, ms."""
+    total_s: float
+    """Total wall time of the estimator, seconds (0 for dead reckoning)."""
+
+
+@dataclass(frozen=True)
 class EstimatorResult:
     """One estimator's figures over the whole stream."""
 
@@ -85,6 +113,12 @@ class EstimatorResult:
     estimators that only answer at the end (batch) or without truth."""
     nees_mean: float | None = None
     """Mean pose NEES (3 dof) over steps with truth and a covariance; None when unavailable."""
+    nees_in_bounds: float | None = None
+    """Share of steps whose NEES lies inside the two-sided 95% chi-square interval (3 dof); None when unavailable
+    (in :meth:`Results.rows`, not in the replay's JSON)."""
+    nis_mean: float | None = None
+    """Mean NIS of the sightings (2 = consistent), where the estimator computes one (in :meth:`Results.rows`, not
+    in the replay's JSON)."""
     step_ms: Latency | None = None
     """Per-step wall time; None for estimators whose work is all at the end."""
     details: dict[str, Any] = field(default_factory=dict)
@@ -112,6 +146,23 @@ class EstimatorResult:
         if self.association is not None:
             out["association"] = {**out.get("association", {}), **self.association.to_dict()}
         return out
+
+    def row(self) -> Row:
+        """These figures as one flat record."""
+        latency = self.step_ms
+        return Row(
+            online_rmse_m=self.online_rmse_m,
+            final_rmse_m=self.final_rmse_m,
+            landmark_rmse_m=self.landmark_rmse_m,
+            endpoint_gap_m=self.endpoint_gap_m,
+            nees_mean=self.nees_mean,
+            nees_in_bounds=self.nees_in_bounds,
+            nis_mean=self.nis_mean,
+            step_median_ms=None if latency is None else latency.median,
+            step_p95_ms=None if latency is None else latency.p95,
+            step_max_ms=None if latency is None else latency.max,
+            total_s=self.total_s,
+        )
 
 
 @dataclass(frozen=True)
@@ -186,6 +237,28 @@ class Results:
     """Time of every step, seconds, shape (N,)."""
     robot: int | str | None = None
     """The robot the stream's header names (``"robot"`` in its metadata, e.g. an MRCLAM robot), or None."""
+
+    def rows(self) -> dict[str, Row]:
+        """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its
+        final ones, and it takes no time."""
+        odometry = self.odometry
+        rows = {
+            "odometry": Row(
+                online_rmse_m=odometry.rmse_m,
+                final_rmse_m=odometry.rmse_m,
+                landmark_rmse_m=odometry.landmark_rmse_m,
+                endpoint_gap_m=odometry.endpoint_gap_m,
+                nees_mean=None,
+                nees_in_bounds=None,
+                nis_mean=None,
+                step_median_ms=None,
+                step_p95_ms=None,
+                step_max_ms=None,
+                total_s=0.0,
+            )
+        }
+        rows.update((name, result.row()) for name, result in self.estimators.items())
+        return rows
 
     def to_json(self) -> dict[str, Any]:
         """The documented JSON schema of ``online-slam replay --json``."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from online_slam.compare import Comparison
+from online_slam.evaluation.results import Row
 
 
 def _m(value: float | None) -> str:
@@ -13,8 +14,10 @@ def _n(value: float | None, digits: int = 2) -> str:
     return "-" if value is None or value != value else f"{value:.{digits}f}"
 
 
-def _latency(step_ms: dict[str, float] | None) -> str:
-    return "-" if step_ms is None else f"{step_ms['median']:.2f}/{step_ms['p95']:.2f}/{step_ms['max']:.2f}"
+def _latency(row: Row) -> str:
+    if row.step_median_ms is None:
+        return "-"
+    return f"{row.step_median_ms:.2f}/{row.step_p95_ms:.2f}/{row.step_max_ms:.2f}"
 
 
 def format_comparison(comparison: Comparison) -> str:
@@ -35,7 +38,7 @@ def format_comparison(comparison: Comparison) -> str:
               _m(row.online_rmse_m), _m(row.final_rmse_m), _m(row.landmark_rmse_m), _m(row.endpoint_gap_m),
               _n(row.nees_mean), "-" if row.nees_in_bounds is None else f"{100 * row.nees_in_bounds:.0f}%",
               _n(row.nis_mean),
-              _latency(row.step_ms),
+              _latency(row),
               "-" if name == "odometry" else f"{row.total_s:.3f}"]
              for name, row in comparison.rows.items()]  # fmt: skip
     widths = [max(len(h), *(len(line[k]) for line in lines)) for k, h in enumerate(header)]

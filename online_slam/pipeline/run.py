@@ -1,0 +1,265 @@
+"""Running a replay: the engine, what is recorded of each estimator, the position in the source, the lines
+skipped, and the checkpoints that hold all of it (written every N steps, resumed from)."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.checkpoint import read_checkpoint, write_checkpoint
+from online_slam.engine import Engine, EngineCheckpoint, StepRecord
+from online_slam.errors import InputError, OnlineSlamError
+from online_slam.estimators.dead_reckoning import DeadReckoning
+from online_slam.estimators.protocol import Snapshot
+from online_slam.pipeline.config import ReplayConfig, build_estimators
+from online_slam.pipeline.source import OpenedSource
+from online_slam.sinks.protocol import ReplaySink
+from online_slam.sources.events import Event, LandmarkId
+
+Array = NDArray[np.float64]
+
+CHECKPOINT_FILE = "replay.ckpt"
+"""Name of the checkpoint file inside a checkpoint folder."""
+_FINGERPRINT_EVENTS = 1000
+
+
+@dataclass(frozen=True)
+class Checkpointing:
+    """Where and how often a replay saves its whole state (see :func:`~online_slam.pipeline.replay`)."""
+
+    directory: Path
+    """Folder of the checkpoint (``replay.ckpt`` inside it, replaced atomically each time)."""
+    every: int = 100
+    """Steps between checkpoints (>= 1)."""
+
+    def __post_init__(self) -> None:
+        if self.every < 1:
+            raise OnlineSlamError("--checkpoint-every must be >= 1")
+
+
+@dataclass(eq=False)
+class Track:
+    """What a replay records of one estimator while it runs (a checkpoint holds it)."""
+
+    poses: list[Array] = field(default_factory=list)
+    """The newest pose after each step, shape (3,)."""
+    covariances: list[Array | None] = field(default_factory=list)
+    """Its covariance (3, 3), or None."""
+    seconds: list[float] = field(default_factory=list)
+    """Wall time of each step."""
+    times: list[float] = field(default_factory=list)
+    """Time of each step."""
+    nis: list[float] = field(default_factory=list)
+    """Mean NIS of each step's sightings (NaN without)."""
+
+    def record(self, snapshot: Snapshot, seconds: float) -> None:
+        self.poses.append(snapshot.pose)
+        self.covariances.append(snapshot.pose_cov)
+        self.seconds.append(seconds)
+        self.times.append(snapshot.t)
+        nis = np.asarray(snapshot.info.get("nis", ()), dtype=float)
+        self.nis.append(float(np.nanmean(nis)) if np.isfinite(nis).any() else np.nan)
+
+
+class _SourcePosition:
+    """Counts the events taken from the source and fingerprints them (the first 1000, and the last one)."""
+
+    def __init__(self) -> None:
+        self.consumed = 0
+        self._head = hashlib.sha256()
+        self.last = ""
+
+    def take(self, event: Event) -> None:
+        self.consumed += 1
+        self.last = repr(event)
+        if self.consumed <= _FINGERPRINT_EVENTS:
+            self._head.update(self.last.encode())
+
+    @property
+    def fingerprint(self) -> str:
+        return f"{self.consumed}:{self._head.hexdigest()}:{hashlib.sha256(self.last.encode()).hexdigest()}"
+
+
+@dataclass(eq=False)
+class ReplayCheckpoint:
+    """What a replay's checkpoint holds."""
+
+    source: str
+    """The source's name (a resumed replay must read the same)."""
+    settings: str
+    """The replay's configuration (``repr``; a resumed replay must have the same)."""
+    consumed: int
+    """Events taken from the source."""
+    fingerprint: str
+    """Of those events (see :class:`_SourcePosition`)."""
+    skipped: dict[str, int]
+    """Lines skipped so far, by reason."""
+    engine: EngineCheckpoint
+    """The engine, its front-end and its estimators."""
+    tracks: dict[str, Track]
+    """What was recorded of each estimator, by name."""
+    step_times: list[float]
+    """Time of each complete step."""
+    sighting_ids: list[LandmarkId | None]
+    """The stream's id of every sighting (association scoring)."""
+
+
+class _CheckpointFailure(OnlineSlamError):
+    """A checkpoint could not be written: the replay stops there and reports what it estimated."""
+
+
+@dataclass(frozen=True)
+class _Resumption:
+    """Where a resumed replay's source must be read again to (the events its checkpoint had consumed)."""
+
+    folder: str | Path
+    """The checkpoint folder, as given."""
+    consumed: int
+    """Events to read again."""
+    fingerprint: str
+    """Theirs when the checkpoint was written."""
+
+
+class ReplayRun:
+    """A replay as it runs: the engine (front-end, dead reckoning, estimators), what is recorded of each estimator,
+    the position in the source and the lines skipped; it writes checkpoints of all of it and resumes from one.
+
+    Args:
+        opened: The source, opened.
+        config: What the replay runs (its estimators set to associate as ``opened`` says).
+        sinks: Given every step with all estimators' snapshots (``wall_s`` set).
+        checkpoint: Where and how often to write checkpoints (None: never).
+    """
+
+    def __init__(
+        self,
+        opened: OpenedSource,
+        config: ReplayConfig,
+        sinks: Sequence[ReplaySink] = (),
+        checkpoint: Checkpointing | None = None,
+    ) -> None:
+        self.source = opened.name
+        """The source's name."""
+        self.association = opened.association
+        """How sightings are associated: ``known``, ``nn`` or ``jcbb``."""
+        self.skipped = opened.skipped
+        """Bad lines skipped."""
+        self.settings = repr(config)
+        """The configuration as a checkpoint records it."""
+        self.odometry = DeadReckoning()
+        """Dead reckoning, the baseline."""
+        self.estimators = build_estimators(config.with_association(opened.association))
+        """The estimators, in table order."""
+        self.engine = Engine([self.odometry, *self.estimators], config.frontend)
+        """The engine: front-end, dead reckoning and estimators."""
+        self.tracks = {e.name: Track() for e in self.estimators}
+        """What was recorded of each estimator, by name."""
+        self.step_times: list[float] = []
+        """Time of each complete step."""
+        self.sighting_ids: list[LandmarkId | None] = []
+        """The stream's id of every sighting, to score association by (``nn``, ``jcbb``)."""
+        self.error: str | None = None
+        """The input error, or failed checkpoint write, that ended the run early."""
+        self._events = opened.events
+        self._position = _SourcePosition()
+        self._sinks = sinks
+        self._checkpoint = checkpoint
+        self._resumption: _Resumption | None = None
+
+    def resume(self, folder: str | Path) -> None:
+        """Continue from the checkpoint in ``folder`` (:meth:`run` then reads again what it had consumed).
+
+        Raises:
+            InputError: A damaged checkpoint, one of another source, of other settings or of another version.
+        """
+        where = Path(folder) / CHECKPOINT_FILE
+        saved = read_checkpoint(where, "replay", ReplayCheckpoint)
+        if saved.source != self.source:
+            raise InputError(str(where), 0, "", f"checkpoint of another source ({saved.source!r}, not {self.source!r})")
+        if saved.settings != self.settings:
+            raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
+        try:
+            if sorted(saved.tracks) != sorted(self.tracks):
+                raise ValueError("the checkpoint holds other estimators")
+            self.engine.restore(saved.engine)
+            self.tracks.update(saved.tracks)
+            self.step_times.extend(saved.step_times)
+            self.sighting_ids.extend(saved.sighting_ids)
+            self.skipped.by_reason.update(saved.skipped)
+            if saved.consumed:
+                self._resumption = _Resumption(folder, saved.consumed, saved.fingerprint)
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise InputError(str(where), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
+
+    def run(self) -> None:
+        """Push every event of the source through the engine, then close it.
+
+        A bad line part-way, or a checkpoint that cannot be written, ends the run there: ``error`` holds it.
+
+        Raises:
+            InputError: The input is bad before the first step is complete, or holds no pose; a resumed run's
+                source differs from its checkpoint's.
+        """
+        self._catch_up()
+        try:
+            for event in self._events:
+                self._position.take(event)
+                self._take(self.engine.push(event))
+        except InputError as exc:
+            if self.engine.steps == 0 and self.engine.frontend.pending is None:
+                raise
+            self.error = str(exc)
+        except _CheckpointFailure as exc:
+            self.error, self._checkpoint = str(exc), None  # no more writes: the last one written stays
+        try:
+            self._take(self.engine.close())
+        except _CheckpointFailure as exc:
+            self.error = str(exc)
+        if self.engine.steps == 0:
+            raise InputError(self.source, 0, "", "the stream holds no pose")
+
+    def _catch_up(self) -> None:
+        """Read again the events a resumed checkpoint had consumed; they must be the same."""
+        if self._resumption is None:
+            return
+        self.skipped.muted = True  # counted before the checkpoint was written
+        for event in itertools.islice(self._events, self._resumption.consumed):
+            self._position.take(event)
+        self.skipped.muted = False
+        if self._position.fingerprint != self._resumption.fingerprint:
+            raise InputError(
+                str(self._resumption.folder), 0, "", "checkpoint of another source (its events differ from this one's)"
+            )
+
+    def _take(self, record: StepRecord | None) -> None:
+        """Record a complete step, give it to the sinks, and write a checkpoint when one is due."""
+        if record is None:
+            return
+        self.step_times.append(record.step.t)
+        if self.association != "known":
+            self.sighting_ids.extend(record.step.landmarks)
+        for name, track in self.tracks.items():
+            track.record(record.snapshots[name], record.seconds[name])
+        if self._sinks:
+            snapshots = {n: dataclasses.replace(s, wall_s=record.seconds[n]) for n, s in record.snapshots.items()}
+            for sink in self._sinks:
+                sink.on_step(record.step, snapshots, self.engine.frontend.truth)
+        if self._checkpoint is not None and self.engine.steps % self._checkpoint.every == 0:
+            self._save(self._checkpoint)
+
+    def _save(self, checkpoint: Checkpointing) -> None:
+        state = ReplayCheckpoint(
+            self.source, self.settings, self._position.consumed, self._position.fingerprint, self.skipped.by_reason,
+            self.engine.checkpoint(), self.tracks, self.step_times, self.sighting_ids,
+        )  # fmt: skip
+        try:
+            write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
+        except OnlineSlamError as exc:  # stop here as at a bad line: report what was estimated
+            raise _CheckpointFailure(str(exc)) from None

@@ -1,0 +1,131 @@
+"""Scoring a replay: every estimator's final estimate (batch from the initial values it is given), scored
+against the stream's truth, into one :class:`~online_slam.evaluation.results.Results`."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from online_slam.errors import OnlineSlamError
+from online_slam.estimators.batch import BatchConfig, BatchEstimator
+from online_slam.estimators.protocol import Estimate, Estimator
+from online_slam.evaluation.association import AssociationScore, majority, score_association, true_labels, with_true_ids
+from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
+from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
+from online_slam.pipeline.config import ReplayConfig
+from online_slam.pipeline.run import ReplayRun
+from online_slam.sources.events import LandmarkId
+
+
+def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
+    """Finish every estimator of a run (batch last: it may start from another's estimate) and score them."""
+    truth = run.engine.frontend.truth
+    estimates: dict[str, Estimate] = {"odometry": run.odometry.finish()}
+    figures: dict[str, EstimatorResult] = {}
+    series: dict[str, Series] = {}
+    for estimator in sorted(run.estimators, key=lambda e: isinstance(e, BatchEstimator)):
+        started = time.perf_counter()
+        initial = initial_values(config.batch, estimates) if isinstance(estimator, BatchEstimator) else None
+        estimate = estimator.finish(initial) if initial is not None else estimator.finish()
+        final_s = time.perf_counter() - started
+        estimates[estimator.name] = estimate
+        figures[estimator.name], online = _score_estimator(run, estimator, estimate, final_s, config.alignment)
+        if online is not None:
+            series[estimator.name] = online
+    odometry = evaluate(estimates["odometry"], truth, config.alignment)
+    steps = run.engine.steps
+    return Results(
+        source=run.source,
+        poses=steps,
+        landmarks=len(estimates["odometry"].landmark_ids),
+        observations=run.engine.observations,
+        odometry=OdometryResult(odometry.rmse_m, odometry.endpoint_gap_m, odometry.landmark_rmse_m),
+        estimators=figures,
+        estimates=estimates,
+        alignment=config.alignment,
+        series=series,
+        truth_poses=truth_array(truth, steps),
+        truth_landmarks=dict(truth.landmarks),
+        error=run.error,
+        input=InputReport(sum(run.skipped.by_reason.values()), run.skipped.by_reason),
+        step_times=np.array(run.step_times, dtype=float),
+        robot=header.meta.get("robot") if (header := run.engine.frontend.header) is not None else None,
+    )
+
+
+def initial_values(batch: BatchConfig, estimates: Mapping[str, Estimate]) -> Estimate | None:
+    """The estimate batch starts from, by ``batch.initial``; None for composed odometry.
+
+    ``auto`` takes the (first) smoother's estimate, else the EKF's, else composed odometry.
+
+    Raises:
+        OnlineSlamError: The estimator named did not run.
+    """
+    source = batch.initial
+    if source == "auto":
+        smoothers = [n for n in estimates if n.startswith("smoother")]
+        source = smoothers[0] if smoothers else "ekf" if "ekf" in estimates else "odometry"
+    if source == "odometry":
+        return None
+    if source not in estimates:
+        raise OnlineSlamError(f"batch initial values from {source!r}, which did not run")
+    return estimates[source]
+
+
+def _score_estimator(
+    run: ReplayRun, estimator: Estimator, estimate: Estimate, final_s: float, alignment: str
+) -> tuple[EstimatorResult, Series | None]:
+    """One estimator's figures, and its per-step series when it is online."""
+    truth = run.engine.frontend.truth
+    track = run.tracks[estimator.name]
+    details = dict(estimate.info)
+    rejected = details.pop("rejected", None)
+    labels = details.pop("labels", None)
+    outliers = association = None
+    scored = estimate
+    if labels is not None and run.association != "known":
+        association, scored = _score_association(run, estimate, labels)
+        rejected = None  # per used sighting, not per stream sighting
+    if rejected is not None:
+        header = run.engine.frontend.header
+        marked = bool(truth.outliers) or bool(header is not None and header.meta.get("contamination"))
+        outliers = outlier_report(rejected, truth, marked)
+    errors = evaluate(scored, truth, alignment)
+    online = None
+    if estimator.online:
+        online = online_figures(
+            estimate, np.array(track.poses), track.covariances, np.array(track.times), np.array(track.nis),
+            np.array(track.seconds), truth, alignment,
+        )  # fmt: skip
+    result = EstimatorResult(
+        final_rmse_m=errors.rmse_m,
+        endpoint_gap_m=errors.endpoint_gap_m,
+        landmark_rmse_m=errors.landmark_rmse_m,
+        total_s=float(np.sum(track.seconds)) + final_s,
+        online_rmse_m=None if online is None else online.rmse_m,
+        nees_mean=None if online is None else online.nees_mean,
+        nees_in_bounds=None if online is None else share_in_bounds(online.series.nees),
+        nis_mean=None if online is None else _finite_mean(online.series.nis),
+        step_ms=None if online is None else online.latency,
+        details=details,
+        outliers=outliers,
+        association=association,
+    )
+    return result, None if online is None else online.series
+
+
+def _score_association(
+    run: ReplayRun, estimate: Estimate, labels: Sequence[LandmarkId | None]
+) -> tuple[AssociationScore, Estimate]:
+    """How an estimator paired sightings, against the stream's ids; its estimate with landmarks named by them."""
+    truth_labels = true_labels(run.sighting_ids, run.engine.frontend.truth.outliers)
+    owner = majority(labels, truth_labels)
+    association = score_association(run.association, labels, truth_labels, estimate.landmark_ids, owner)
+    return association, with_true_ids(estimate, owner)
+
+
+def _finite_mean(values: np.ndarray) -> float | None:
+    """Mean of the finite values; None when there are none."""
+    return float(np.nanmean(values)) if np.isfinite(values).any() else None

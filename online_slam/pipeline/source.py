@@ -1,0 +1,94 @@
+"""Opening a replay's source: a world, a file, stdin or an iterable, as validated events; bad lines skipped and
+counted (``on_error="skip"``); the association method chosen (``auto``: by the stream's first sighting)."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from online_slam.errors import InputError
+from online_slam.importers.resolve import open_source
+from online_slam.pipeline.config import ReplayConfig
+from online_slam.sources.events import Event, Observation, Scan
+from online_slam.sources.validate import validate_events
+
+
+class SkippedLines:
+    """Bad lines skipped so far (``on_error="skip"``): counted by reason, and told to a callback as they come."""
+
+    def __init__(self, on_skip: Callable[[InputError], None] | None = None) -> None:
+        self.by_reason: dict[str, int] = {}
+        """Lines skipped, by reason."""
+        self.muted = False
+        """While True, skipped lines are neither counted nor told (a resumed replay reading again what its
+        checkpoint had consumed: counted before the checkpoint was written)."""
+        self._on_skip = on_skip
+
+    def __call__(self, error: InputError) -> None:
+        if self.muted:
+            return
+        self.by_reason[error.reason] = self.by_reason.get(error.reason, 0) + 1
+        if self._on_skip is not None:
+            self._on_skip(error)
+
+
+@dataclass(frozen=True, eq=False)
+class OpenedSource:
+    """A source opened for a replay (read lazily: opening reads at most up to its first sighting)."""
+
+    name: str
+    """Its name for reports and checkpoints (the path, ``<stdin>``, the world, ``<events>`` or the given name)."""
+    events: Iterator[Event]
+    """Its events, validated, from the first."""
+    association: str
+    """How the replay associates sightings: ``known``, ``nn`` or ``jcbb`` (``auto`` resolved)."""
+    skipped: SkippedLines
+    """The bad lines skipped while reading it."""
+
+
+def open_events(
+    source: str | Path | Iterable[Event],
+    config: ReplayConfig,
+    *,
+    name: str | None = None,
+    on_skip: Callable[[InputError], None] | None = None,
+    validate: bool = True,
+) -> OpenedSource:
+    """Open a replay's source (see :func:`~online_slam.pipeline.replay` for the arguments).
+
+    Raises:
+        InputError: A path that does not exist; a bad line before the first sighting (``on_error="stop"``).
+    """
+    skipped = SkippedLines(on_skip)
+    on_error = skipped if config.on_error == "skip" else None
+    if isinstance(source, (str, Path)):
+        label, events = open_source(source, on_error, **dict(config.dataset))
+    else:
+        label, events = "<events>", validate_events(source, on_error) if validate else iter(source)
+    method = config.association
+    if method == "auto":
+        has_id, events = first_sighting_has_id(events)
+        method = "known" if has_id else "jcbb"
+    return OpenedSource(name or label, iter(events), method, skipped)
+
+
+def first_sighting_has_id(events: Iterable[Event]) -> tuple[bool, Iterable[Event]]:
+    """Whether the stream's first sighting carries a landmark id, and the same events to read from the start.
+
+    Events are read up to the first observation or scan (buffered and replayed); a stream without any sighting
+    counts as having ids.
+    """
+    iterator = iter(events)
+    buffered: list[Event] = []
+    has_id = True
+    for event in iterator:
+        buffered.append(event)
+        if isinstance(event, Observation):
+            has_id = event.landmark is not None
+            break
+        if isinstance(event, Scan) and event.landmarks:
+            has_id = event.landmarks[0] is not None
+            break
+    return has_id, itertools.chain(buffered, iterator)
