@@ -4,13 +4,37 @@ Data flows one way: ``sources`` (stream files, simulated worlds) -> ``engine`` (
 -> snapshots and estimates -> ``evaluation``, ``reports`` and ``sinks``. Two ways to use it as a library:
 :class:`Slam` (push events from a robot's loop, read the estimate at once) and :func:`replay` (a whole stream,
 scored against its truth).
+
+The names below are imported on first use, so that ``import online_slam`` (and ``online-slam --help``) does not
+load the numerical libraries.
 """
 
-from online_slam.errors import ConfigError, InputError, OnlineSlamError
-from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results
-from online_slam.pipeline import ReplayConfig, replay
-from online_slam.slam import Slam, SlamEstimate
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from online_slam.version import __version__
+
+if TYPE_CHECKING:
+    from online_slam.errors import ConfigError, InputError, OnlineSlamError
+    from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results
+    from online_slam.pipeline import ReplayConfig, replay
+    from online_slam.slam import Slam, SlamEstimate
+
+_HOMES = {
+    "ConfigError": "online_slam.errors",
+    "InputError": "online_slam.errors",
+    "OnlineSlamError": "online_slam.errors",
+    "EstimatorResult": "online_slam.evaluation.results",
+    "OdometryResult": "online_slam.evaluation.results",
+    "Results": "online_slam.evaluation.results",
+    "ReplayConfig": "online_slam.pipeline",
+    "replay": "online_slam.pipeline",
+    "Slam": "online_slam.slam",
+    "SlamEstimate": "online_slam.slam",
+}
+"""Each public name's module."""
 
 __all__ = [
     "ConfigError",
@@ -25,3 +49,16 @@ __all__ = [
     "__version__",
     "replay",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """A public name, imported from its module on first use."""
+    if name not in _HOMES:
+        raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_HOMES[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_HOMES})

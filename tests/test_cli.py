@@ -230,7 +230,7 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--checkpoint", str(Path(__file__) / "ck"), "--checkpoint-every", "5"], "--checkpoint: "),
         (["compare", "square", "--plot", "figure.jpg"], "ending in .png"),
         (["sweep", "/nonexistent/stream.jsonl", "--quiet"], "no such file"),  # was a failed row and exit 1
-        (["sweep", "square", "--out", "/nonexistent/dir/rows.csv", "--quiet"], "--out: cannot write"),  # traceback
+        (["sweep", "square", "--output", "/nonexistent/dir/rows.csv", "--quiet"], "--output: cannot write"),  # traceback
     ],
 )
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:
