@@ -7,7 +7,13 @@ from collections.abc import Iterable
 
 
 def did_you_mean(given: str, known: Iterable[str]) -> str:
-    """`` (did you mean X?)`` for the known spelling closest to ``given``, or an empty string when none is close."""
+    """`` (did you mean X?)`` for the known spelling closest to ``given``, or an empty string when none is close.
+
+    A name that ``given`` begins (``--out`` for ``--output``; the shortest such) comes first, then the most
+    similar one.
+    """
     by_lower = {k.lower(): k for k in known}
-    close = difflib.get_close_matches(given.lower(), list(by_lower), n=1, cutoff=0.6)
+    lower = given.lower()
+    started = sorted((k for k in by_lower if k.startswith(lower) and k != lower), key=len)
+    close = started or difflib.get_close_matches(lower, list(by_lower), n=1, cutoff=0.6)
     return f" (did you mean {by_lower[close[0]]}?)" if close else ""

@@ -32,7 +32,14 @@ PREFIX = "online-slam: error:"
 
 
 class Parser(argparse.ArgumentParser):
-    """A parser whose usage errors are one line with the package's prefix (the usage is one --help away)."""
+    """A parser whose usage errors are one line with the package's prefix (the usage is one --help away).
+
+    A flag has one spelling: no abbreviations (``--out`` would take ``--output``, and break the day another
+    option starts the same way); a misspelt flag gets the closest one suggested instead.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**{"allow_abbrev": False, **kwargs})
 
     def error(self, message: str) -> NoReturn:
         """Print one line and exit 2."""

@@ -195,6 +195,9 @@ class RerunSink:
             raise ValueError("RerunSink needs a path or a viewer to connect to")
         self.config = config
         self.layout = layout
+        self.live = config.connect is not None
+        """Whether the recording streams to a viewer (whose port answered: checked first, before any step)."""
+        viewer = self._viewer() if self.live else None
         if config.path is not None:  # told here in one line: rerun's own failure also logs a warning of its own
             try:
                 with open(config.path, "ab"):
@@ -209,10 +212,8 @@ class RerunSink:
         sinks: list[Any] = []
         if config.path is not None:
             sinks.append(rr.FileSink(str(config.path)))
-        self.live = config.connect is not None
-        """Whether the recording streams to a viewer (whose port answered: checked here, before any step)."""
-        if self.live:
-            sinks.append(rr.GrpcSink(self._viewer()))
+        if viewer is not None:
+            sinks.append(rr.GrpcSink(viewer))
         try:
             self.rec.set_sinks(*sinks, default_blueprint=blueprint(layout))
         except Exception as exc:  # noqa: BLE001 - rerun raises several kinds; one message for the user
