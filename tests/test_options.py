@@ -39,7 +39,7 @@ def test_the_generated_defaults_are_the_configurations() -> None:
     """online_slam/option_defaults.py (what --help shows without importing the estimators) cannot drift from the
     dataclasses: regenerate it as the module docstring of online_slam.options says."""
     assert (DOCS.parents[1] / "online_slam" / "option_defaults.py").read_text(encoding="utf-8") == defaults_module()
-    for option in OPTIONS.values():
+    for option in estimator_options().values():  # their type is read from the generated defaults
         if option.field is not None:
             assert option.kind is type(field_default(option.field)), option.name
 

@@ -10,6 +10,7 @@ from online_slam.errors import OnlineSlamError
 from online_slam.importers.detect import DATASET_FORMATS, open_dataset
 from online_slam.options import add_options, on_error_of
 from online_slam.sources.stream import write_stream
+from online_slam.wording import counted
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -69,5 +70,5 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise OnlineSlamError(f"{output}: cannot write ({exc.strerror or exc})") from None
     where = "<stdout>" if output == "-" else output
-    print(f"online-slam convert: wrote {lines} lines to {where}", file=sys.stderr)
+    print(f"online-slam convert: wrote {counted(lines, 'line')} to {where}", file=sys.stderr)
     return 0

@@ -16,8 +16,8 @@ from typing import Any, NoReturn
 from online_slam.cli import compare, convert, inspect, replay, simulate, sweep
 from online_slam.errors import OnlineSlamError
 from online_slam.sources.worlds import WORLDS
-from online_slam.spelling import did_you_mean
 from online_slam.version import __version__
+from online_slam.wording import did_you_mean
 
 COMMANDS = {
     "replay": replay,

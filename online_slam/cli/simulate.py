@@ -22,6 +22,7 @@ from online_slam.sources.worlds import (
     waypoint_world,
     without_ids,
 )
+from online_slam.wording import counted
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -128,6 +129,6 @@ def run(args: argparse.Namespace) -> int:
         raise OnlineSlamError(f"simulate: {exc}") from None
     except OSError as exc:
         raise OnlineSlamError(f"{output}: cannot write ({exc.strerror or exc})") from None
-    print(f"online-slam simulate: wrote {lines} lines to {'<stdout>' if output == '-' else output}",
+    print(f"online-slam simulate: wrote {counted(lines, 'line')} to {'<stdout>' if output == '-' else output}",
           file=sys.stderr)  # fmt: skip
     return 0

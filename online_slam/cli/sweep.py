@@ -7,6 +7,7 @@ import sys
 
 from online_slam.errors import OnlineSlamError
 from online_slam.options import add_options, estimator_options
+from online_slam.wording import counted
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -55,12 +56,12 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             width = 30
             bar = "#" * (width * done // max(total, 1))
-            print(f"\rsweep [{bar:<{width}}] {done}/{total} replays", end="", file=sys.stderr, flush=True)
+            print(f"\rsweep [{bar:<{width}}] {done}/{counted(total, 'replay')}", end="", file=sys.stderr, flush=True)
 
     report = sweep(cells, out=args.output, scheduler=args.scheduler, workers=args.workers, progress=progress)
     if not args.quiet:
         print(file=sys.stderr)
-        print(f"{len(cells)} replays: {report.computed} computed, {report.skipped} already in the output, "
+        print(f"{counted(len(cells), 'replay')}: {report.computed} computed, {report.skipped} already in the output, "
               f"{report.failed} failed")  # fmt: skip
         _print_summary(summary(report.rows))
         for row in report.rows:

@@ -14,7 +14,7 @@ from online_slam.importers.detect import detect_format, open_dataset
 from online_slam.sources.events import Event
 from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
-from online_slam.spelling import did_you_mean
+from online_slam.wording import did_you_mean
 
 TAKES = {"mrclam": ("robot", "noise"), "gtsam": ("truth", "dt", "convention"), "g2o": ("dt",), "acfr": ()}
 """The dataset options each format reads (any other given is refused rather than ignored)."""
