@@ -12,6 +12,7 @@ load the numerical libraries.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
 from online_slam.version import __version__
@@ -52,9 +53,11 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """A public name, imported from its module on first use."""
+    """A public name, imported from its module on first use (or a subpackage, as ``online_slam.sources``)."""
     if name not in _HOMES:
-        raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
+        if importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
+        return importlib.import_module(f"{__name__}.{name}")
     value = getattr(importlib.import_module(_HOMES[name]), name)
     globals()[name] = value
     return value
