@@ -5,25 +5,29 @@ Data flows one way: ``sources`` (stream files, simulated worlds) -> ``engine`` (
 :class:`Slam` (push events from a robot's loop, read the estimate at once) and :func:`replay` (a whole stream,
 scored against its truth); :func:`read_recording` loads a Rerun recording's series back into arrays.
 
-Names are imported on first use, so ``import online_slam`` (and the command line's ``--help``) stays quick and
-rerun is loaded only by what needs it.
+The names below are imported on first use, so that ``import online_slam`` (and ``online-slam --help``) does not
+load the numerical libraries.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
-from online_slam.errors import ConfigError, InputError, OnlineSlamError
 from online_slam.version import __version__
 
 if TYPE_CHECKING:
+    from online_slam.errors import ConfigError, InputError, OnlineSlamError
     from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results
     from online_slam.pipeline import ReplayConfig, replay
     from online_slam.sinks.recording.reader import RecordingSeries, read_recording
     from online_slam.slam import Slam, SlamEstimate
 
-_LAZY = {
+_HOMES = {
+    "ConfigError": "online_slam.errors",
+    "InputError": "online_slam.errors",
+    "OnlineSlamError": "online_slam.errors",
     "EstimatorResult": "online_slam.evaluation.results",
     "OdometryResult": "online_slam.evaluation.results",
     "Results": "online_slam.evaluation.results",
@@ -34,7 +38,7 @@ _LAZY = {
     "Slam": "online_slam.slam",
     "SlamEstimate": "online_slam.slam",
 }
-"""Public name -> the module that defines it, imported on first access."""
+"""Each public name's module."""
 
 __all__ = [
     "ConfigError",
@@ -54,13 +58,15 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """Import a public name on first access (PEP 562)."""
-    if name not in _LAZY:
-        raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name]), name)
+    """A public name, imported from its module on first use (or a subpackage, as ``online_slam.sources``)."""
+    if name not in _HOMES:
+        if importlib.util.find_spec(f"{__name__}.{name}") is None:
+            raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
+        return importlib.import_module(f"{__name__}.{name}")
+    value = getattr(importlib.import_module(_HOMES[name]), name)
     globals()[name] = value
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
+    return sorted({*globals(), *_HOMES})

@@ -4,35 +4,35 @@ The table :data:`OPTIONS` is the only place an option is described. From it come
 ``compare``, ``sweep`` and ``convert`` (:func:`add_options`), the check of ``Slam(**options)``
 (:func:`check_value`), the one translation of option values into a :class:`~online_slam.pipeline.ReplayConfig`
 (:func:`replay_config`, used by the CLI, ``Slam`` and sweeps) and the docs' option list (:func:`markdown`,
-``docs/options.md``). Defaults are read from the configuration dataclasses, never restated; an option that is
-no configuration field (``robust``, the dataset's) holds its own default here.
+``docs/options.md``). Defaults come from the configuration dataclasses, never typed by hand; an option that is
+no configuration field (``robust``, the dataset's) holds its own default here. So that ``--help`` loads no
+numerical library, the dataclasses' defaults (and the choices defined beside them) are read through
+:mod:`online_slam.option_defaults`, a module generated from the dataclasses that a test keeps current.
 
-After changing the table, regenerate the page:
-``python -c "from online_slam.options import markdown; print(markdown(), end='')" > docs/options.md``.
+After changing the table or a configuration default, regenerate the page and the defaults:
+``python -c "from online_slam.options import markdown; print(markdown(), end='')" > docs/options.md``,
+``python -c "from online_slam.options import defaults_module as m; print(m(), end='')"
+> online_slam/option_defaults.py``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
+import json
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from online_slam.compare import CompareConfig
 from online_slam.errors import ConfigError
-from online_slam.estimators.batch import BatchConfig
-from online_slam.estimators.ekf import EkfConfig
-from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES, AssociationConfig
-from online_slam.estimators.presets import ROBUST_CHOICES, robust_settings
-from online_slam.estimators.smoother import SmootherConfig
-from online_slam.factors.robust import RobustLoss
-from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP
-from online_slam.pipeline import Checkpointing, ReplayConfig
-from online_slam.solvers.least_squares import SolverConfig
+from online_slam.option_defaults import CHOICES, DEFAULTS
 from online_slam.sources.worlds import WORLDS
+
+if TYPE_CHECKING:
+    from online_slam.pipeline import ReplayConfig
 
 GROUPS = ("input", "estimators", "EKF", "smoother", "association", "outliers", "output", "live/checkpoint", "runs")
 """Help groups, in the order ``--help`` and the docs list them."""
@@ -40,6 +40,25 @@ ESTIMATOR_OWNERS = frozenset({"ekf", "smoother", "batch", "front-end", "associat
 """Owners of the estimator options: those ``replay``, ``compare``, ``sweep`` and ``Slam`` all accept."""
 _SHARED = frozenset({"front-end", "association"})
 """Owners whose options apply to every estimator."""
+CONFIGS = {
+    "ReplayConfig": "online_slam.pipeline",
+    "Checkpointing": "online_slam.pipeline",
+    "CompareConfig": "online_slam.compare",
+    "BatchConfig": "online_slam.estimators.batch",
+    "EkfConfig": "online_slam.estimators.ekf",
+    "AssociationConfig": "online_slam.estimators.landmark_book",
+    "SmootherConfig": "online_slam.estimators.smoother",
+    "RobustLoss": "online_slam.factors.robust",
+    "FrontEndConfig": "online_slam.frontend.steps",
+    "KeyframeConfig": "online_slam.frontend.steps",
+    "SolverConfig": "online_slam.solvers.least_squares",
+}
+"""The module of each configuration dataclass an option's default is read from (imported only to read it)."""
+CHOICE_HOMES = {
+    "association": ("online_slam.estimators.landmark_book", "ASSOCIATION_CHOICES"),
+    "robust": ("online_slam.estimators.presets", "ROBUST_CHOICES"),
+}
+"""Where the choices of an option are defined: (module, name)."""
 
 
 @dataclass(frozen=True)
@@ -57,8 +76,8 @@ class Option:
     options), ``dataset``, ``replay`` (what runs and how it is scored) or ``cli`` (output, live, checkpoints)."""
     kind: type = str
     """Value type: ``int``, ``float``, ``str`` or ``bool`` (a flag without a value)."""
-    field: tuple[type, str] | None = None
-    """The configuration field the default is read from: (dataclass, field name)."""
+    field: tuple[str, str] | None = None
+    """The configuration field the default is read from: (dataclass name in :data:`CONFIGS`, field name)."""
     default: Any = None
     """The default of an option that is no configuration field (None: not given)."""
     unset: str = ""
@@ -79,6 +98,8 @@ class Option:
     """argparse ``nargs`` (a positional's ``?``/``+``, ``?`` for an optional value)."""
     const: str | None = None
     """Value of a flag given without its optional value."""
+    short: str = ""
+    """A one-letter spelling besides the flag (``-o``), or empty."""
 
     @property
     def flag(self) -> str:
@@ -92,10 +113,10 @@ class Option:
 
     @property
     def value(self) -> Any:
-        """The default value (read from the configuration field when there is one)."""
+        """The default value (the configuration field's, from :mod:`online_slam.option_defaults`)."""
         if self.field is None or self.unset:
             return self.default
-        value = _field_default(*self.field)
+        value = DEFAULTS[self.name]
         return ",".join(value) if isinstance(value, tuple) else value
 
     @property
@@ -110,15 +131,16 @@ class Option:
     def shown_default(self) -> str:
         """The default as a user reads it (``0.35 rad (20.1 deg)``, ``off``...)."""
         if self.unset and self.field is not None:
-            return f"{self.unset}; {readable(_field_default(*self.field), self.unit)} once another is given"
+            return f"{self.unset}; {readable(DEFAULTS[self.name], self.unit)} once another is given"
         if self.unset or self.value is None:
             return self.unset
         return readable(self.value, self.unit)
 
 
-def _field_default(cls: type, name: str) -> Any:
-    """A dataclass field's default value (its factory's product when it has one)."""
-    spec = next(f for f in dataclasses.fields(cls) if f.name == name)
+def field_default(field: tuple[str, str]) -> Any:
+    """A configuration field's default value (its factory's product when it has one), read from the dataclass."""
+    cls = getattr(importlib.import_module(CONFIGS[field[0]]), field[0])
+    spec = next(f for f in dataclasses.fields(cls) if f.name == field[1])
     return spec.default if spec.default is not dataclasses.MISSING else spec.default_factory()  # type: ignore[misc]
 
 
@@ -134,9 +156,9 @@ def readable(value: Any, unit: str = "") -> str:
     return f"{text} {unit}" if unit else text
 
 
-def _estimator(name: str, help: str, group: str, owner: str, field: tuple[type, str], **kw: Any) -> Option:
+def _estimator(name: str, help: str, group: str, owner: str, field: tuple[str, str], **kw: Any) -> Option:
     """An estimator option read from a configuration field (its type is the field default's)."""
-    kind = type(_field_default(*field))
+    kind = type(DEFAULTS.get(name, ""))  # a new option is a str until option_defaults.py is regenerated
     return Option(name, help, group, (owner,), kind=kind, field=field, **kw)
 
 
@@ -166,68 +188,69 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            lands=("on_error",), commands=_DATASET),
     # -- estimators -----------------------------------------------------------------------------------------
     Option("estimators", "comma-separated estimators to run (ekf, smoother, batch)", "estimators", ("replay",),
-           field=(ReplayConfig, "estimators"), metavar="NAMES", lands=("estimators",)),
+           field=("ReplayConfig", "estimators"), metavar="NAMES", lands=("estimators",)),
     Option("align", "frame of the errors: first pose with truth, or least-squares SE(2) fit", "estimators",
-           ("replay",), field=(ReplayConfig, "alignment"), choices=("anchor", "se2"), lands=("alignment",),
+           ("replay",), field=("ReplayConfig", "alignment"), choices=("anchor", "se2"), lands=("alignment",),
            commands=("replay", "compare")),
     _estimator("first_observation_only", "keep only the first sighting of each landmark (the article's ablation)",
-               "estimators", "front-end", (FrontEndConfig, "first_observation_only"),
+               "estimators", "front-end", ("FrontEndConfig", "first_observation_only"),
                lands=("frontend.first_observation_only",)),
     Option("keyframe_distance", "merge observation-free steps up to this distance", "estimators", ("front-end",),
-           kind=float, field=(KeyframeConfig, "max_distance"), unset="off", metavar="M", unit="m",
+           kind=float, field=("KeyframeConfig", "max_distance"), unset="off", metavar="M", unit="m",
            lands=("frontend.keyframing.max_distance",)),
     Option("keyframe_angle", "... and up to this rotation", "estimators", ("front-end",), kind=float,
-           field=(KeyframeConfig, "max_angle"), unset="off", metavar="RAD", unit="rad",
+           field=("KeyframeConfig", "max_angle"), unset="off", metavar="RAD", unit="rad",
            lands=("frontend.keyframing.max_angle",)),
     Option("keyframe_time", "... and up to this time span", "estimators", ("front-end",), kind=float,
-           field=(KeyframeConfig, "max_time"), unset="off", metavar="S", unit="s",
+           field=("KeyframeConfig", "max_time"), unset="off", metavar="S", unit="s",
            lands=("frontend.keyframing.max_time",)),
     _estimator("batch_init", "batch: start from odometry or an online estimator's final estimate (auto: the "
                "smoother's if it runs, else the EKF's, else odometry)", "estimators", "batch",
-               (BatchConfig, "initial"), choices=("auto", "odometry", "ekf", "smoother"), lands=("batch.initial",)),
+               ("BatchConfig", "initial"), choices=("auto", "odometry", "ekf", "smoother"), lands=("batch.initial",)),
     _estimator("max_iterations", "batch: most Levenberg-Marquardt iterations", "estimators", "batch",
-               (SolverConfig, "max_iterations"), metavar="N", lands=("batch.solver.max_iterations",)),
+               ("SolverConfig", "max_iterations"), metavar="N", lands=("batch.solver.max_iterations",)),
     # -- EKF ------------------------------------------------------------------------------------------------
     _estimator("gate_probability", "chi-square gate on each sighting's NIS, 2 dof (1 = off)", "EKF", "ekf",
-               (EkfConfig, "gate_probability"), metavar="P", lands=("ekf.gate_probability",)),
+               ("EkfConfig", "gate_probability"), metavar="P", lands=("ekf.gate_probability",)),
     _estimator("gate_persistence", "use a landmark's sighting after N-1 gated ones in a row (the filter drifted; "
-               "0 = always reject)", "EKF", "ekf", (EkfConfig, "gate_persistence"), metavar="N",
+               "0 = always reject)", "EKF", "ekf", ("EkfConfig", "gate_persistence"), metavar="N",
                lands=("ekf.gate_persistence",)),
     _estimator("ekf_update", "one update per step with all sightings (joint) or one per sighting", "EKF", "ekf",
-               (EkfConfig, "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
+               ("EkfConfig", "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
-               (SmootherConfig, "window"), metavar="W", lands=("smoother.window",)),
+               ("SmootherConfig", "window"), metavar="W", lands=("smoother.window",)),
     _estimator("window_distance", "keep poses beyond W until the window's path is this long, up to --window-max "
-               "poses (0 = exactly W poses)", "smoother", "smoother", (SmootherConfig, "window_distance"),
+               "poses (0 = exactly W poses)", "smoother", "smoother", ("SmootherConfig", "window_distance"),
                metavar="M", unit="m", lands=("smoother.window_distance",)),
     _estimator("window_max", "most poses the window keeps for --window-distance", "smoother", "smoother",
-               (SmootherConfig, "window_max"), metavar="N", lands=("smoother.window_max",)),
+               ("SmootherConfig", "window_max"), metavar="N", lands=("smoother.window_max",)),
     _estimator("relinearize_every", "K: relinearize and solve every K steps (compare: a list)", "smoother",
-               "smoother", (SmootherConfig, "relinearize_every"), metavar="K", lands=("smoother.relinearize_every",)),
+               "smoother", ("SmootherConfig", "relinearize_every"), metavar="K", lands=("smoother.relinearize_every",)),
     _estimator("global_every", "re-solve the whole history every N steps and re-anchor the prior (0 = never)",
-               "smoother", "smoother", (SmootherConfig, "global_every"), metavar="N", lands=("smoother.global_every",)),
+               "smoother", "smoother", ("SmootherConfig", "global_every"), metavar="N",
+               lands=("smoother.global_every",)),
     _estimator("global_delay", "hand each global solve (a background thread) over D steps later, or N/50 after "
-               "step N if longer (0 = at once)", "smoother", "smoother", (SmootherConfig, "global_delay"),
+               "step N if longer (0 = at once)", "smoother", "smoother", ("SmootherConfig", "global_delay"),
                metavar="D", lands=("smoother.global_delay",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "
                "at most L landmarks (0 = never)", "smoother", "smoother",
-               (SmootherConfig, "global_information_max"), metavar="L", lands=("smoother.global_information_max",)),
+               ("SmootherConfig", "global_information_max"), metavar="L", lands=("smoother.global_information_max",)),
     # -- association ----------------------------------------------------------------------------------------
     Option("association", "pair sightings by the stream's ids (known), nearest neighbour (nn) or joint "
            "compatibility (jcbb); auto: known when the first sighting has an id, else jcbb (Slam: known)",
-           "association", ("association",), field=(ReplayConfig, "association"),
-           choices=("auto", *ASSOCIATION_CHOICES), lands=("association",)),
+           "association", ("association",), field=("ReplayConfig", "association"),
+           choices=("auto", *CHOICES["association"]), lands=("association",)),
     _estimator("new_density", "nn/jcbb: start a new landmark when a pairing is less likely than an unmapped "
                "landmark at this density (0 = off)", "association", "association",
-               (AssociationConfig, "new_density"), metavar="D", unit="per m^2",
+               ("AssociationConfig", "new_density"), metavar="D", unit="per m^2",
                lands=("ekf.association.new_density", "smoother.association.new_density")),
     # -- outliers -------------------------------------------------------------------------------------------
     Option("robust", "smoother and batch: auto (Cauchy tail beyond 5.3 sigmas in the window, batch robust pass "
            "when residuals show outliers), none (least squares), huber or cauchy (with --robust-scale)",
-           "outliers", ("smoother", "batch"), default=ROBUST_CHOICES[0], choices=ROBUST_CHOICES),
+           "outliers", ("smoother", "batch"), default=CHOICES["robust"][0], choices=CHOICES["robust"]),
     Option("robust_scale", "huber/cauchy threshold", "outliers", ("smoother", "batch"), kind=float,
-           field=(RobustLoss, "scale"), metavar="S", unit="sigmas", positive=True),
+           field=("RobustLoss", "scale"), metavar="S", unit="sigmas", positive=True),
     # -- output ---------------------------------------------------------------------------------------------
     Option("json", "write the results as JSON ('-': stdout, the table then on stderr)", "output", ("cli",),
            metavar="PATH", commands=("replay", "compare")),
@@ -237,8 +260,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            metavar="PATH", commands=("compare",)),
     Option("rrd", "log every step (of every configuration) to a Rerun recording (.rrd)", "output", ("cli",),
            metavar="PATH", commands=("replay", "compare")),
-    Option("out", "rows to .csv or .parquet, written as replays finish (resumable)", "output", ("cli",),
-           metavar="FILE", unset="memory only", commands=("sweep",)),
+    Option("output", "the command's output file: simulate and convert write a stream (.jsonl; .gz compresses; "
+           "convert FORMAT stream: .g2o), sweep its rows (.csv or .parquet, written as replays finish: re-running "
+           "skips the replays it holds)", "output", ("cli",), metavar="PATH", short="-o",
+           unset="stdout ('-'); sweep: memory only", commands=("simulate", "convert", "sweep")),
     Option("quiet", "print no table, no summary and no progress", "output", ("cli",), kind=bool, default=False),
     # -- live / checkpoint ----------------------------------------------------------------------------------
     Option("connect", "stream the recording to a running Rerun viewer (default address, or a rerun+http:// URL)",
@@ -249,12 +274,12 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("checkpoint", "save the whole replay state to DIR/replay.ckpt every --checkpoint-every steps",
            "live/checkpoint", ("cli",), metavar="DIR", commands=("replay",)),
     Option("checkpoint_every", "steps between checkpoints", "live/checkpoint", ("cli",), kind=int,
-           field=(Checkpointing, "every"), metavar="N", commands=("replay",)),
+           field=("Checkpointing", "every"), metavar="N", commands=("replay",)),
     Option("resume", "continue from DIR's checkpoint (same source and options; figures equal an uninterrupted "
            "run's)", "live/checkpoint", ("cli",), metavar="DIR", commands=("replay",)),
     # -- runs -----------------------------------------------------------------------------------------------
     Option("runs", "noise seeds per simulated world (compare: Monte Carlo runs)", "runs", ("cli",), kind=int,
-           field=(CompareConfig, "runs"), metavar="N", commands=("compare", "sweep")),
+           field=("CompareConfig", "runs"), metavar="N", commands=("compare", "sweep")),
     Option("workers", "processes (compare: Monte Carlo runs; sweep: local cluster)", "runs", ("cli",), kind=int,
            metavar="N", unset="all cores", commands=("compare", "sweep")),
     Option("scheduler", "a running Dask scheduler, e.g. tcp://host:8786", "runs", ("cli",), metavar="ADDRESS",
@@ -303,6 +328,11 @@ def replay_config(values: Mapping[str, Any], naming: Callable[[str], str] = str)
     Raises:
         ConfigError: A value out of range, naming the option.
     """
+    from online_slam.estimators.presets import robust_settings
+    from online_slam.factors.robust import RobustLoss
+    from online_slam.frontend.steps import KeyframeConfig
+    from online_slam.pipeline import ReplayConfig
+
     config = ReplayConfig()
     if any(values.get(name) is not None for name in ("keyframe_distance", "keyframe_angle", "keyframe_time")):
         config = dataclasses.replace(config, frontend=dataclasses.replace(config.frontend, keyframing=KeyframeConfig()))
@@ -378,7 +408,7 @@ def add_option(group: Any, option: Option, listed: bool) -> None:
         kw["const"] = option.const
     if option.positional and option.metavar is None:
         kw.pop("metavar", None)
-    group.add_argument(option.flag, **kw)
+    group.add_argument(*filter(None, (option.short, option.flag)), **kw)
 
 
 def _list_of(option: Option) -> Callable[[str], tuple]:
@@ -429,6 +459,45 @@ def markdown() -> str:
             slam = o.estimator and (o.fits("ekf") or o.fits("smoother"))
             commands = ", ".join((*o.commands, "Slam") if slam else o.commands)
             shown, owners = o.shown_default() or "-", ", ".join(o.owners)
-            row = (f"`{o.flag}`", kind, shown, owners, commands, o.help.replace("|", "\\|"))
+            flags = ", ".join(f"`{f}`" for f in (o.short, o.flag) if f)
+            row = (flags, kind, shown, owners, commands, o.help.replace("|", "\\|"))
             lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
+
+
+def defaults_module() -> str:
+    """The text of :mod:`online_slam.option_defaults`: the options' defaults and choices, read from the code."""
+    defaults = {name: field_default(o.field) for name, o in OPTIONS.items() if o.field is not None}
+    choices = {name: getattr(importlib.import_module(home), attr) for name, (home, attr) in CHOICE_HOMES.items()}
+    lines = [
+        '"""The defaults of the options read from configuration fields, and choices defined beside them.',
+        "",
+        "Generated from the dataclasses by :func:`online_slam.options.defaults_module` (its module docstring says",
+        "how) so that ``--help`` needs no numerical library; tests/test_options.py checks it is current.",
+        '"""',
+        "",
+        "from __future__ import annotations",
+        "",
+        "import math",
+        "",
+        "DEFAULTS: dict[str, object] = {",
+        *(f"    {_literal(name)}: {_literal(value)}," for name, value in defaults.items()),
+        "}",
+        '"""Default of each option that reads a configuration field, by option name."""',
+        "CHOICES: dict[str, tuple[str, ...]] = {",
+        *(f"    {_literal(name)}: {_literal(value)}," for name, value in choices.items()),
+        "}",
+        '"""Allowed values of the options whose choices the estimators define."""',
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _literal(value: Any) -> str:
+    """Python source of a default as ruff formats it (double quotes, ``math.inf`` for infinity)."""
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, tuple):
+        return "(" + ", ".join(map(_literal, value)) + ("," if len(value) == 1 else "") + ")"
+    if isinstance(value, float) and math.isinf(value):
+        return "math.inf" if value > 0 else "-math.inf"
+    return repr(value)

@@ -237,7 +237,7 @@ def sweep(
 
     path = Path(out) if out is not None else None
     if path is not None and path.suffix not in (".csv", ".parquet"):
-        raise OnlineSlamError(f"--out: expected a .csv or .parquet file, got {path.name}")
+        raise OnlineSlamError(f"--output: expected a .csv or .parquet file, got {path.name}")
     earlier = read_rows(path) if path is not None else []
     done = {row["cell"] for row in earlier}
     todo = [c for c in cells if c.key not in done]

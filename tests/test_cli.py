@@ -215,7 +215,7 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--estimators", "magic"], "unknown estimator"),
         (["compare", "square", "--window", "0"], "--window: window must be >= 1"),  # was a traceback
         (["compare", "square", "--window", "5,x"], "expected comma-separated ints"),
-        (["replay", "--align", "SE2"], "invalid choice: 'SE2'"),  # was 23 lines of usage
+        (["replay", "--align", "SE2"], "invalid choice 'SE2' (did you mean se2?)"),  # was 23 lines of usage
         (["replay", "--window-max", "0"], "--window-max: "),
         (["sweep", "square", "--robust", "huber,tukey", "--quiet"], "'tukey' is not one of"),
         (["sweep", "square", "--window", "0", "--quiet"], "--window: window must be >= 1"),
@@ -230,7 +230,7 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["replay", "--checkpoint", str(Path(__file__) / "ck"), "--checkpoint-every", "5"], "--checkpoint: "),
         (["compare", "square", "--plot", "figure.jpg"], "ending in .png"),
         (["sweep", "/nonexistent/stream.jsonl", "--quiet"], "no such file"),  # was a failed row and exit 1
-        (["sweep", "square", "--out", "/nonexistent/dir/rows.csv", "--quiet"], "--out: cannot write"),  # traceback
+        (["sweep", "square", "-o", "/nonexistent/dir/rows.csv", "--quiet"], "--output: cannot write"),  # traceback
     ],
 )
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:

@@ -11,7 +11,17 @@ import pytest
 from online_slam import ConfigError, Slam
 from online_slam.cli.main import build_parser
 from online_slam.estimators.smoother import SmootherConfig
-from online_slam.options import GROUPS, OPTIONS, Option, estimator_options, flag, markdown, replay_config
+from online_slam.options import (
+    GROUPS,
+    OPTIONS,
+    Option,
+    defaults_module,
+    estimator_options,
+    field_default,
+    flag,
+    markdown,
+    replay_config,
+)
 from online_slam.pipeline import ReplayConfig
 from online_slam.slam import OPTIONS as SLAM_OPTIONS
 from online_slam.slam import _configs
@@ -23,6 +33,15 @@ DOCS = Path(__file__).resolve().parents[1] / "docs" / "options.md"
 def test_the_docs_option_list_is_the_tables_rendering() -> None:
     """docs/options.md cannot drift (regenerate it as the module docstring of online_slam.options says)."""
     assert DOCS.read_text(encoding="utf-8") == markdown()
+
+
+def test_the_generated_defaults_are_the_configurations() -> None:
+    """online_slam/option_defaults.py (what --help shows without importing the estimators) cannot drift from the
+    dataclasses: regenerate it as the module docstring of online_slam.options says."""
+    assert (DOCS.parents[1] / "online_slam" / "option_defaults.py").read_text(encoding="utf-8") == defaults_module()
+    for option in estimator_options().values():  # their type is read from the generated defaults
+        if option.field is not None:
+            assert option.kind is type(field_default(option.field)), option.name
 
 
 def test_every_option_has_a_group_a_unique_flag_and_lands_on_a_real_field() -> None:
@@ -56,7 +75,7 @@ def _sample(option: Option) -> object:
         return True
     if option.choices:
         return option.choices[-1]
-    base = option.value if option.value is not None else option.field[0]().__getattribute__(option.field[1])
+    base = option.value if option.value is not None else field_default(option.field)
     if option.kind is int:
         return base + 1
     return 0.01 if base == 0 else base if math.isinf(base) else base * 0.5

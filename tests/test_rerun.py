@@ -200,15 +200,14 @@ def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path, processes) 
     assert summary.steps == 25 and summary.source == "square"
 
 
-def test_unreachable_viewer_is_one_line_and_results_survive(tmp_path: Path) -> None:
+def test_unreachable_viewer_is_one_line_before_the_replay(tmp_path: Path) -> None:
     out, rrd = tmp_path / "r.json", tmp_path / "r.rrd"
     started = time.perf_counter()
     done = cli("replay", "square", "--connect", "rerun+http://127.0.0.1:9/proxy", "--json", str(out), "--rrd", str(rrd))
     elapsed = time.perf_counter() - started
     assert done.returncode == 2 and "Traceback" not in done.stderr
     ours = [line for line in done.stderr.splitlines() if line.startswith("online-slam:")]
-    assert len(ours) == 1 and "could not deliver" in ours[0] and "127.0.0.1:9" in ours[0]
-    assert "Position RMSE" in done.stdout and json.loads(out.read_text())["poses"] == 25
-    with Recording(rrd) as recording:  # the file is still written whole
-        assert recording.summary().steps == 25
+    assert len(ours) == 1 and "no Rerun viewer answers" in ours[0] and "127.0.0.1:9" in ours[0]
+    assert "rerun --serve-web" in ours[0]  # how to start one
+    assert done.stdout == "" and not out.exists() and not rrd.exists()  # told before any replay work
     assert elapsed < 15  # told at once, not after rerun's flush and disconnect timeouts (30 s before)

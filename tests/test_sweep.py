@@ -114,7 +114,7 @@ def test_a_real_scheduler_with_two_workers_gives_the_local_rows(cells, local_row
     out = tmp_path / "cluster.csv"
     done = subprocess.run(
         [*EXE, "sweep", "square", "--window", "5,10", "--robust", "auto,none", "--runs", "2", "--scheduler", address,
-         "--out", str(out)], capture_output=True, text=True, timeout=300,
+         "--output", str(out)], capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "8 replays: 8 computed" in done.stdout
@@ -126,7 +126,7 @@ def test_a_real_scheduler_with_two_workers_gives_the_local_rows(cells, local_row
 def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows, processes, tmp_path) -> None:
     out = tmp_path / "sweep.csv"
     command = [*EXE, "sweep", "square", "--window", "5,10", "--robust", "auto,none", "--runs", "2", "--workers", "1",
-               "--out", str(out), "--quiet"]  # fmt: skip
+               "--output", str(out), "--quiet"]  # fmt: skip
     first = processes(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 120
     done_cells = 0

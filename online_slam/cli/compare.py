@@ -8,9 +8,7 @@ from dataclasses import replace
 
 from online_slam import options
 from online_slam.cli.replay import check_outputs, report_skip, sinks_from, write_json
-from online_slam.compare import CompareConfig, compare, replay_config
 from online_slam.errors import OnlineSlamError
-from online_slam.reports.compare_table import format_comparison
 
 GRID = ("window", "relinearize_every")
 """Options compare takes as lists: one smoother per (W, K)."""
@@ -28,6 +26,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Compare, print the table, write JSON and figures."""
+    from online_slam.compare import CompareConfig, compare, replay_config
+    from online_slam.reports.compare_table import format_comparison
+
     windows = args.window or CompareConfig.windows
     ks = args.relinearize_every or CompareConfig.relinearize_every
     base = options.replay_config({**vars(args), "window": windows[0], "relinearize_every": ks[0]}, options.flag)

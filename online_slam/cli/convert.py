@@ -10,6 +10,7 @@ from online_slam.errors import OnlineSlamError
 from online_slam.importers.detect import DATASET_FORMATS, open_dataset
 from online_slam.options import add_options, on_error_of
 from online_slam.sources.stream import write_stream
+from online_slam.wording import counted
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -22,7 +23,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("format", choices=(*DATASET_FORMATS, "stream"), help="input format")
     p.add_argument("input", help="dataset file or folder (MRCLAM), or a stream for FORMAT stream")
-    p.add_argument("-o", "--output", default="-", help="output stream (.jsonl, .gz) or .g2o; '-' for stdout")
     p.add_argument("--poses", type=int, help="keep only the first N poses (for shipped excerpts)")
     add_options(p, "convert")
 
@@ -43,14 +43,15 @@ def _first_poses(events, limit: int | None):  # noqa: ANN001, ANN202 - a generat
 
 def run(args: argparse.Namespace) -> int:
     """Convert and write; a one-line summary on stderr."""
+    output = args.output or "-"
     if args.format == "stream":
         from online_slam.importers.g2o import write_g2o
         from online_slam.sources.stream import read_stream
 
-        if not str(args.output).endswith(".g2o"):
+        if not str(output).endswith(".g2o"):
             raise OnlineSlamError("convert stream: the output must be a .g2o file")
         on_error = report_skip if on_error_of(args.on_error, args.input) == "skip" else None
-        lines = write_g2o(args.output, _first_poses(read_stream(args.input, on_error), args.poses))
+        lines = write_g2o(output, _first_poses(read_stream(args.input, on_error), args.poses))
     else:
         if args.on_error == "skip":
             raise OnlineSlamError(
@@ -65,9 +66,9 @@ def run(args: argparse.Namespace) -> int:
         }
         events = open_dataset(args.input, args.format, **{k: v for k, v in options.items() if v is not None})
         try:
-            lines = write_stream(args.output, _first_poses(events, args.poses))
+            lines = write_stream(output, _first_poses(events, args.poses))
         except OSError as exc:
-            raise OnlineSlamError(f"{args.output}: cannot write ({exc.strerror or exc})") from None
-    where = "<stdout>" if args.output == "-" else args.output
-    print(f"online-slam convert: wrote {lines} lines to {where}", file=sys.stderr)
+            raise OnlineSlamError(f"{output}: cannot write ({exc.strerror or exc})") from None
+    where = "<stdout>" if output == "-" else output
+    print(f"online-slam convert: wrote {counted(lines, 'line')} to {where}", file=sys.stderr)
     return 0

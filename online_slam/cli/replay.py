@@ -7,12 +7,13 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.options import add_options, flag, replay_config
-from online_slam.pipeline import Checkpointing, ReplayConfig, replay
-from online_slam.reports.table import format_results
-from online_slam.sinks.live import Pacer, Progress
+
+if TYPE_CHECKING:
+    from online_slam.pipeline import ReplayConfig
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -79,7 +80,9 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
 
 
 def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
-    """Progress bar, pacing and Rerun logging, as the options ask."""
+    """Progress bar, pacing and Rerun logging, as the options ask (a --connect without a viewer raises here)."""
+    from online_slam.sinks.live import Pacer, Progress
+
     sinks: list = []
     if getattr(args, "rate", None) is not None:
         try:
@@ -100,6 +103,9 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
 
 def run(args: argparse.Namespace) -> int:
     """Replay, print the table, write JSON; exit 2 if the input turned bad part-way."""
+    from online_slam.pipeline import Checkpointing, replay
+    from online_slam.reports.table import format_results
+
     config = config_from(args)
     check_outputs(args.json, args.tum)
     if args.rrd and not str(args.rrd).endswith(".rrd"):

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from online_slam.errors import OnlineSlamError
-from online_slam.options import readable
+from online_slam.options import add_options, readable
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import (
     WORLDS,
@@ -22,6 +22,7 @@ from online_slam.sources.worlds import (
     waypoint_world,
     without_ids,
 )
+from online_slam.wording import counted
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,7 +34,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     worlds = "; ".join(f"{name}: {world.description}" for name, world in WORLDS.items())
     p.add_argument("world", choices=list(WORLDS), help=worlds)
-    p.add_argument("-o", "--output", default="-", help="output path (.gz compresses; '-' for stdout, the default)")
     seeds = ", ".join(f"{name} {world.seed}" for name, world in WORLDS.items())
     p.add_argument("--seed", type=int, help=f"random seed (default: {seeds})")
     g, w = GridConfig(), WaypointConfig()
@@ -72,6 +72,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-ids", action="store_true", help="write sightings without landmark ids (unknown data association)"
     )
+    add_options(p, "simulate")
 
 
 def _shown(value: object, units: tuple[str, ...]) -> str:
@@ -83,6 +84,7 @@ def _shown(value: object, units: tuple[str, ...]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate and write; prints a one-line summary on stderr."""
+    output = args.output or "-"
     if args.world == "square":
         events = WORLDS["square"].events(args.seed)
     else:
@@ -122,11 +124,11 @@ def run(args: argparse.Namespace) -> int:
     if args.no_ids:
         events = without_ids(events)
     try:
-        lines = write_stream(args.output, events)
+        lines = write_stream(output, events)
     except ValueError as exc:
         raise OnlineSlamError(f"simulate: {exc}") from None
     except OSError as exc:
-        raise OnlineSlamError(f"{args.output}: cannot write ({exc.strerror or exc})") from None
-    print(f"online-slam simulate: wrote {lines} lines to {'<stdout>' if args.output == '-' else args.output}",
+        raise OnlineSlamError(f"{output}: cannot write ({exc.strerror or exc})") from None
+    print(f"online-slam simulate: wrote {counted(lines, 'line')} to {'<stdout>' if output == '-' else output}",
           file=sys.stderr)  # fmt: skip
     return 0

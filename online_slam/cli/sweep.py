@@ -7,7 +7,7 @@ import sys
 
 from online_slam.errors import OnlineSlamError
 from online_slam.options import add_options, estimator_options
-from online_slam.pipeline import ESTIMATORS
+from online_slam.wording import counted
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -18,7 +18,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Replay the cartesian product of sources (x MRCLAM robots, x seeds for built-in worlds) and "
         "estimator settings (each a comma-separated list, e.g. --window 5,20 --robust auto,huber), one Dask task "
         "per replay (a LocalCluster on this machine's cores, or --scheduler); a replay's figures equal those of "
-        "'replay' with the same options. One row per replay and estimator; re-running with the same --out skips "
+        "'replay' with the same options. One row per replay and estimator; re-running with the same --output skips "
         "the replays it holds.",
     )
     add_options(p, "sweep", lists=(*estimator_options(), "robot"))
@@ -39,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     """Build the cells, run them, print the summary (mean +- std over seeds)."""
     from online_slam.cli.replay import check_writable
     from online_slam.importers.resolve import check_source
+    from online_slam.pipeline import ESTIMATORS
     from online_slam.sweep import make_cells, summary, sweep
 
     estimators = [n.strip() for n in args.estimators.split(",") if n.strip()]
@@ -46,8 +47,8 @@ def run(args: argparse.Namespace) -> int:
         raise OnlineSlamError(f"--estimators: expected some of {', '.join(ESTIMATORS)}")
     for source in args.sources:  # usage errors, told before any cluster starts (a failing replay is a row)
         check_source(source)
-    if args.out is not None:
-        check_writable("--out", args.out)
+    if args.output is not None:
+        check_writable("--output", args.output)
     settings = {name: getattr(args, name) for name in estimator_options() if getattr(args, name) is not None}
     cells = make_cells(args.sources, settings, estimators, runs=args.runs, robots=args.robot or ())
 
@@ -55,12 +56,12 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             width = 30
             bar = "#" * (width * done // max(total, 1))
-            print(f"\rsweep [{bar:<{width}}] {done}/{total} replays", end="", file=sys.stderr, flush=True)
+            print(f"\rsweep [{bar:<{width}}] {done}/{counted(total, 'replay')}", end="", file=sys.stderr, flush=True)
 
-    report = sweep(cells, out=args.out, scheduler=args.scheduler, workers=args.workers, progress=progress)
+    report = sweep(cells, out=args.output, scheduler=args.scheduler, workers=args.workers, progress=progress)
     if not args.quiet:
         print(file=sys.stderr)
-        print(f"{len(cells)} replays: {report.computed} computed, {report.skipped} already in the output, "
+        print(f"{counted(len(cells), 'replay')}: {report.computed} computed, {report.skipped} already in the output, "
               f"{report.failed} failed")  # fmt: skip
         _print_summary(summary(report.rows))
         for row in report.rows:

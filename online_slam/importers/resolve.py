@@ -5,6 +5,7 @@ It lives with the importers, which it dispatches to, so that ``sources`` never d
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -13,6 +14,12 @@ from online_slam.importers.detect import detect_format, open_dataset
 from online_slam.sources.events import Event
 from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
+from online_slam.wording import did_you_mean
+
+TAKES = {"mrclam": ("robot", "noise"), "gtsam": ("truth", "dt", "convention"), "g2o": ("dt",), "acfr": ()}
+"""The dataset options each format reads (any other given is refused rather than ignored)."""
+MRCLAM_FILE = re.compile(r"(Robot[1-5]_(Odometry|Measurement|Groundtruth)|Barcodes|Landmark_Groundtruth)\.dat")
+"""The files of an MRCLAM folder (one of them alone is no source: the folder is)."""
 
 
 def open_source(
@@ -32,18 +39,37 @@ def open_source(
         (name for messages and reports, event iterator).
 
     Raises:
-        InputError: When the path does not exist (raised at once, not on first read).
+        InputError: At once, not on first read: the path does not exist, is a folder or a file of no dataset the
+            importers read, or a dataset option is given that this source does not read (``--robot`` for a world).
     """
     text = str(spec)
-    if text in WORLDS and not Path(text).exists():
+    options = {k: v for k, v in dataset_options.items() if v is not None}
+    is_world = text in WORLDS and not Path(text).exists()
+    kind = options.pop("format", None) or (detect_format(text) if text != "-" and not is_world else None)
+    _check_options(text, kind, is_world, options)
+    if is_world:
         return text, WORLDS[text].events()
-    kind = dataset_options.pop("format", None) or (detect_format(text) if text != "-" else None)
     if kind is not None:
-        options = {k: v for k, v in dataset_options.items() if v is not None}
         return text, open_dataset(text, kind, **options)
     if text != "-" and not Path(text).is_file():
         raise _not_found(text)
+    if MRCLAM_FILE.fullmatch(Path(text).name):
+        raise InputError(text, 0, "", f"a file of an MRCLAM folder: pass the folder with --robot N, e.g. "
+                         f"'online-slam replay {Path(text).parent} --robot 1'")  # fmt: skip
     return source_name(text), read_stream(text, on_error)
+
+
+def _check_options(text: str, kind: str | None, is_world: bool, options: dict[str, object]) -> None:
+    """Refuse dataset options this source does not read (``--robot 2`` with a world would be ignored)."""
+    extra = [name for name in options if name not in TAKES.get(kind or "", ())]
+    if not extra:
+        return
+    what = (
+        "a built-in world" if is_world else "standard input" if text == "-" else f"{kind} data" if kind else "a stream"
+    )
+    readers = [f for f, names in TAKES.items() if extra[0] in names]
+    flag = "--" + extra[0].replace("_", "-")
+    raise InputError(source_name(text), 0, "", f"{flag} applies to {' and '.join(readers) or 'no'} data, not to {what}")
 
 
 def check_source(spec: str | Path) -> None:
@@ -54,4 +80,13 @@ def check_source(spec: str | Path) -> None:
 
 
 def _not_found(text: str) -> InputError:
-    return InputError(text, 0, "", f"no such file (and not a built-in world: {', '.join(sorted(WORLDS))})")
+    """Why a source that is neither a world nor a readable file cannot be opened, with what to pass instead."""
+    path = Path(text)
+    if path.is_dir():
+        inside = sorted(p.name for p in path.iterdir() if detect_format(p) is not None)
+        files = ", ".join(str(path / name) for name in inside[:3])
+        hint = f"pass one of its files: {files}" if inside else "none of its files is a dataset"
+        return InputError(text, 0, "", f"a folder, but not an MRCLAM or ACFR dataset folder; {hint}")
+    worlds = ", ".join(sorted(WORLDS))
+    guess = did_you_mean(text, WORLDS) if "/" not in text else ""
+    return InputError(text, 0, "", f"no such file, and not a built-in world{guess}; worlds: {worlds}")

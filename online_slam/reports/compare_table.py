@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from online_slam.compare import Comparison
 from online_slam.evaluation.results import Row
+from online_slam.wording import counted
 
 
 def _m(value: float | None) -> str:
@@ -42,7 +43,8 @@ def format_comparison(comparison: Comparison) -> str:
               "-" if name == "odometry" else f"{row.total_s:.3f}"]
              for name, row in comparison.rows.items()]  # fmt: skip
     widths = [max(len(h), *(len(line[k]) for line in lines)) for k, h in enumerate(header)]
-    out = [f"{r.source}: {r.poses} poses, {r.landmarks} landmarks, {r.observations} observations", ""]
+    size = [counted(r.poses, "pose"), counted(r.landmarks, "landmark"), counted(r.observations, "observation")]
+    out = [f"{r.source}: {', '.join(size)}", ""]
     out.append("  ".join([header[0].ljust(widths[0]), *(h.rjust(w) for h, w in zip(header[1:], widths[1:]))]))
     out.append("  ".join("-" * w for w in widths))
     for line in lines:
@@ -51,12 +53,14 @@ def format_comparison(comparison: Comparison) -> str:
         out.append(f"\nerrors after {r.alignment} alignment")
     if r.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(r.input.skipped_by_reason.items()))
-        out.append(f"input: {r.input.skipped_lines} bad lines skipped ({reasons})")
+        out.append(f"input: {counted(r.input.skipped_lines, 'bad line')} skipped ({reasons})")
     mc = comparison.monte_carlo
     if mc is not None:
         low, high = mc.anees_bounds
         out.append("")
-        out.append(f"Monte Carlo: {mc.runs} runs (seeds {mc.seeds[0]}..{mc.seeds[-1]}); mean +- std over runs")
+        out.append(
+            f"Monte Carlo: {counted(mc.runs, 'run')} (seeds {mc.seeds[0]}..{mc.seeds[-1]}); mean +- std over runs"
+        )
         keys = ("online_rmse_m", "final_rmse_m", "landmark_rmse_m", "nees_mean")
         out.append(f"{'estimator':<24}" + "".join(f"{k:>24}" for k in keys))
         for name in mc.mean:
@@ -65,7 +69,7 @@ def format_comparison(comparison: Comparison) -> str:
                 m, s = mc.mean[name].get(k), mc.std[name].get(k)
                 cells.append("-" if m is None else f"{m:.4f} +- {s:.4f}" if s is not None else f"{m:.4f}")
             out.append(f"{name:<24}" + "".join(f"{c:>24}" for c in cells))
-        out.append(f"average NEES over runs (95% bounds for {mc.runs} runs: {low:.2f} .. {high:.2f}):")
+        out.append(f"average NEES over runs (95% bounds for {counted(mc.runs, 'run')}: {low:.2f} .. {high:.2f}):")
         for name, value in mc.anees.items():
             verdict = "consistent" if low <= value <= high else "optimistic" if value > high else "pessimistic"
             out.append(

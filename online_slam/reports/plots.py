@@ -22,6 +22,7 @@ from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import NEES_DOF, position_errors
 from online_slam.reports.palette import palette
 from online_slam.sinks.geometry import ellipses
+from online_slam.wording import counted
 
 Array = NDArray[np.float64]
 
@@ -84,7 +85,8 @@ def title(results: Results) -> str:
     """The figure's title: the source's short name, its robot when the stream names one, and its size."""
     name = Path(results.source).name or results.source
     robot = f", robot {results.robot}" if results.robot is not None else ""
-    return f"{name}{robot}: {results.poses} poses, {results.landmarks} landmarks, {results.observations} observations"
+    size = [counted(results.poses, "pose"), counted(results.landmarks, "landmark")]
+    return f"{name}{robot}: {', '.join([*size, counted(results.observations, 'observation')])}"
 
 
 def _ticks(low: float, high: float, subs: tuple[float, ...]) -> int:

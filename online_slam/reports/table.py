@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from online_slam.evaluation.results import EstimatorResult, Results
+from online_slam.wording import counted
 
 
 def _metres(value: float | None) -> str:
@@ -53,7 +54,8 @@ def format_results(results: Results) -> str:
     label_width = max(len("Metric"), *(len(label) for label, _ in rows))
     widths = [max(len(c), *(len(cells[k]) for _, cells in rows)) for k, c in enumerate(columns)]
     title = (
-        f"{results.source}: {results.poses} poses, {results.landmarks} landmarks, {results.observations} observations"
+        f"{results.source}: {counted(results.poses, 'pose')}, {counted(results.landmarks, 'landmark')}, "
+        f"{counted(results.observations, 'observation')}"
     )
     lines = [title, ""]
     lines.append("  ".join(["Metric".ljust(label_width), *(c.rjust(w) for c, w in zip(columns, widths))]))
@@ -68,7 +70,7 @@ def format_results(results: Results) -> str:
         if "iterations" in d:
             state = "converged" if d.get("converged") else "NOT converged"
             notes.append(
-                f"{name}: {state} in {d['iterations']} iterations "
+                f"{name}: {state} in {counted(d['iterations'], 'iteration')} "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
         o = result.outliers
@@ -78,12 +80,12 @@ def format_results(results: Results) -> str:
                 if o.true_outliers is not None
                 else ""
             )
-            notes.append(f"{name}: {o.rejected} of {o.sightings} sightings rejected as outliers{scored}")
+            notes.append(f"{name}: {o.rejected} of {counted(o.sightings, 'sighting')} rejected as outliers{scored}")
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
-        notes.append(f"input: {results.input.skipped_lines} bad lines skipped ({reasons})")
+        notes.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
     if results.error:
-        notes.append(f"stopped early at bad input; figures cover the {results.poses} poses before it")
+        notes.append(f"stopped early at bad input; figures cover the {counted(results.poses, 'pose')} before it")
     if notes:
         lines.append("")
         lines.extend(notes)

@@ -195,6 +195,9 @@ class RerunSink:
             raise ValueError("RerunSink needs a path or a viewer to connect to")
         self.config = config
         self.layout = layout
+        self.live = config.connect is not None
+        """Whether the recording streams to a viewer (whose port answered: checked first, before any step)."""
+        viewer = self._viewer() if self.live else None
         if config.path is not None:  # told here in one line: rerun's own failure also logs a warning of its own
             try:
                 with open(config.path, "ab"):
@@ -209,20 +212,8 @@ class RerunSink:
         sinks: list[Any] = []
         if config.path is not None:
             sinks.append(rr.FileSink(str(config.path)))
-        self.live = False
-        """Whether the recording streams to a viewer (one was given and its port answered)."""
-        if config.connect is not None:
-            address = config.connect if config.connect != "default" else DEFAULT_VIEWER
-            problem = viewer_unreachable(address)
-            if problem is None:
-                sinks.append(rr.GrpcSink(address))
-                self.live = True
-            else:  # the replay goes on (and still writes --rrd): the CLI reports this line at the end
-                self.error = f"rerun: could not deliver the recording to the viewer at {self._where()} ({problem})"
-        self.off = not sinks
-        """Nothing to log to (the only destination was an unreachable viewer): steps are not logged."""
-        if self.off:
-            return
+        if viewer is not None:
+            sinks.append(rr.GrpcSink(viewer))
         try:
             self.rec.set_sinks(*sinks, default_blueprint=blueprint(layout))
         except Exception as exc:  # noqa: BLE001 - rerun raises several kinds; one message for the user
@@ -241,6 +232,17 @@ class RerunSink:
             estimated[0] if estimated else "odometry"
         )
         self._appearance()
+
+    def _viewer(self) -> str:
+        """The viewer's address; raises when nothing answers there, before the replay does any work."""
+        address = self.config.connect if self.config.connect != "default" else DEFAULT_VIEWER
+        problem = viewer_unreachable(address)
+        if problem is not None:
+            raise OnlineSlamError(
+                f"--connect: no Rerun viewer answers at {self._where()} ({problem}); start one first: 'rerun' on "
+                "a desktop, 'rerun --serve-web' on a machine without a display (then open http://localhost:9090)"
+            )
+        return address
 
     def _where(self) -> str:
         return self.config.connect if self.config.connect != "default" else f"the default address {DEFAULT_VIEWER}"
@@ -321,8 +323,6 @@ class RerunSink:
 
     def on_step(self, step: Step, snapshots: Mapping[str, Snapshot], truth: GroundTruth) -> None:
         """Buffer one step: poses, paths, maps, observation rays, scalars; log its events."""
-        if self.off:
-            return
         add = self.columns.add
         if len(truth.landmarks) != self.truth_landmarks:
             self.truth_landmarks = len(truth.landmarks)
@@ -397,8 +397,6 @@ class RerunSink:
     # -- end ---------------------------------------------------------------------------------------
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
         """Send what is buffered, the batch solution at the last step, the summary; close the file."""
-        if self.off:
-            return
         rec = self.rec
         # Errors and NEES as the table computes them (same frame and alignment: known only at the end).
         for name, series in results.series.items():

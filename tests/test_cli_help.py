@@ -1,0 +1,108 @@
+"""The command line as a new user meets it: quick help, one-line errors that suggest the right spelling,
+outputs named alike, and sources refused with what to pass instead (issue 30, items 3, 7 and 8)."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.test_cli import cli
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+HEAVY = ("scipy", "filterpy", "rerun", "matplotlib", "dask", "pyarrow", "pandas")
+
+
+def one_error(done: subprocess.CompletedProcess) -> str:
+    """The single error line of a run that failed with exit 2 (no traceback, nothing on stdout)."""
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("online-slam: error: "), done.stderr
+    return lines[0]
+
+
+def test_help_loads_no_heavy_library() -> None:
+    """Building the parser and every command's help imports none of the numerical or plotting libraries (it
+    imported scipy, filterpy and the whole engine: about 2 s per --help)."""
+    code = (
+        "import sys\n"
+        "from online_slam.cli.main import build_parser\n"
+        "parser = build_parser()\n"
+        "parser.format_help()\n"
+        "for action in parser._subparsers._group_actions:\n"
+        "    for command in action.choices.values():\n"
+        "        command.format_help()\n"
+        f"print(sorted({{m.split('.')[0] for m in sys.modules}} & set({HEAVY!r})))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+    assert cli("replay", "--help").returncode == 0
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (
+            ["replay", "--windw", "10"],
+            "unknown option --windw (did you mean --window?); see 'online-slam replay --help'",
+        ),
+        (["compare", "square", "--estimator", "ekf"], "(did you mean --estimators?)"),  # no abbreviations
+        (["replay", "--wind", "10"], "unknown option --wind (did you mean --window?)"),
+        (["replay", "sqare"], "sqare: no such file, and not a built-in world (did you mean square?)"),
+        (["replai"], "unknown command 'replai' (did you mean replay?)"),
+        (["replay", "--align", "SE2"], "invalid choice 'SE2' (did you mean se2?); choose from anchor, se2"),
+        (["sweep", "square", "--out", "rows.csv"], "unknown option --out (did you mean --output?)"),
+        (["square"], "unknown command 'square' (to replay it: online-slam replay square)"),
+    ],
+)
+def test_usage_errors_suggest_the_closest_spelling(args: list[str], expected: str) -> None:
+    assert expected in one_error(cli(*args))
+
+
+def test_output_files_are_named_alike(tmp_path: Path) -> None:
+    """-o/--output is the output file of simulate, convert and sweep (sweep had --out)."""
+    stream = tmp_path / "s.jsonl"
+    assert cli("simulate", "square", "--output", str(stream)).returncode == 0
+    assert cli("convert", "stream", str(stream), "-o", str(tmp_path / "s.g2o")).returncode == 0
+    rows = tmp_path / "rows.csv"
+    done = cli("sweep", str(stream), "--estimators", "ekf", "-o", str(rows), "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert rows.read_text().count("\n") == 2  # header and the EKF's row
+
+
+def test_connect_without_a_viewer_stops_before_the_replay(tmp_path: Path) -> None:
+    """It replayed everything and only then exited 2; now it says how to start a viewer, before any work."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # closed again: nothing listens there
+    out = tmp_path / "r.json"
+    started = time.perf_counter()
+    done = cli("replay", "grid", "--connect", f"rerun+http://127.0.0.1:{port}/proxy", "--json", str(out))
+    line = one_error(done)
+    assert f"127.0.0.1:{port}" in line and "'rerun'" in line and "rerun --serve-web" in line
+    assert done.stdout == "" and not out.exists()  # no replay ran (grid: 2000 poses)
+    assert time.perf_counter() - started < 20
+
+
+def test_robot_with_a_source_without_robots_is_refused() -> None:
+    line = one_error(cli("replay", "square", "--robot", "2"))  # was ignored
+    assert "square: --robot applies to mrclam data, not to a built-in world" in line
+
+
+def test_a_folder_of_gtsam_text_says_which_file_to_pass(tmp_path: Path) -> None:
+    (tmp_path / "victoria.txt").write_text("ODOMETRY 0 1 1.0 0.0 0.0 1 0 0 1 0 1\n")
+    line = one_error(cli("replay", str(tmp_path)))
+    assert "a folder, but not an MRCLAM or ACFR dataset folder" in line and str(tmp_path / "victoria.txt") in line
+    assert "no such file" not in line
+
+
+def test_a_file_of_an_mrclam_folder_asks_for_the_folder(tmp_path: Path) -> None:
+    member = tmp_path / "Robot2_Odometry.dat"
+    member.write_text("# Time [sec]    v [m/s]    w [rad/s]\n1248272272.841 0.0 0.0\n")
+    line = one_error(cli("replay", str(member)))
+    assert "a file of an MRCLAM folder: pass the folder with --robot N" in line and "invalid JSON" not in line
