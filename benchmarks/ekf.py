@@ -155,14 +155,17 @@ def time_steps(config: GridConfig, with_peer: bool = True) -> tuple[int, list[St
 def time_smoother(config: GridConfig, windows: tuple[int, ...] = (10, 20, 50)) -> list[StepLatency]:
     """Per-step latency and online RMSE of the default smoother, and of the window alone (no global
     relinearization) at several window sizes."""
-    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+    from online_slam.estimators.smoother import GlobalConfig, SlidingWindowSmoother, SmootherConfig, WindowConfig
 
     events = list(grid_world(config))
     rows = []
     seconds, poses, truth, _ = _drive(SlidingWindowSmoother(), events)
     rows.append(_latency("smoother default", seconds, poses, truth))
     for window in windows:
-        seconds, poses, truth, _ = _drive(SlidingWindowSmoother(SmootherConfig(window=window, global_every=0)), events)
+        seconds, poses, truth, _ = _drive(
+            SlidingWindowSmoother(SmootherConfig(window=WindowConfig(size=window), global_solve=GlobalConfig(every=0))),
+            events,
+        )
         rows.append(_latency(f"smoother W={window}", seconds, poses, truth))
     return rows
 

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.errors import InputError, OnlineSlamError
-from online_slam.estimators.smoother import SmootherConfig
+from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.evaluation.results import Results, Row
 from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
 from online_slam.pipeline import ReplayConfig, replay
@@ -32,7 +32,7 @@ Array = NDArray[np.float64]
 class CompareConfig:
     """What ``online-slam compare`` runs."""
 
-    windows: tuple[int, ...] = (SmootherConfig.window,)
+    windows: tuple[int, ...] = (WindowConfig.size,)
     """Smoother window sizes W; every (W, K) pair is run."""
     relinearize_every: tuple[int, ...] = (SmootherConfig.relinearize_every,)
     """Smoother relinearization periods K."""
@@ -123,7 +123,9 @@ def replay_config(config: CompareConfig) -> ReplayConfig:
     """The one replay a comparison runs: EKF and batch settings as given, one smoother per (W, K)."""
     base = config.replay
     smoothers = tuple(
-        replace(base.smoother, window=w, relinearize_every=k) for w in config.windows for k in config.relinearize_every
+        replace(base.smoother, window=replace(base.smoother.window, size=w), relinearize_every=k)
+        for w in config.windows
+        for k in config.relinearize_every
     )
     estimators = tuple(n for n in base.estimators if n != "smoother")
     return replace(base, estimators=estimators, extra_smoothers=smoothers)

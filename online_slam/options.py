@@ -48,6 +48,8 @@ CONFIGS = {
     "EkfConfig": "online_slam.estimators.ekf",
     "AssociationConfig": "online_slam.estimators.landmark_book",
     "SmootherConfig": "online_slam.estimators.smoother",
+    "WindowConfig": "online_slam.estimators.smoother",
+    "GlobalConfig": "online_slam.estimators.smoother",
     "RobustLoss": "online_slam.factors.robust",
     "FrontEndConfig": "online_slam.frontend.steps",
     "KeyframeConfig": "online_slam.frontend.steps",
@@ -219,23 +221,24 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                ("EkfConfig", "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
-               ("SmootherConfig", "window"), metavar="W", lands=("smoother.window",)),
+               ("WindowConfig", "size"), metavar="W", lands=("smoother.window.size",)),
     _estimator("window_distance", "keep poses beyond W until the window's path is this long, up to --window-max "
-               "poses (0 = exactly W poses)", "smoother", "smoother", ("SmootherConfig", "window_distance"),
-               metavar="M", unit="m", lands=("smoother.window_distance",)),
+               "poses (0 = exactly W poses)", "smoother", "smoother", ("WindowConfig", "distance"),
+               metavar="M", unit="m", lands=("smoother.window.distance",)),
     _estimator("window_max", "most poses the window keeps for --window-distance", "smoother", "smoother",
-               ("SmootherConfig", "window_max"), metavar="N", lands=("smoother.window_max",)),
+               ("WindowConfig", "max_poses"), metavar="N", lands=("smoother.window.max_poses",)),
     _estimator("relinearize_every", "K: relinearize and solve every K steps (compare: a list)", "smoother",
                "smoother", ("SmootherConfig", "relinearize_every"), metavar="K", lands=("smoother.relinearize_every",)),
     _estimator("global_every", "re-solve the whole history every N steps and re-anchor the prior (0 = never)",
-               "smoother", "smoother", ("SmootherConfig", "global_every"), metavar="N",
-               lands=("smoother.global_every",)),
+               "smoother", "smoother", ("GlobalConfig", "every"), metavar="N",
+               lands=("smoother.global_solve.every",)),
     _estimator("global_delay", "hand each global solve (a background thread) over D steps later, or N/50 after "
-               "step N if longer (0 = at once)", "smoother", "smoother", ("SmootherConfig", "global_delay"),
-               metavar="D", lands=("smoother.global_delay",)),
+               "step N if longer (0 = at once)", "smoother", "smoother", ("GlobalConfig", "delay"),
+               metavar="D", lands=("smoother.global_solve.delay",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "
                "at most L landmarks (0 = never)", "smoother", "smoother",
-               ("SmootherConfig", "global_information_max"), metavar="L", lands=("smoother.global_information_max",)),
+               ("GlobalConfig", "information_max"), metavar="L",
+               lands=("smoother.global_solve.information_max",)),
     # -- association ----------------------------------------------------------------------------------------
     Option("association", "pair sightings by the stream's ids (known), nearest neighbour (nn) or joint "
            "compatibility (jcbb); auto: known when the first sighting has an id, else jcbb (Slam: known)",

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from online_slam.checkpoint import Checkpointed, from_tree, read_checkpoint, to_tree, write_checkpoint
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.history import PoseHistory
-from online_slam.estimators.smoother import SmootherConfig
+from online_slam.estimators.smoother import GlobalConfig, SmootherConfig, WindowConfig
 from online_slam.frontend.steps import FrontEndConfig, KeyframeConfig
 from online_slam.pipeline import Checkpointing, ReplayConfig, replay, run
 from online_slam.pipeline.config import build_estimators
@@ -227,7 +227,14 @@ def test_values_that_are_not_data_are_refused(value: Any, tmp_path: Path) -> Non
     [
         ("ids", ReplayConfig()),
         ("ids", ReplayConfig(frontend=FrontEndConfig(KeyframeConfig(1.0, 0.5), first_observation_only=True))),
-        ("contaminated", ReplayConfig(extra_smoothers=(SmootherConfig(window=5, global_every=20, global_delay=10),))),
+        (
+            "contaminated",
+            ReplayConfig(
+                extra_smoothers=(
+                    SmootherConfig(window=WindowConfig(size=5), global_solve=GlobalConfig(every=20, delay=10)),
+                )
+            ),
+        ),
         ("without ids", ReplayConfig(association="jcbb")),
     ],
 )

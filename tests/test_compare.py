@@ -14,8 +14,8 @@ import pytest
 
 import online_slam
 from online_slam.compare import CompareConfig, compare, nees_bounds
-from online_slam.estimators import SmootherConfig
 from online_slam.estimators.presets import smoother_label
+from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.evaluation.scoring import share_in_bounds
 from online_slam.pipeline import ReplayConfig
 
@@ -44,7 +44,7 @@ def test_compare_equals_replay_for_the_same_configuration(tmp_path: Path) -> Non
 
     path = tmp_path / "grid600.jsonl"  # 600 poses: global relinearizations and marginalization both take part
     write_stream(path, grid_world(GridConfig(poses=600, seed=3)))
-    config = ReplayConfig(smoother=SmootherConfig(window=20))
+    config = ReplayConfig(smoother=SmootherConfig(window=WindowConfig(size=20)))
     replayed = online_slam.replay(path, config)
     compared = compare(path, CompareConfig(windows=(20,), relinearize_every=(1,), replay=config))
     row, ref = compared.rows[smoother_label(config.smoother)], replayed.estimators["smoother"]

@@ -10,7 +10,7 @@ import pytest
 
 from online_slam import ConfigError, Slam
 from online_slam.cli.main import build_parser
-from online_slam.estimators.smoother import SmootherConfig
+from online_slam.estimators.smoother import WindowConfig
 from online_slam.options import (
     GROUPS,
     OPTIONS,
@@ -63,8 +63,8 @@ def _keyframes():  # noqa: ANN202 - the front-end's keyframe settings
 
 
 def test_defaults_are_the_configs() -> None:
-    assert OPTIONS["window"].value == SmootherConfig.window
-    assert OPTIONS["window_distance"].shown_default() == f"{SmootherConfig.window_distance:g} m"
+    assert OPTIONS["window"].value == WindowConfig.size
+    assert OPTIONS["window_distance"].shown_default() == f"{WindowConfig.distance:g} m"
     assert "deg)" in OPTIONS["keyframe_angle"].shown_default()
     assert replay_config({}) == ReplayConfig()  # no options: the configurations' own defaults
 

@@ -10,6 +10,7 @@ import pytest
 
 import online_slam
 from online_slam.estimators import BatchConfig, SmootherConfig
+from online_slam.estimators.smoother import WindowConfig
 from online_slam.pipeline import ReplayConfig
 from online_slam.sources import read_stream, square_world, write_stream
 
@@ -28,7 +29,7 @@ def test_shipped_stream_replays(path: Path) -> None:
     assert sum(1 for _ in read_stream(path)) > 0
     # What is checked here does not depend on the window's size; sized by motion (the default) it keeps ~33 poses
     # of Victoria Park, which doubles this test's time: a 20-pose window keeps the suite within its budget.
-    config = ReplayConfig(batch=BatchConfig(initial="ekf"), smoother=SmootherConfig(window_distance=0.0))
+    config = ReplayConfig(batch=BatchConfig(initial="ekf"), smoother=SmootherConfig(window=WindowConfig(distance=0.0)))
     if path.name.startswith("victoria_park"):
         # The smoother is two thirds of this replay's time (33 of 49 s) and is not what is checked on this stream
         # (the batch's minimum, started from the EKF); the shipped MRCLAM and cityTrees streams replay it.

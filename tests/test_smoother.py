@@ -14,6 +14,7 @@ import online_slam
 from online_slam.checkpoint import read_checkpoint, to_tree, write_checkpoint
 from online_slam.estimators import BatchConfig, BatchEstimator, SlidingWindowSmoother, SmootherConfig
 from online_slam.estimators.landmark_book import AssociationConfig
+from online_slam.estimators.smoother import GlobalConfig, RobustConfig, WindowConfig
 from online_slam.estimators.smoother.state import SmootherState
 from online_slam.evaluation.metrics import align_se2
 from online_slam.factors import RobustLoss, layout, linearize
@@ -40,14 +41,14 @@ def rmse(poses: np.ndarray, fe: FrontEnd) -> float:
 
 @pytest.mark.parametrize("events", [square_world, lambda: grid_world(GridConfig(poses=300, seed=5))])
 def test_window_covering_the_stream_equals_batch(events) -> None:
-    fe, _, final, _, batch, _ = run(events(), SmootherConfig(window=10_000))
+    fe, _, final, _, batch, _ = run(events(), SmootherConfig(window=WindowConfig(size=10_000)))
     assert np.max(np.linalg.norm(final.poses[:, :2] - batch.poses[:, :2], axis=1)) <= 1e-6
     assert np.max(np.abs(wrap(final.poses[:, 2] - batch.poses[:, 2]))) <= 1e-7
     assert np.max(np.linalg.norm(final.landmarks - batch.landmarks, axis=1)) <= 1e-6
 
 
 def test_window_10_on_square_is_within_5_percent_of_batch() -> None:
-    fe, _, final, _, batch, _ = run(square_world(), SmootherConfig(window=10))
+    fe, _, final, _, batch, _ = run(square_world(), SmootherConfig(window=WindowConfig(size=10)))
     assert rmse(final.poses, fe) <= 1.05 * rmse(batch.poses, fe)
 
 
@@ -73,7 +74,7 @@ def test_window_20_on_the_2000_pose_grid() -> None:
 
 def test_marginalization_is_exact_at_the_solution() -> None:
     """Linearized at the optimum, marginalizing poses leaves the same estimate and covariance as the full problem."""
-    fe, smoother, _, batch_est, batch, _ = run(square_world(), SmootherConfig(window=10_000))
+    fe, smoother, _, batch_est, batch, _ = run(square_world(), SmootherConfig(window=WindowConfig(size=10_000)))
     with threadpool_limits(limits=1, user_api="blas"):
         smoother.solve(final=True)
         for _ in range(12):
@@ -94,7 +95,9 @@ def test_marginalization_is_exact_at_the_solution() -> None:
 
 
 def test_loop_closure_corrects_the_current_pose_long_after_the_window_moved_on() -> None:
-    fe, smoother, final, _, _, snapshots = run(square_world(), SmootherConfig(window=3, window_distance=0.0))
+    fe, smoother, final, _, _, snapshots = run(
+        square_world(), SmootherConfig(window=WindowConfig(size=3, distance=0.0))
+    )
     odometry = online_slam.replay("square").estimates["odometry"].poses
     truth_last = fe.truth.poses[24]
     assert np.linalg.norm(odometry[24, :2] - truth_last[:2]) > 1.5
@@ -106,9 +109,9 @@ def test_loop_closure_corrects_the_current_pose_long_after_the_window_moved_on()
 
 def test_robust_to_landmarks_seen_once_window_one_and_large_k() -> None:
     for config, frontend in [
-        (SmootherConfig(window=3), FrontEndConfig(first_observation_only=True)),
-        (SmootherConfig(window=1), None),
-        (SmootherConfig(window=5, relinearize_every=1000), None),
+        (SmootherConfig(window=WindowConfig(size=3)), FrontEndConfig(first_observation_only=True)),
+        (SmootherConfig(window=WindowConfig(size=1)), None),
+        (SmootherConfig(window=WindowConfig(size=5), relinearize_every=1000), None),
     ]:
         fe, smoother, final, _, batch, snapshots = run(square_world(), config, frontend)
         assert np.all(np.isfinite(final.poses)) and np.all(np.isfinite(final.landmarks))
@@ -127,7 +130,7 @@ def test_stationary_robot_for_50_steps() -> None:
     for k in range(1, 51):
         events.append(Odometry(float(k), (0.0, 0.0, 0.0), sigma=(0.01, 0.01, 0.005)))
         events += [Observation(float(k), j, 3.0 + j, 0.3 * j, sigma=(0.05, 0.01)) for j in range(4)]
-    fe, smoother, final, _, batch, snapshots = run(events, SmootherConfig(window=5))
+    fe, smoother, final, _, batch, snapshots = run(events, SmootherConfig(window=WindowConfig(size=5)))
     assert len(final.poses) == 51 and np.max(np.abs(final.poses)) < 1e-9
     assert np.max(np.linalg.norm(final.landmarks - batch.landmarks, axis=1)) < 1e-9
     assert np.all(np.linalg.eigvalsh(snapshots[-1].pose_cov) > 0)
@@ -149,10 +152,14 @@ def test_robust_losses_and_the_default_reject_a_gross_outlier() -> None:
     k = first_reobservation_at(events, 12.0)
     bad = events[k]
     events[k] = Observation(bad.t, bad.landmark, bad.range, float(wrap(bad.bearing + 2.5)), sigma=bad.sigma)
-    least_squares = SmootherConfig(window=10, loss=None, reject_false_alarm=0.0, consensus=False)
+    least_squares = SmootherConfig(
+        window=WindowConfig(size=10), robust=RobustConfig(loss=None, reject_false_alarm=0.0, consensus=False)
+    )
     fe, _, plain, _, _, _ = run(iter(events), least_squares)
-    _, _, cauchy, _, _, _ = run(iter(events), SmootherConfig(window=10, loss=RobustLoss("cauchy")))
-    _, smoother, default, _, _, _ = run(iter(events), SmootherConfig(window=10))
+    _, _, cauchy, _, _, _ = run(
+        iter(events), SmootherConfig(window=WindowConfig(size=10), robust=RobustConfig(loss=RobustLoss("cauchy")))
+    )
+    _, smoother, default, _, _, _ = run(iter(events), SmootherConfig(window=WindowConfig(size=10)))
     clean = rmse(run(square_world(), least_squares)[2].poses, fe)
     assert rmse(plain.poses, fe) > 1.5 * clean
     assert rmse(cauchy.poses, fe) < 1.05 * clean
@@ -163,7 +170,10 @@ def test_robust_losses_and_the_default_reject_a_gross_outlier() -> None:
 @pytest.mark.parametrize("kind", ["huber", "cauchy"])
 def test_robust_smoother_with_a_large_window_equals_robust_batch(kind: str) -> None:
     loss = RobustLoss(kind)
-    fe, smoother = FrontEnd(), SlidingWindowSmoother(SmootherConfig(window=10_000, loss=loss))
+    fe, smoother = (
+        FrontEnd(),
+        SlidingWindowSmoother(SmootherConfig(window=WindowConfig(size=10_000), robust=RobustConfig(loss=loss))),
+    )
     batch = BatchEstimator(BatchConfig(loss=loss))
     for step in fe.steps(square_world()):
         smoother.step(step)
@@ -174,7 +184,7 @@ def test_robust_smoother_with_a_large_window_equals_robust_batch(kind: str) -> N
 
 def test_snapshots_report_the_window_and_solves() -> None:
     _, smoother, final, _, _, snapshots = run(
-        square_world(), SmootherConfig(window=5, relinearize_every=3, window_distance=0.0)
+        square_world(), SmootherConfig(window=WindowConfig(size=5, distance=0.0), relinearize_every=3)
     )
     relinearized = [s.index for s in snapshots if s.info["relinearized"]]
     assert relinearized[:3] == [2, 5, 8]  # every 3 steps
@@ -185,7 +195,9 @@ def test_snapshots_report_the_window_and_solves() -> None:
     assert all(s.info["cost_after"] <= s.info["cost_before"] + 1e-9 for s in solved)
     assert final.info["solves"] == len(solved) + 1  # plus the final solve
     # A pose is never marginalized before it has been optimized: with K > W the window forces a solve.
-    _, _, _, _, _, snapshots = run(square_world(), SmootherConfig(window=2, relinearize_every=5, window_distance=0.0))
+    _, _, _, _, _, snapshots = run(
+        square_world(), SmootherConfig(window=WindowConfig(size=2, distance=0.0), relinearize_every=5)
+    )
     assert [s.index for s in snapshots if s.info["relinearized"]][:3] == [2, 5, 8]  # K alone: 4, 9, 14
 
 
@@ -194,7 +206,9 @@ def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> 
     solve stays at the full problem's solution, and every pose (history included) is the batch's."""
     from online_slam.solvers import SolverConfig
 
-    config = SmootherConfig(window=5, global_every=10**6, global_iterations=100, solver=SolverConfig())
+    config = SmootherConfig(
+        window=WindowConfig(size=5), solver=SolverConfig(), global_solve=GlobalConfig(every=10**6, iterations=100)
+    )
     fe, smoother, _, _, batch, _ = run(square_world(), config)
     with threadpool_limits(limits=1, user_api="blas"):
         report = smoother.relinearize_globally()
@@ -217,7 +231,9 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
     events = list(grid_world(GridConfig(poses=120, seed=5)))
     covariances = {}
     for cap in (0, 10**6):
-        config = SmootherConfig(window=5, window_distance=0.0, global_every=10**6, global_information_max=cap)
+        config = SmootherConfig(
+            window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=10**6, information_max=cap)
+        )
         _, smoother, _, _, _, _ = run(events, config)
         with threadpool_limits(limits=1, user_api="blas"):
             assert "global_rejected" not in smoother.relinearize_globally()
@@ -227,7 +243,7 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
     past = history_graph(inlier_graph(relinearization.log, relinearization.decisions), p.pose)
     poses = np.vstack([window.history.view(), window.poses[p.pose][None]])
     sparse = layout(past)
-    _, J = linearize(past, sparse, poses, smoother.landmarks, smoother.config.loss)
+    _, J = linearize(past, sparse, poses, smoother.landmarks, smoother.config.robust.loss)
     H = (J.T @ J).toarray()
     k = np.r_[
         (sparse.landmark_column[p.landmarks][:, None] + np.arange(2)).reshape(-1),
@@ -244,8 +260,12 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
 
 def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
     events = list(grid_world(GridConfig(poses=600, seed=5)))
-    fe, _, frozen, _, batch, _ = run(events, SmootherConfig(window=10, global_every=0))
-    _, smoother, revised, _, _, _ = run(events, SmootherConfig(window=10, global_every=100, global_delay=0))
+    fe, _, frozen, _, batch, _ = run(
+        events, SmootherConfig(window=WindowConfig(size=10), global_solve=GlobalConfig(every=0))
+    )
+    _, smoother, revised, _, _, _ = run(
+        events, SmootherConfig(window=WindowConfig(size=10), global_solve=GlobalConfig(every=100, delay=0))
+    )
     assert smoother.relinearization.solves == 6  # every 100 steps of 600, solved at once
     ratio_frozen = rmse(frozen.poses, fe) / rmse(batch.poses, fe)
     ratio_revised = rmse(revised.poses, fe) / rmse(batch.poses, fe)
@@ -257,7 +277,7 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
     """The hand-over step is fixed, so results never depend on thread timing; a checkpoint taken while a global
     solve is pending carries its result (in memory, and through a file), and the run continues identically."""
     steps = list(FrontEnd().steps(grid_world(GridConfig(poses=400, seed=5))))
-    config = SmootherConfig(window=10, global_every=100, global_delay=30)
+    config = SmootherConfig(window=WindowConfig(size=10), global_solve=GlobalConfig(every=100, delay=30))
 
     def run_all(cut: int | None = None, through_file: bool = False) -> np.ndarray:
         smoother = SlidingWindowSmoother(config)
@@ -285,7 +305,9 @@ def test_state_dict_is_the_tree_of_the_state_and_load_state_rebuilds_it() -> Non
     """``state_dict`` is the tree of :class:`SmootherState` (its groups' fields, derived ones left out: plain data,
     it shares the smoother's arrays); ``load_state`` rebuilds the same state, derived fields included."""
     events = without_ids(grid_world(GridConfig(poses=80, seed=2)))
-    config = SmootherConfig(window=6, global_every=20, global_delay=5, association=AssociationConfig("jcbb"))
+    config = SmootherConfig(
+        window=WindowConfig(size=6), association=AssociationConfig("jcbb"), global_solve=GlobalConfig(every=20, delay=5)
+    )
     smoother = SlidingWindowSmoother(config)
     for step in FrontEnd().steps(events):
         smoother.step(step)
@@ -307,7 +329,7 @@ def test_window_sized_by_motion_keeps_poses_until_its_path_is_long_enough() -> N
     ``window_max`` caps the window (a robot standing still)."""
     steps = list(FrontEnd().steps(square_world()))
     length = {s.index: float(np.hypot(*s.odometry[:2])) for s in steps if s.odometry is not None}
-    smoother = SlidingWindowSmoother(SmootherConfig(window=3, window_distance=2.0, window_max=6))
+    smoother = SlidingWindowSmoother(SmootherConfig(window=WindowConfig(size=3, distance=2.0, max_poses=6)))
     sizes = []
     for step in steps:
         window = smoother.step(step).info["window"]
@@ -321,7 +343,9 @@ def test_window_sized_by_motion_keeps_poses_until_its_path_is_long_enough() -> N
     for k in range(1, 20):
         events.append(Odometry(float(k), (0.0, 0.0, 0.0), sigma=(0.01, 0.01, 0.005)))
         events += [Observation(float(k), j, 3.0 + j, 0.3 * j, sigma=(0.05, 0.01)) for j in range(4)]
-    _, smoother, final, _, batch, snapshots = run(events, SmootherConfig(window=3, window_distance=1.0, window_max=8))
+    _, smoother, final, _, batch, snapshots = run(
+        events, SmootherConfig(window=WindowConfig(size=3, distance=1.0, max_poses=8))
+    )
     assert [len(s.info["window"]) for s in snapshots][7:] == [8] * 13  # standing still: capped at window_max
     assert np.max(np.abs(final.poses)) < 1e-9
 

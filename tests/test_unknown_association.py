@@ -266,7 +266,7 @@ def test_association_covariance_from_the_last_solve_equals_relinearizing_the_win
     and the prior's conditional for landmarks only the prior holds, is the one a relinearization of the window
     at the same point gives (the solve's factor is taken at the solution here so that the two meet to rounding;
     in a run it is one converged step before it)."""
-    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig, WindowConfig
     from online_slam.estimators.smoother.covariance import factored, propagated_covariance, window_covariance
     from online_slam.estimators.smoother.window import linearize
     from online_slam.frontend import FrontEnd
@@ -277,20 +277,20 @@ def test_association_covariance_from_the_last_solve_equals_relinearizing_the_win
         def association_covariance(self, indices: np.ndarray) -> np.ndarray:
             solved = self.association.solved
             fast = propagated_covariance(solved, self.window, self.prior, indices)
-            full = window_covariance(linearize(self.window, self.prior, self.config.loss), self.prior, indices)
+            full = window_covariance(linearize(self.window, self.prior, self.config.robust.loss), self.prior, indices)
             if fast is not None:
                 passive = bool(np.any(~np.isin(indices, solved.active)))
                 compared.append((float(np.abs(fast - full).max() / np.abs(full).max()), passive))
             return full
 
-    config = SmootherConfig(window=6, association=AssociationConfig(method="jcbb"))
+    config = SmootherConfig(window=WindowConfig(size=6), association=AssociationConfig(method="jcbb"))
     smoother = Checked(config)
     world = contaminate(grid_world(replace(SMALL, poses=200)), Contamination(clutter=0.1))
     for step in FrontEnd().steps(without_ids(world)):
         smoother.step(step)
         if smoother.association.solved is not None:  # the solve's factor, taken at its solution
             window = smoother.window
-            linearized = linearize(window, smoother.prior, config.loss)
+            linearized = linearize(window, smoother.prior, config.robust.loss)
             assert linearized.information is not None
             refactored = factored(linearized.information, window.indices, linearized.layout, linearized.active)
             assert refactored is not None

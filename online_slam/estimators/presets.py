@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from online_slam.estimators.batch import BatchConfig
-from online_slam.estimators.smoother import SmootherConfig
+from online_slam.estimators.smoother import RobustConfig, SmootherConfig
 from online_slam.factors.robust import RobustLoss
 
 ROBUST_CHOICES = ("auto", "none", "huber", "cauchy")
@@ -27,10 +27,10 @@ def robust_settings(
     if robust == "auto":
         return smoother, batch
     if robust == "none":
-        plain = replace(smoother, loss=None, reject_false_alarm=0.0, consensus=False)
+        plain = replace(smoother, robust=RobustConfig(loss=None, consensus=False, reject_false_alarm=0.0))
         return plain, replace(batch, loss=None, outliers="off")
     loss = RobustLoss(robust, scale)
-    return replace(smoother, loss=loss), replace(batch, loss=loss)
+    return replace(smoother, robust=replace(smoother.robust, loss=loss)), replace(batch, loss=loss)
 
 
 def smoother_label(config: SmootherConfig) -> str:
@@ -40,7 +40,8 @@ def smoother_label(config: SmootherConfig) -> str:
     solved every K=1 steps; ``smoother W=5 K=1``: exactly 5 poses (``window_distance`` 0, or a ``window_max``
     that is no more than W). A row so named keeps its meaning whatever the defaults are.
     """
-    most = max(config.window, config.window_max)
-    if config.window_distance == 0 or most == config.window:
-        return f"smoother W={config.window} K={config.relinearize_every}"
-    return f"smoother W={config.window}..{most} D={config.window_distance:g} K={config.relinearize_every}"
+    window, every = config.window, config.relinearize_every
+    most = max(window.size, window.max_poses)
+    if window.distance == 0 or most == window.size:
+        return f"smoother W={window.size} K={every}"
+    return f"smoother W={window.size}..{most} D={window.distance:g} K={every}"

@@ -28,7 +28,7 @@ background global relinearization), :mod:`.relinearize` (its whole-history math)
 data), :mod:`.core` (the estimator).
 """
 
-from online_slam.estimators.smoother.config import SmootherConfig
+from online_slam.estimators.smoother.config import GlobalConfig, RobustConfig, SmootherConfig, WindowConfig
 from online_slam.estimators.smoother.core import SlidingWindowSmoother
 
-__all__ = ["SlidingWindowSmoother", "SmootherConfig"]
+__all__ = ["GlobalConfig", "RobustConfig", "SlidingWindowSmoother", "SmootherConfig", "WindowConfig"]

@@ -21,28 +21,30 @@ bound a consistent history exceeds with this probability."""
 
 
 @dataclass(frozen=True)
-class SmootherConfig:
-    """Settings of the sliding-window smoother."""
+class WindowConfig:
+    """Which poses the window keeps as variables; older ones are marginalized into the prior."""
 
-    window: int = 20
-    """W: poses kept as variables at least (>= 1); older ones are marginalized once the window is full (below)."""
-    window_distance: float = 18.0
+    size: int = 20
+    """W: poses kept as variables at least (>= 1)."""
+    distance: float = 18.0
     """The window also keeps poses beyond W until the path from its second-oldest pose to its newest is at least
-    this long (metres, by odometry; up to ``window_max`` poses): sized by motion, it spans W poses where the robot moves
+    this long (metres, by odometry; up to ``max_poses``): sized by motion, it spans W poses where the robot moves
     far per pose and more where it creeps, so that the poses it freezes have seen enough geometry. Default 18 m:
     what W=20 spans at 1 m per pose. 0: W poses."""
-    window_max: int = 120
-    """Most poses the window keeps to span ``window_distance`` (never fewer than W; ignored when that is 0)."""
-    relinearize_every: int = 1
-    """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
-    solver: SolverConfig = field(
-        default_factory=lambda: SolverConfig(
-            max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5, model_tolerance=1e-4
-        )
-    )
-    """Levenberg-Marquardt settings of each window solve during the stream (max iterations, tolerances)."""
-    final_solver: SolverConfig = field(default_factory=SolverConfig)
-    """Settings of the last solve, at the end of the stream (tight by default: it gives the final estimate)."""
+    max_poses: int = 120
+    """Most poses the window keeps to span ``distance`` (never fewer than W; ignored when that is 0)."""
+
+    def __post_init__(self) -> None:
+        if self.size < 1:
+            raise ValueError("window must be >= 1")
+        if not 0.0 <= self.distance < math.inf or self.max_poses < 1:
+            raise ValueError("window_distance must be finite and >= 0, window_max >= 1")
+
+
+@dataclass(frozen=True)
+class RobustConfig:
+    """How the smoother treats sightings that do not fit."""
+
     loss: RobustLoss | None = field(default_factory=lambda: RobustLoss("tail", math.sqrt(outlier_threshold(1e-6))))
     """Robust loss on observations, re-evaluated at every relinearization, or None for plain least squares.
     Default: least squares while a sighting's squared whitened residual is within 27.6 (the chi-square bound
@@ -55,44 +57,68 @@ class SmootherConfig:
     """Marginalization never folds into the prior a sighting whose squared whitened residual at the current
     estimate exceeds the chi-square bound this inlier would exceed with this probability (13.8 for 1e-3):
     it is judged an outlier and dropped. 0 folds every sighting in."""
-    first_estimate_jacobians: bool = False
-    """Linearize factors folded into the prior at the prior's own (first-estimate) linearization point (FEJ).
-    False (default) re-centres the prior at the current estimate first (exact for a Gaussian) and linearizes
-    there, which stays stable when first estimates are far off (see :mod:`~online_slam.estimators.smoother`)."""
 
-    global_every: int = 200
+
+@dataclass(frozen=True)
+class GlobalConfig:
+    """The global relinearization: every factor seen so far re-solved from the current estimate."""
+
+    every: int = 200
     """Relinearize globally every this many steps, or every N / 20 steps after N steps if that is longer (0:
-    never): re-solve every factor seen so far from the current
-    estimate (``global_iterations`` Levenberg-Marquardt iterations), write the revised poses into the history
-    and move the prior to them (see :mod:`~online_slam.estimators.smoother.relinearize`). Keeps every factor.
-    Default 200, chosen on the simulated worlds and the real datasets: it brings the final estimate to the
-    batch's."""
-    global_iterations: int = 3
+    never): re-solve every factor seen so far from the current estimate (``iterations`` Levenberg-Marquardt
+    iterations), write the revised poses into the history and move the prior to them (see
+    :mod:`~online_slam.estimators.smoother.relinearize`). Keeps every factor. Default 200, chosen on the
+    simulated worlds and the real datasets: it brings the final estimate to the batch's."""
+    iterations: int = 3
     """Levenberg-Marquardt iterations of each global relinearization (warm-started: few are needed)."""
-    global_delay: int = 50
+    delay: int = 50
     """Steps between starting a global relinearization (in a background thread, from a copy of the state) and
     handing its result over, or N / 50 steps after N steps if that is longer (the solve's cost grows with N, a
     step's does not); the hand-over waits for the solve if it is not done, so results never depend on timing.
     0 solves at once, inside the step."""
-    global_information_max: int = 0
+    information_max: int = 0
     """Re-anchoring also relinearizes the prior's information (its covariance: the history's exact marginal at
     the revised estimate) while the prior holds at most this many landmarks (one sparse solve with 2 L + 3
     right-hand sides and a dense inverse of that size); otherwise only its mean moves and its covariance keeps
     the linearization of each fold-in. Default 0 (never): it helped the online error on some datasets and hurt
     it on others, and its dense inverse makes hand-overs slow where the prior holds many landmarks."""
+
+    def __post_init__(self) -> None:
+        if self.every < 0 or self.iterations < 1 or self.delay < 0:
+            raise ValueError("global_every and global_delay must be >= 0, global_iterations >= 1")
+        if self.information_max < 0:
+            raise ValueError("global_information_max must be >= 0")
+
+
+@dataclass(frozen=True)
+class SmootherConfig:
+    """Settings of the sliding-window smoother, by concern."""
+
+    window: WindowConfig = field(default_factory=WindowConfig)
+    """Which poses the window keeps."""
+    relinearize_every: int = 1
+    """K: relinearize and solve every K steps (and at the end); in between, new poses follow odometry."""
+    solver: SolverConfig = field(
+        default_factory=lambda: SolverConfig(
+            max_iterations=10, relative_cost_tolerance=1e-5, step_tolerance=1e-5, model_tolerance=1e-4
+        )
+    )
+    """Levenberg-Marquardt settings of each window solve during the stream (max iterations, tolerances)."""
+    final_solver: SolverConfig = field(default_factory=SolverConfig)
+    """Settings of the last solve, at the end of the stream (tight by default: it gives the final estimate)."""
+    robust: RobustConfig = field(default_factory=RobustConfig)
+    """Robust loss, consensus moves and the rejection of outliers at marginalization."""
+    first_estimate_jacobians: bool = False
+    """Linearize factors folded into the prior at the prior's own (first-estimate) linearization point (FEJ).
+    False (default) re-centres the prior at the current estimate first (exact for a Gaussian) and linearizes
+    there, which stays stable when first estimates are far off (see :mod:`~online_slam.estimators.smoother`)."""
+    global_solve: GlobalConfig = field(default_factory=GlobalConfig)
+    """The periodic re-solve of the whole history."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     smoother's own belief (the window's information from the last solve, carried to the newest pose; the prior
     for landmarks the window does not see), with tentative landmarks. Associations are not revised later."""
 
     def __post_init__(self) -> None:
-        if self.global_every < 0 or self.global_iterations < 1 or self.global_delay < 0:
-            raise ValueError("global_every and global_delay must be >= 0, global_iterations >= 1")
-        if self.global_information_max < 0:
-            raise ValueError("global_information_max must be >= 0")
-        if self.window < 1:
-            raise ValueError("window must be >= 1")
-        if not 0.0 <= self.window_distance < math.inf or self.window_max < 1:
-            raise ValueError("window_distance must be finite and >= 0, window_max >= 1")
         if self.relinearize_every < 1:
             raise ValueError("relinearize_every must be >= 1")

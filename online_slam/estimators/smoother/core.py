@@ -68,11 +68,15 @@ class SlidingWindowSmoother:
         self.name = name
         self.state = SmootherState(
             Window(),
-            Relinearization(ProblemLog(keep_factors=self.config.global_every > 0)),  # every factor, for global solves
+            Relinearization(
+                ProblemLog(keep_factors=self.config.global_solve.every > 0)
+            ),  # every factor, for global solves
             AssociationState(LandmarkBook(self.config.association, inside=False)),
         )
         self._reject_bound = (
-            outlier_threshold(self.config.reject_false_alarm) if self.config.reject_false_alarm > 0 else np.inf
+            outlier_threshold(self.config.robust.reject_false_alarm)
+            if self.config.robust.reject_false_alarm > 0
+            else np.inf
         )
         self._blas = ThreadpoolController()
 
@@ -126,7 +130,7 @@ class SlidingWindowSmoother:
             if w.since_solve >= self.config.relinearize_every:
                 report = self.solve()
             marginalized = []
-            while w.is_full(self.config):
+            while w.is_full(self.config.window):
                 if w.indices[0] in w.unsolved:  # never marginalize a pose before it was optimized
                     report = self.solve()
                 marginalized.append(w.indices[0])
@@ -213,7 +217,7 @@ class SlidingWindowSmoother:
                 "global_solves": r.solves,
                 "global_rejections": r.rejections,
                 "landmarks_released": p.released,
-                "window": self.config.window,
+                "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
                 "final_solve_s": time.perf_counter() - started,
                 **self.association.book.info(),
@@ -231,7 +235,7 @@ class SlidingWindowSmoother:
         propagated = propagated_covariance(self.association.solved, self.window, self.prior, indices)
         if propagated is not None:
             return propagated
-        return window_covariance(linearize(self.window, self.prior, self.config.loss), self.prior, indices)
+        return window_covariance(linearize(self.window, self.prior, self.config.robust.loss), self.prior, indices)
 
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
@@ -243,7 +247,7 @@ class SlidingWindowSmoother:
         if not self.window.indices:
             return np.full((count, 2, 2), np.nan)
         with self._blas.limit(limits=1, user_api="blas"):
-            return landmark_marginals(linearize(self.window, self.prior, self.config.loss), self.prior, count)
+            return landmark_marginals(linearize(self.window, self.prior, self.config.robust.loss), self.prior, count)
 
     # -- association -----------------------------------------------------------------------------
     def _resolve(self, step: Step, start: int) -> tuple[Step, int]:
@@ -313,7 +317,7 @@ class SlidingWindowSmoother:
         w = self.window
         observed = active(w)
         solver = self.config.final_solver if final else self.config.solver
-        s, result = solve_window(w, self.prior, observed, solver, self.config.loss)
+        s, result = solve_window(w, self.prior, observed, solver, self.config.robust.loss)
         for k, g in enumerate(w.indices):
             w.poses[g] = result.poses[k]
         w.landmarks[observed] = result.landmarks
@@ -333,7 +337,7 @@ class SlidingWindowSmoother:
     def _consensus(self, graph: FactorGraph, observed: Index) -> bool:
         """Move landmarks the window's sightings place elsewhere (:func:`~.window.consensus`), releasing those the
         prior holds; True when something moved."""
-        if not (self.config.consensus and np.isfinite(self._reject_bound)) or len(graph.obs_pose) == 0:
+        if not (self.config.robust.consensus and np.isfinite(self._reject_bound)) or len(graph.obs_pose) == 0:
             return False
         held = self.prior.landmarks if self.prior is not None else np.zeros(0, dtype=np.int64)
         w = self.window
@@ -371,7 +375,7 @@ class SlidingWindowSmoother:
         delta, _, W = w.odometry[n1]
         recentre = not self.config.first_estimate_jacobians
         self.prior = marginalize(
-            p, w.poses[o], w.landmarks, sightings, (delta, W), (n1, w.poses[n1]), self.config.loss, recentre
+            p, w.poses[o], w.landmarks, sightings, (delta, W), (n1, w.poses[n1]), self.config.robust.loss, recentre
         )
         w.drop_oldest()
         self.progress.marginalized += 1
@@ -392,7 +396,7 @@ class SlidingWindowSmoother:
                 report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
                 report["global_s"] = time.perf_counter() - started
         if is_due(self.config, r, p.steps, self.window):
-            if self.config.global_delay:
+            if self.config.global_solve.delay:
                 inputs = global_inputs(r, self.window)
                 r.since = 0
                 if inputs is not None:
@@ -408,7 +412,7 @@ class SlidingWindowSmoother:
         inputs = global_inputs(self.relinearization, self.window)
         if inputs is None:
             return {}
-        result = solve_now(inputs, global_solver(self.config), self.config.loss)
+        result = solve_now(inputs, global_solver(self.config), self.config.robust.loss)
         report = self._apply_global(result, len(inputs.poses), at_once=True)
         report["global_s"] = time.perf_counter() - started
         return report

@@ -93,12 +93,12 @@ class Revision:
 
 def global_solver(config: SmootherConfig) -> SolverConfig:
     """The window's solver settings with ``global_iterations`` iterations."""
-    return replace(config.solver, max_iterations=config.global_iterations)
+    return replace(config.solver, max_iterations=config.global_solve.iterations)
 
 
 def is_due(config: SmootherConfig, state: Relinearization, steps: int, window: Window) -> bool:
     """Whether a global relinearization is to start after ``steps`` steps (none pending, every pose solved)."""
-    every = config.global_every and max(config.global_every, steps // GLOBAL_GROWTH)
+    every = config.global_solve.every and max(config.global_solve.every, steps // GLOBAL_GROWTH)
     due = every and state.since >= every and len(window.history) and not window.unsolved
     return bool(due) and state.job is None
 
@@ -121,12 +121,12 @@ def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: st
     """Solve every factor in a background thread; the result is to be handed over ``global_delay`` steps (or
     N / 50 after N steps) after step ``steps``."""
     solver = global_solver(config)
-    delay = max(config.global_delay, steps // GLOBAL_DELAY_GROWTH)
+    delay = max(config.global_solve.delay, steps // GLOBAL_DELAY_GROWTH)
     job = GlobalJob(handover=steps + delay, n_poses=len(inputs.poses))
 
     def work() -> None:
         try:
-            job.result = solve_now(inputs, solver, config.loss)
+            job.result = solve_now(inputs, solver, config.robust.loss)
         except Exception as exc:  # noqa: BLE001 - handed over as "no result"; the smoother goes on without it
             job.error = repr(exc)
 
@@ -170,9 +170,9 @@ def revise(
     past = history_graph(inlier_graph(state.log, state.decisions), oldest)
     values = np.vstack([history, oldest_value[None]])
     if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
-        values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.loss)
+        values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.robust.loss)
         history = values[:-1]
-    anchored = reanchored(prior, past, values, landmarks, config.loss, config.global_information_max)
+    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, config.global_solve.information_max)
     return None if anchored is None else Revision(history, landmarks, anchored)
 
 

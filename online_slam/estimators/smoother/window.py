@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.estimators.history import PoseHistory
-from online_slam.estimators.smoother.config import SmootherConfig
+from online_slam.estimators.smoother.config import WindowConfig
 from online_slam.estimators.smoother.prior import Prior, Sightings, reduced
 from online_slam.factors.graph import (
     FactorGraph,
@@ -133,15 +133,15 @@ class Window:
         self.observations.pop(o, None)
         self.indices.pop(0)
 
-    def is_full(self, config: SmootherConfig) -> bool:
-        """Whether the oldest pose is to be marginalized (see ``window`` and ``window_distance``)."""
+    def is_full(self, config: WindowConfig) -> bool:
+        """Whether the oldest pose is to be marginalized (see :class:`WindowConfig`)."""
         n = len(self.indices)
-        if n <= config.window:
+        if n <= config.size:
             return False
-        if not config.window_distance or n > config.window_max:  # n > W already: never fewer than W poses
+        if not config.distance or n > config.max_poses:  # n > W already: never fewer than W poses
             return True
         path = sum(math.hypot(*self.odometry[g][0][:2]) for g in self.indices[2:] if g in self.odometry)
-        return path >= config.window_distance
+        return path >= config.distance
 
 
 @dataclass(frozen=True)
