@@ -12,7 +12,7 @@ from online_slam import ReplayConfig
 from online_slam.estimators.batch import BatchConfig
 from online_slam.frontend.steps import Step
 from online_slam.sources.events import Observation
-from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, square_world
+from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, square_world, without_ids
 
 SMALL = GridConfig(poses=300, seed=7)
 
@@ -50,6 +50,19 @@ def test_no_estimator_reads_the_marks(clean_and_dirty) -> None:
     assert dirty.estimators["ekf"].outliers.true_outliers == sum(
         1 for e in events if isinstance(e, Observation) and e.truth_outlier
     )
+    # the hidden true ids of a stream without ids: read by the scoring alone
+    assert "truth_landmark" not in {f.name for f in dataclasses.fields(Step)}
+    hidden = list(without_ids(events[: next(i for i, e in enumerate(events) if getattr(e, "t", 0) > 120)]))
+    assert sum(1 for e in hidden if isinstance(e, Observation) and e.truth_landmark is not None) > 1000
+    blind = [dataclasses.replace(e, truth_landmark=None) if isinstance(e, Observation) else e for e in hidden]
+    config = ReplayConfig(estimators=("ekf", "smoother"))
+    scored, unscored = online_slam.replay(iter(hidden), config), online_slam.replay(iter(blind), config)
+    for name in ("ekf", "smoother"):
+        np.testing.assert_array_equal(scored.estimates[name].poses, unscored.estimates[name].poses)
+        np.testing.assert_array_equal(scored.estimates[name].landmarks, unscored.estimates[name].landmarks)
+        assert scored.estimates[name].landmark_ids == unscored.estimates[name].landmark_ids
+        assert scored.estimators[name].association.accuracy > 0.9
+        assert unscored.estimators[name].association.accuracy is None
 
 
 @pytest.mark.parametrize("name", ["ekf", "smoother", "batch"])

@@ -48,8 +48,9 @@ def streams(draw: st.DrawFn) -> list:
             a, b = draw(positive), draw(positive)
             events.append(Odometry(t=t, delta=(1.0, 0.0, 0.5), cov=((a, 0.0, 0.0), (0.0, b, 0.0), (0.0, 0.0, a))))
         elif kind == "observation":
+            landmark, hidden = draw(st.one_of(st.none(), ids)), draw(st.one_of(st.none(), ids))
             events.append(
-                Observation(t=t, landmark=draw(ids), range=draw(positive), bearing=draw(bearings), sigma=(0.1, 0.01))
+                Observation(t, landmark, draw(positive), draw(bearings), sigma=(0.1, 0.01), truth_landmark=hidden)
             )
         elif kind == "truth":
             events.append(Truth(t=t, pose=draw(st.tuples(finite, finite, finite))))
@@ -114,6 +115,10 @@ BAD_LINES = [
     (json.dumps({**OK_OBS, "sigma": [0.1, 0.0]}), "sigma[1]", "> 0"),
     (json.dumps({**OK_OBS, "landmark": 1.5}), "landmark", "integer or a non-empty string"),
     (json.dumps({**OK_OBS, "landmark": True}), "landmark", "integer or a non-empty string"),
+    (json.dumps({**OK_OBS, "truth_landmark": 1.5}), "truth_landmark", "integer or a non-empty string"),
+    (json.dumps({**OK_OBS, "truth_landmark": ""}), "truth_landmark", "integer or a non-empty string"),
+    (json.dumps({**OK_OBS, "truth_landmark": False}), "truth_landmark", "integer or a non-empty string"),
+    (json.dumps({**OK_OBS, "truth_landmark": [3]}), "truth_landmark", "integer or a non-empty string"),
     (json.dumps({**OK_OBS, "t": True}), "t", "expected a number"),
     (json.dumps({**OK_OBS, "sigma": None, "cov": [[1, 2], [2, 1]]}).replace('"sigma": null, ', ""), "cov", "positive"),
     (json.dumps({**OK_OBS, "sigma": None, "cov": [[1, 0.5], [0, 1]]}).replace('"sigma": null, ', ""), "cov", "symm"),
@@ -224,3 +229,19 @@ def test_events_given_as_an_iterable_are_checked_like_a_files_lines() -> None:
     in_degrees = {"type": "observation", "t": 1.0, "landmark": 1, "range": 2.0, "bearing": 45.0, "sigma": [0.1, 0.01]}
     refused = replay([e.to_record() for e in good[:3]] + [in_degrees], ReplayConfig(estimators=("ekf",)))
     assert refused.error.startswith("<events>:4: bearing: expected radians within [-2 pi, 2 pi], got 45.0")
+
+
+def test_hidden_true_landmark_is_read_written_and_left_out_when_absent(tmp_path: Path) -> None:
+    """``truth_landmark``: an int or a non-empty string id, as a landmark's; absent (or null) when None."""
+    path = tmp_path / "hidden.jsonl"
+    unknown = {k: v for k, v in OK_OBS.items() if k != "landmark"}
+    lines = [OK_ODO, {**unknown, "truth_landmark": 3}, {**OK_OBS, "truth_landmark": "tree-7"}, {**OK_OBS}]
+    lines.append({**unknown, "truth_landmark": None})
+    path.write_text("".join(json.dumps(line) + "\n" for line in lines))
+    events = list(read_stream(path))
+    assert [(e.landmark, e.truth_landmark) for e in events[1:]] == [(None, 3), (3, "tree-7"), (3, None), (None, None)]
+    assert events[1].to_record() == {**unknown, "t": 1.0, "truth_landmark": 3}
+    assert "truth_landmark" not in events[3].to_record() and "truth_landmark" not in events[4].to_record()
+    again = tmp_path / "again.jsonl"
+    write_stream(again, events)
+    assert list(read_stream(again)) == events

@@ -120,11 +120,59 @@ def test_streams_without_ids_round_trip_and_default_to_jcbb(tmp_path: Path) -> N
     sightings = [json.loads(line) for line in text.splitlines() if '"observation"' in line]
     assert sightings and all("landmark" not in s for s in sightings)
     assert all(e.landmark is None for e in read_stream(path) if isinstance(e, Observation))
+    assert all(isinstance(s["truth_landmark"], int) for s in sightings)  # each id kept as hidden truth
     results = replay(path, ReplayConfig(estimators=("ekf", "smoother", "batch")))
     assert results.estimators["ekf"].details["association"]["method"] == "jcbb"
     assert results.estimators["smoother"].final_rmse_m < 0.2
-    assert results.estimators["ekf"].association.accuracy is None  # nothing to score against
+    assert results.estimators["ekf"].association.accuracy > 0.9  # scored against the hidden true ids
     assert len(results.estimates["batch"].landmark_ids) > 0
+    blind = tmp_path / "blind.jsonl"
+    records = [json.loads(line) for line in text.splitlines()]
+    blind.write_text("".join(json.dumps({k: v for k, v in r.items() if k != "truth_landmark"}) + "\n" for r in records))
+    unscored = replay(blind, ReplayConfig(estimators=("ekf",)))
+    assert unscored.estimators["ekf"].association.accuracy is None  # no ids, no hidden ids: nothing to score
+    assert unscored.estimators["ekf"].final_rmse_m == results.estimators["ekf"].final_rmse_m
+
+
+FIGURES = ("final_rmse_m", "endpoint_gap_m", "landmark_rmse_m", "online_rmse_m", "nees_mean", "association")
+"""What a replay's JSON reports of an estimator, but for timings."""
+
+
+def test_simulate_no_ids_scores_as_the_built_in_world_replayed_under_jcbb(tmp_path: Path) -> None:
+    """``simulate --no-ids`` keeps each id as hidden truth: replaying the file scores association and landmark
+    RMSE exactly as replaying the built-in world (ids hidden from the estimators by ``--association jcbb``)."""
+    cli = [sys.executable, "-m", "online_slam"]
+
+    def run(*args: object) -> None:
+        proc = subprocess.run([*cli, *map(str, args)], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+
+    run("simulate", "square", "--no-ids", "-o", tmp_path / "s.jsonl")
+    run("replay", tmp_path / "s.jsonl", "--json", tmp_path / "file.json", "--quiet")
+    run("replay", "square", "--association", "jcbb", "--json", tmp_path / "world.json", "--quiet")
+    file, world = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("file", "world"))
+    assert (file["poses"], file["landmarks"], file["observations"]) == (25, 12, 95)
+    assert (world["poses"], world["landmarks"], world["observations"]) == (25, 12, 95)
+    assert file["estimators"].keys() == world["estimators"].keys() == {"ekf", "smoother", "batch"}
+    for name, figures in world["estimators"].items():
+        assert figures["association"]["landmarks_true"] == 12 and figures["landmark_rmse_m"] is not None
+        for key in FIGURES:
+            assert file["estimators"][name].get(key) == figures.get(key), (name, key)
+
+
+def test_hidden_true_ids_score_a_contaminated_world_as_its_ids_do() -> None:
+    """Clutter, wrong ids and range spikes: the marks keep their meaning when the ids are hidden truth."""
+    world = list(contaminate(grid_world(replace(SMALL, poses=150)), Contamination(0.05, 0.05, 0.1, seed=3)))
+    hidden = list(without_ids(world))
+    sightings = [e for e in hidden if isinstance(e, Observation)]
+    assert {e.truth_outlier for e in sightings if e.truth_landmark is None} == {"wrong_id", "clutter"}
+    config = ReplayConfig(association="jcbb", estimators=("ekf", "smoother", "batch"))
+    a, b = replay(hidden, config), replay(world, config)
+    assert a.landmarks == len({e.truth_landmark for e in sightings} - {None}) < b.landmarks  # b: phantoms too
+    for name in ("ekf", "smoother", "batch"):
+        assert a.estimators[name].association == b.estimators[name].association, name
+        assert a.estimators[name].landmark_rmse_m == b.estimators[name].landmark_rmse_m, name
+        assert a.estimators[name].association.accuracy > 0.9
 
 
 def test_cli_association_flag_and_table(tmp_path: Path) -> None:
@@ -214,7 +262,7 @@ def test_api_scan_without_ids_is_associated() -> None:
 
 
 def test_scoring_counts_majorities_and_clutter() -> None:
-    truth = true_labels([1, 1, 2, 2, 7, None], {4: "clutter"})
+    truth = true_labels([1, 1, 2, 2, 7, None], {4: "clutter"}, {})
     assert truth == [1, 1, 2, 2, None, False]
     # landmark "a" holds both sightings of 1; "b" holds one of 2 and the clutter; the other 2 went nowhere
     score = score_association("jcbb", ["a", "a", "b", None, "b", "a"], truth, ("a", "b"))
@@ -222,8 +270,11 @@ def test_scoring_counts_majorities_and_clutter() -> None:
     assert score.accuracy == pytest.approx(3 / 5)  # the two of 1 and the one of 2 in "b" (b's majority: tie -> first)
     assert (score.landmarks_mapped, score.landmarks_true) == (2, 2)
     # a stream without ids that marks its clutter: nothing to score pairings against (not "0 true landmarks")
-    blind = score_association("jcbb", ["a", None, "a"], true_labels([None, None, None], {1: "clutter"}), ("a",))
+    blind = score_association("jcbb", ["a", None, "a"], true_labels([None, None, None], {1: "clutter"}, {}), ("a",))
     assert (blind.accuracy, blind.landmarks_true, blind.sightings_scored) == (None, None, 0)
+    # hidden true ids are preferred to the stream's; a mark still decides: clutter is nothing, a spike unscored
+    hidden = true_labels([None, 5, None, None, None], {2: "clutter", 3: "spike"}, {0: 1, 1: 2, 2: 3, 3: 4})
+    assert hidden == [1, 2, None, False, False]
 
 
 def test_association_config_is_validated() -> None:
@@ -299,3 +350,20 @@ def test_association_covariance_from_the_last_solve_equals_relinearizing_the_win
     passive = np.array([p for _, p in compared])
     assert len(errors) > 150 and passive.sum() > 30 and (~passive).sum() > 30, (len(errors), passive.sum())
     assert errors.max() < 1e-9, errors.max()
+
+
+def test_g2o_drops_the_hidden_true_ids_and_refuses_sightings_without_ids(tmp_path: Path) -> None:
+    """g2o holds no truth: ``truth_landmark`` is left out as ``truth_outlier`` is; a sighting without an id (g2o has
+    no unknown association) is refused rather than all such sightings being made one landmark."""
+    from online_slam.errors import OnlineSlamError
+    from online_slam.importers.g2o import write_g2o
+
+    world = list(grid_world(replace(SMALL, poses=40)))
+    hidden = [replace(e, truth_landmark=e.landmark) if isinstance(e, Observation) else e for e in world]
+    plain, marked = tmp_path / "plain.g2o", tmp_path / "marked.g2o"
+    write_g2o(plain, world)
+    write_g2o(marked, hidden)
+    assert marked.read_text() == plain.read_text()
+    with pytest.raises(OnlineSlamError, match="g2o needs a landmark id on every sighting"):
+        write_g2o(tmp_path / "none.g2o", without_ids(world))
+    assert not (tmp_path / "none.g2o").exists()

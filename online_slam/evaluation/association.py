@@ -1,4 +1,5 @@
-"""Scoring an estimator's data association against the ids a stream carries (ids it was not allowed to use)."""
+"""Scoring an estimator's data association against the ids a stream carries (ids it was not allowed to use, or
+hidden true ids: ``truth_landmark``)."""
 
 from __future__ import annotations
 
@@ -19,13 +20,14 @@ class AssociationScore:
     accuracy: float | None
     """Share of scored sightings paired right: a sighting of true landmark ``l`` is right when it went to a mapped
     landmark most of whose sightings are of ``l``; a clutter sighting is right when it went to no mapped landmark.
-    None when nothing could be scored (no ids in the stream, even if it marks its clutter)."""
+    None when nothing could be scored (no ids nor hidden true ids in the stream, even if it marks its clutter)."""
     landmarks_mapped: int
     """Landmarks in the estimator's final map."""
     landmarks_true: int | None
-    """Distinct true landmarks among the sightings (None when the stream has no ids)."""
+    """Distinct true landmarks among the sightings (None when the stream has no ids nor hidden true ids)."""
     sightings_scored: int
-    """Sightings with a known truth (an id, or marked clutter); sightings given a wrong id are not scored."""
+    """Sightings with a known truth (an id, a hidden true id, or marked clutter); sightings given a wrong id are not
+    scored."""
     sightings_used: int
     """Sightings the estimator put on a mapped landmark."""
 
@@ -41,9 +43,21 @@ class AssociationScore:
         }
 
 
-def true_labels(ids: Sequence[LandmarkId | None], outliers: Mapping[int, str]) -> list[LandmarkId | None | bool]:
-    """Per sighting: its true landmark id, None for clutter (a sighting of nothing), False when unknown."""
+def true_labels(
+    ids: Sequence[LandmarkId | None], outliers: Mapping[int, str], true_ids: Mapping[int, LandmarkId]
+) -> list[LandmarkId | None | bool]:
+    """Per sighting: its true landmark id, None for clutter (a sighting of nothing), False when unknown.
+
+    Args:
+        ids: The stream's landmark id of each sighting (None: none given), in step order.
+        outliers: Marked sightings by number (``truth_outlier``): clutter is a sighting of nothing, a sighting
+            given a wrong id or a range spike is not scored.
+        true_ids: Hidden true landmarks by sighting number (``truth_landmark``), preferred to the stream's ids.
+    """
     out: list[LandmarkId | None | bool] = [False if lid is None else lid for lid in ids]
+    for i, lid in true_ids.items():
+        if i < len(out):
+            out[i] = lid
     for i, kind in outliers.items():
         if i < len(out):
             out[i] = None if kind == "clutter" else False

@@ -101,6 +101,8 @@ class GroundTruth:
     """True landmark positions ``[x, y]``."""
     outliers: dict[int, str] = field(default_factory=dict)
     """Sightings a simulator corrupted, by sighting number (0-based, in step order over the whole stream)."""
+    sighting_landmarks: dict[int, LandmarkId] = field(default_factory=dict)
+    """True landmark of a sighting whose stream gives it as hidden truth (``truth_landmark``), by sighting number."""
 
 
 @dataclass
@@ -245,6 +247,8 @@ class FrontEnd:
                 self._seen.add(event.landmark)
             if event.truth_outlier is not None:
                 self.truth.outliers[self.sightings] = event.truth_outlier
+            if event.truth_landmark is not None:
+                self.truth.sighting_landmarks[self.sightings] = event.truth_landmark
             self.sightings += 1
             pending.landmarks.append(event.landmark)
             pending.z.append((event.range, event.bearing))

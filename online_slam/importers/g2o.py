@@ -6,7 +6,9 @@ range and bearing to first order. Information matrices are g2o's (upper triangle
 seed estimates in g2o; here they are read for ids and ignored. Synthetic timestamps: ``t = step * dt``.
 
 Writing: odometry as EDGE_SE2 with information = covariance^-1; observations as EDGE_SE2_XY (the measured point
-in the pose frame) with the first-order information; vertices from composed odometry and first sightings.
+in the pose frame) with the first-order information; vertices from composed odometry and first sightings. Truth
+(``truth``, ``landmark_truth``, a sighting's ``truth_outlier`` and ``truth_landmark``) has no place in g2o: it is
+left out. Every sighting needs a landmark id (g2o has no unknown association).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import IO
 
 import numpy as np
 
-from online_slam.errors import InputError
+from online_slam.errors import InputError, OnlineSlamError
 from online_slam.geometry.se2 import compose
 from online_slam.importers._lines import covariance_from, numbered_lines, numbers
 from online_slam.importers.gtsam_text import cartesian_to_range_bearing
@@ -102,6 +104,9 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
 
     Returns:
         Number of lines written.
+
+    Raises:
+        OnlineSlamError: A sighting without a landmark id.
     """
     poses: list[np.ndarray] = []
     edges: list[str] = []
@@ -118,6 +123,8 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
             edges.append(f"EDGE_SE2 {len(poses) - 1} {len(poses)} {' '.join(map(repr, event.delta))} {_upper(info)}")
             poses.append(compose(poses[-1], event.delta))
         elif isinstance(event, Observation):
+            if event.landmark is None:
+                raise OnlineSlamError(f"g2o needs a landmark id on every sighting; the one at t={event.t} has none")
             if not poses:
                 poses = [np.zeros(3)]
             r, b = event.range, event.bearing

@@ -39,7 +39,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
     return Results(
         source=run.source,
         poses=steps,
-        landmarks=len(estimates["odometry"].landmark_ids),
+        landmarks=len(estimates["odometry"].landmark_ids) or len(set(truth.sighting_landmarks.values())),
         observations=run.engine.observations,
         odometry=OdometryResult(odometry.rmse_m, odometry.endpoint_gap_m, odometry.landmark_rmse_m),
         estimators=figures,
@@ -119,8 +119,10 @@ def _score_estimator(
 def _score_association(
     run: ReplayRun, estimate: Estimate, labels: Sequence[LandmarkId | None]
 ) -> tuple[AssociationScore, Estimate]:
-    """How an estimator paired sightings, against the stream's ids; its estimate with landmarks named by them."""
-    truth_labels = true_labels(run.sighting_ids, run.engine.frontend.truth.outliers)
+    """How an estimator paired sightings, against the stream's (or hidden true) ids; its estimate with landmarks
+    named by them."""
+    truth = run.engine.frontend.truth
+    truth_labels = true_labels(run.sighting_ids, truth.outliers, truth.sighting_landmarks)
     owner = majority(labels, truth_labels)
     association = score_association(run.association, labels, truth_labels, estimate.landmark_ids, owner)
     return association, with_true_ids(estimate, owner)

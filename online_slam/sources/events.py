@@ -135,6 +135,10 @@ class Observation:
     truth_outlier: str | None = None
     """Evaluation only: how a simulator corrupted this sighting (``wrong_id``, ``spike``, ``clutter``), or None.
     The front-end keeps it with the truth; no estimator sees it."""
+    truth_landmark: LandmarkId | None = None
+    """Evaluation only: the true landmark of this sighting (hidden truth, e.g. of a stream written without ids),
+    or None. It scores the estimators' data association; the front-end keeps it with the truth and no estimator
+    sees it."""
 
     @property
     def covariance(self) -> NDArray[np.float64]:
@@ -155,6 +159,8 @@ class Observation:
             del record["landmark"]
         if self.truth_outlier is not None:
             record["truth_outlier"] = self.truth_outlier
+        if self.truth_landmark is not None:
+            record["truth_landmark"] = self.truth_landmark
         return record
 
 

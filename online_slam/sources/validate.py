@@ -66,7 +66,7 @@ FIELDS: dict[str, set[str]] = {
     "header": {"type"},  # free-form: every other field is metadata
     "start": {"type", "t", "pose", "sigma", "cov"},
     "odometry": {"type", "t", "delta", "sigma", "cov"},
-    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier"},
+    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier", "truth_landmark"},
     "truth": {"type", "t", "pose", "position"},
     "landmark_truth": {"type", "landmark", "position"},
 }
@@ -369,14 +369,17 @@ class EventValidator:
         self._pending.seen_content = True
         return t
 
-    def landmark(self, record: dict[str, Any], line: int, optional: bool = False) -> LandmarkId | None:
-        if "landmark" not in record or (optional and record["landmark"] is None):
+    def landmark(
+        self, record: dict[str, Any], line: int, optional: bool = False, key: str = "landmark"
+    ) -> LandmarkId | None:
+        """The landmark id under ``key`` (``landmark``, or ``truth_landmark``: the same rules)."""
+        if key not in record or (optional and record[key] is None):
             if optional:
                 return None
-            raise self.fail(line, "landmark", "missing required field")
-        value = record["landmark"]
+            raise self.fail(line, key, "missing required field")
+        value = record[key]
         if isinstance(value, bool) or not isinstance(value, (int, str)) or value == "":
-            raise self.fail(line, "landmark", f"expected an integer or a non-empty string id, got {_show(value)}")
+            raise self.fail(line, key, f"expected an integer or a non-empty string id, got {_show(value)}")
         return value
 
     # -- one method per event type -------------------------------------------------------------
@@ -424,7 +427,8 @@ class EventValidator:
         mark = record.get("truth_outlier")
         if mark is not None and mark not in OUTLIER_KINDS:
             raise self.fail(line, "truth_outlier", f"expected one of {', '.join(OUTLIER_KINDS)}, got {_show(mark)}")
-        return Observation(t=t, landmark=landmark, range=rng, bearing=bearing, sigma=sigma, cov=cov, truth_outlier=mark)
+        true_id = self.landmark(record, line, optional=True, key="truth_landmark")
+        return Observation(t, landmark, rng, bearing, sigma, cov, truth_outlier=mark, truth_landmark=true_id)
 
     def _truth(self, record: dict[str, Any], line: int) -> Truth:
         t = self.time(record, line)

@@ -370,6 +370,15 @@ WORLDS: dict[str, World] = {
 
 
 def without_ids(events: Iterable[Event]) -> Iterator[Event]:
-    """The same stream with every sighting's landmark id removed (unknown data association); truth kept."""
+    """The same stream with every sighting's landmark id removed (unknown data association); truth kept.
+
+    A removed id becomes the sighting's hidden truth (``truth_landmark``), so that the association can be scored;
+    not on a sighting marked ``wrong_id`` or ``clutter``, whose id is not its true landmark.
+    """
     for event in events:
-        yield replace(event, landmark=None) if isinstance(event, Observation) else event
+        if isinstance(event, Observation):
+            true_id = event.truth_landmark
+            if true_id is None and event.truth_outlier not in ("wrong_id", "clutter"):
+                true_id = event.landmark
+            event = replace(event, landmark=None, truth_landmark=true_id)
+        yield event
