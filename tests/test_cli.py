@@ -23,9 +23,9 @@ def cli(*args: str, stdin: str | None = None, cwd: Path | None = None) -> subpro
 
 
 def parse_table(text: str) -> dict[str, dict[str, str]]:
-    """Rows of the replay table by label, then cells by column name (columns are 2+ spaces apart)."""
+    """Rows of the replay table by estimator, then cells by column label (columns are 2+ spaces apart)."""
     lines = text.splitlines()
-    header = next(i for i, line in enumerate(lines) if line.startswith("Metric"))
+    header = next(i for i, line in enumerate(lines) if line.startswith("estimator"))
     columns = re.split(r"\s{2,}", lines[header].strip())[1:]
     table = {}
     for line in lines[header + 2 :]:
@@ -40,24 +40,24 @@ def test_default_replay_prints_the_article_table() -> None:
     done = cli("replay")
     assert done.returncode == 0, done.stderr
     table = parse_table(done.stdout)
-    assert table["Position RMSE over the path"]["Odometry only"] == "1.338 m"
-    assert table["Position RMSE over the path"]["batch"] == "0.082 m"
-    assert table["Estimated end-to-start gap"]["Odometry only"] == "1.870 m"
-    assert table["Estimated end-to-start gap"]["batch"] == "0.060 m"
-    assert float(table["Online position RMSE"]["ekf"].split()[0]) < 1.338 / 4
+    assert table["odometry"]["final RMSE m"] == "1.338"
+    assert table["batch"]["final RMSE m"] == "0.082"
+    assert table["odometry"]["end gap m"] == "1.870"
+    assert table["batch"]["end gap m"] == "0.060"
+    assert float(table["ekf"]["online RMSE m"]) < 1.338 / 4
     assert "square: 25 poses, 12 landmarks, 95 observations" in done.stdout
 
 
 def test_no_command_means_replay() -> None:
     done = cli()
-    assert done.returncode == 0 and "1.338 m" in done.stdout
+    assert done.returncode == 0 and parse_table(done.stdout)["odometry"]["final RMSE m"] == "1.338"
 
 
 def test_json_to_stdout_keeps_stdout_pure_and_the_table_on_stderr() -> None:
     done = cli("replay", "--json", "-")
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["estimators"]["batch"]["final_rmse_m"] > 0.0  # the whole of stdout parses
-    assert parse_table(done.stderr)["Position RMSE over the path"]["Odometry only"] == "1.338 m"
+    assert parse_table(done.stderr)["odometry"]["final RMSE m"] == "1.338"
     done = cli("compare", "square", "--window", "5", "--json", "-")
     assert done.returncode == 0, done.stderr
     assert "smoother W=5..120 D=18 K=1" in json.loads(done.stdout)["estimators"]
@@ -78,7 +78,8 @@ def parse_compare(text: str) -> dict[str, list[str]]:
     """Rows of the compare table by label."""
     lines = text.splitlines()
     start = next(i for i, line in enumerate(lines) if line.startswith("estimator")) + 2
-    rows = [re.split(r"\s{2,}", line.strip()) for line in lines[start:] if line.strip()]
+    end = lines.index("", start)  # the legend follows the table
+    rows = [re.split(r"\s{2,}", line.strip()) for line in lines[start:end]]
     return {row[0]: row[1:6] for row in rows}
 
 
@@ -205,7 +206,7 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
     errors = done.stderr.strip().splitlines()
     assert len(errors) == 1 and errors[0].startswith(f"online-slam: error: {path}:")
     assert "truncated or corrupt gzip" in errors[0]
-    assert "Position RMSE" in done.stdout  # the poses before the cut were still estimated and reported
+    assert "final RMSE m" in done.stdout  # the poses before the cut were still estimated and reported
 
 
 @pytest.mark.parametrize(

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import gzip
+import itertools
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -19,6 +22,7 @@ from conftest import stop_process_tree  # noqa: E402
 
 from online_slam.sinks.recording import Recording, blueprint_views  # noqa: E402
 
+MRCLAM = Path(__file__).resolve().parents[1] / "replay" / "mrclam6_robot1.jsonl.gz"
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 
 
@@ -151,6 +155,41 @@ def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) ->
     state = json.loads(done.stdout)["state"]
     assert state["step"] == 12 and set(state["estimators"]) >= {"odometry", "ekf", "smoother", "truth"}
     assert any("relinearized" in e for e in state["events"])
+
+
+def test_inspect_step_shows_that_step_alone_aligned(compare_recording) -> None:
+    rrd = compare_recording[0]
+    done = cli("inspect", str(rrd), "--step", "24")
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == f"{rrd} (square): step 24 of 0..24, t = 24.000 s"
+    assert not any(line.startswith(("recording:", "source:", "steps:", "estimators:")) for line in lines)
+    rows = lines[1 : lines.index(next(line for line in lines if line.startswith("events")))]
+    assert [row.split("  ")[0] for row in rows] == ["estimator", "odometry", *CONFIGS[:-1], "truth"]
+    assert len({len(row) for row in rows}) == 1  # every column lines up, whatever the names' lengths
+    assert rows[1].split()[-1] == "12"  # landmarks: a count
+
+
+def test_recorded_events_name_ids_as_ids(square_recording: tuple[Path, dict]) -> None:
+    done = cli("inspect", str(square_recording[0]), "--step", "0")
+    assert done.returncode == 0, done.stderr
+    assert "landmarks initialised" not in done.stdout
+    assert re.search(r"^  ekf: initialised landmark ids \w+, \w+, \w+$", done.stdout, re.MULTILINE), done.stdout
+
+
+def test_the_robot_is_in_the_recording_and_inspect(tmp_path: Path) -> None:
+    head, rrd = tmp_path / "head.jsonl", tmp_path / "robot1.rrd"
+    with gzip.open(MRCLAM, "rt", encoding="utf-8") as lines:
+        head.write_text("".join(itertools.islice(lines, 120)), encoding="utf-8")
+    done = cli("replay", str(head), "--estimators", "ekf", "--rrd", str(rrd), "--quiet")
+    assert done.returncode == 0, done.stderr
+    with Recording(rrd) as recording:
+        assert recording.summary().robot == 1
+    text = cli("inspect", str(rrd)).stdout
+    assert f"source: {head}, robot 1" in text.splitlines()
+    assert json.loads(cli("inspect", str(rrd), "--json").stdout)["robot"] == 1
+    assert json.loads(cli("inspect", str(rrd), "--json", "--step", "3").stdout)["robot"] == 1
+    assert cli("inspect", str(rrd), "--step", "3").stdout.startswith(f"{rrd} ({head}, robot 1): step 3 of 0..")
 
 
 @pytest.mark.parametrize("case", ["truncated", "text", "missing", "step"])

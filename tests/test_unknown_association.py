@@ -186,7 +186,7 @@ def test_cli_association_flag_and_table(tmp_path: Path) -> None:
         timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "Association right, landmarks mapped/true" in proc.stdout
+    assert "association right, mapped/true" in proc.stdout
     document = json.loads(out.read_text())
     for name in ("ekf", "smoother", "batch"):
         association = document["estimators"][name]["association"]

@@ -1,9 +1,11 @@
-"""``online-slam inspect PATH.rrd``: read a recording back through Rerun's query API and summarise it."""
+"""``online-slam inspect PATH.rrd``: read a recording back through Rerun's query API and summarise it, or show
+one step of it (``--step N``)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Read a recording back (no re-running): source, steps, time span, estimators, errors, latency.",
     )
     p.add_argument("path", help="a .rrd file written by 'online-slam replay --rrd' or 'compare --rrd'")
-    p.add_argument("--step", type=int, metavar="N", help="also print the state at step N")
+    p.add_argument("--step", type=int, metavar="N", help="print only the state at step N (poses, landmarks, events)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
 
 
@@ -26,8 +28,13 @@ def _fmt(value: object) -> str:
     return "-" if value is None else f"{value:.4f}" if isinstance(value, float) else str(value)
 
 
+def _source(summary: Any) -> str:
+    """The source, and its robot when the stream names one."""
+    return summary.source if summary.robot is None else f"{summary.source}, robot {summary.robot}"
+
+
 def run(args: argparse.Namespace) -> int:
-    """Print the summary (and one step's state)."""
+    """Print the summary, or one step's state."""
     from online_slam.sinks.recording import Recording
 
     with Recording(args.path) as recording:
@@ -38,22 +45,34 @@ def run(args: argparse.Namespace) -> int:
                 raise OnlineSlamError(f"--step: {args.step} is outside the recording's steps 0..{summary.steps - 1}")
             state = recording.state_at(args.step, summary.layout)
     if args.json:
-        out = {
-            "source": summary.source,
-            "steps": summary.steps,
-            "time_span_s": list(summary.time_span),
-            "estimators": list(summary.estimators),
-            "results": summary.results,
-            "latency_ms": summary.latency_ms,
-            "logged": summary.figures,
-            "recording": summary.layout.to_json(),
-            "state": state,
-        }
-        print(json.dumps(out, indent=2))
-        return 0
+        print(json.dumps(_json(summary, state), indent=2))
+    elif state is not None:
+        _print_step(args.path, summary, state)
+    else:
+        _print_summary(args.path, summary)
+    return 0
+
+
+def _json(summary: Any, state: dict[str, Any] | None) -> dict[str, Any]:
+    """What ``inspect --json`` prints: the summary, or with ``--step`` that step's state alone."""
+    head = {"source": summary.source, "robot": summary.robot, "steps": summary.steps}
+    if state is not None:
+        return {**head, "state": state}
+    return {
+        **head,
+        "time_span_s": list(summary.time_span),
+        "estimators": list(summary.estimators),
+        "results": summary.results,
+        "latency_ms": summary.latency_ms,
+        "logged": summary.figures,
+        "recording": summary.layout.to_json(),
+    }
+
+
+def _print_summary(path: str, summary: Any) -> None:
     t0, t1 = summary.time_span
-    print(f"recording: {args.path}")
-    print(f"source: {summary.source}")
+    print(f"recording: {path}")
+    print(f"source: {_source(summary)}")
     print(f"steps: {summary.steps}   time span: {t0:.3f} .. {t1:.3f} s ({t1 - t0:.3f} s)")
     print(f"estimators: {', '.join(summary.estimators)}")
     if summary.results.get("error"):
@@ -79,12 +98,20 @@ def run(args: argparse.Namespace) -> int:
             for name, f in summary.figures.items()
         )
         print(f"recomputed from the logged series (online RMSE / mean NEES): {logged}")
-    if state is not None:
-        print(f"\nstep {state['step']}:")
-        for name, est in state["estimators"].items():
-            x, y, th = est["pose"]
-            print(f"  {name:<9} pose ({x:.3f}, {y:.3f}, {th:.3f})   landmarks {est['landmarks']}")
-        print(f"  gated observations: {len(state['gated'])}")
-        for event in state["events"]:
-            print(f"  event: {event}")
-    return 0
+
+
+def _print_step(path: str, summary: Any, state: dict[str, Any]) -> None:
+    """One step: each estimator's newest pose and landmark count (aligned whatever the names), then its events."""
+    t = "" if state.get("t") is None else f", t = {state['t']:.3f} s"
+    print(f"{path} ({_source(summary)}): step {state['step']} of 0..{summary.steps - 1}{t}")
+    estimators = state["estimators"]
+    width = max([len("estimator"), *map(len, estimators)]) + 2
+    print(f"{'estimator':<{width}}{'x m':>10}{'y m':>10}{'theta rad':>11}{'landmarks':>11}")
+    for name, est in estimators.items():
+        x, y, th = est["pose"]
+        print(f"{name:<{width}}{x:>10.3f}{y:>10.3f}{th:>11.3f}{est['landmarks']:>11d}")
+    prefix = f"step {state['step']}: "
+    events = [e.removeprefix(prefix) for e in state["events"]]
+    print("events:" if events else "events: none")
+    for event in events:
+        print(f"  {event}")

@@ -264,6 +264,7 @@ class Results:
         """The documented JSON schema of ``online-slam replay --json``."""
         return {
             "source": self.source,
+            "robot": self.robot,
             "poses": self.poses,
             "landmarks": self.landmarks,
             "observations": self.observations,

@@ -18,7 +18,7 @@ from online_slam.pipeline.config import ESTIMATORS, ReplayConfig, estimator_name
 from online_slam.pipeline.run import Checkpointing, ReplayRun
 from online_slam.pipeline.score import score_run
 from online_slam.pipeline.source import open_events
-from online_slam.sinks.protocol import ReplaySink
+from online_slam.sinks.protocol import ProgressSink, ReplaySink
 from online_slam.sources.events import Event
 
 __all__ = ["ESTIMATORS", "Checkpointing", "ReplayConfig", "estimator_names", "replay"]
@@ -41,7 +41,8 @@ def replay(
         source: A built-in world name, a stream path (``.gz`` allowed), ``-`` for stdin, or an iterable of events.
         config: What to run; defaults run dead reckoning, the EKF, the smoother and the batch solver.
         name: Source name for reports (defaults to the path or world name).
-        sinks: Given every step with all estimators' snapshots (``wall_s`` set), then the results.
+        sinks: Given every step with all estimators' snapshots (``wall_s`` set), then the results; progress sinks
+            are also told how much of the source is read (counted up front for them) and what runs after.
         on_skip: With ``config.on_error == "skip"``, told of each skipped line (e.g. to print it).
         checkpoint: Save the whole state (estimators, position in the source, figures gathered so far) every
             ``checkpoint.every`` steps, atomically.
@@ -61,7 +62,8 @@ def replay(
             checkpoint, one of another source, of other settings or of another format version.
     """
     cfg = config or ReplayConfig()
-    opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate)
+    watched = any(isinstance(sink, ProgressSink) for sink in sinks)
+    opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate, count=watched)
     run = ReplayRun(opened, cfg, sinks, checkpoint)
     if resume is not None:
         run.resume(resume)

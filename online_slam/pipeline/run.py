@@ -16,12 +16,14 @@ from numpy.typing import NDArray
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, EngineCheckpoint, StepRecord
 from online_slam.errors import InputError, OnlineSlamError
+from online_slam.estimators.batch import BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.protocol import Snapshot
 from online_slam.pipeline.config import ReplayConfig, build_estimators
 from online_slam.pipeline.source import OpenedSource
-from online_slam.sinks.protocol import ReplaySink
+from online_slam.sinks.protocol import ProgressSink, ReplayProgress, ReplaySink
 from online_slam.sources.events import Event, LandmarkId
+from online_slam.wording import counted
 
 Array = NDArray[np.float64]
 
@@ -134,7 +136,8 @@ class ReplayRun:
     Args:
         opened: The source, opened.
         config: What the replay runs (its estimators set to associate as ``opened`` says).
-        sinks: Given every step with all estimators' snapshots (``wall_s`` set).
+        sinks: Given every step with all estimators' snapshots (``wall_s`` set); those that are progress sinks
+            are also told where the run stands, out of ``opened.total``.
         checkpoint: Where and how often to write checkpoints (None: never).
     """
 
@@ -170,6 +173,8 @@ class ReplayRun:
         self._events = opened.events
         self._position = _SourcePosition()
         self._sinks = sinks
+        self._watchers = [sink for sink in sinks if isinstance(sink, ProgressSink)]
+        self._total = opened.total
         self._checkpoint = checkpoint
         self._resumption: _Resumption | None = None
 
@@ -224,6 +229,16 @@ class ReplayRun:
             self.error = str(exc)
         if self.engine.steps == 0:
             raise InputError(self.source, 0, "", "the stream holds no pose")
+        batch = any(isinstance(e, BatchEstimator) for e in self.estimators)
+        self._tell(f"batch: solving {counted(self.engine.steps, 'pose')}" if batch else "scoring")
+
+    def _tell(self, phase: str | None = None) -> None:
+        """Tell the progress sinks how much of the source is read, or what runs once it is."""
+        if not self._watchers:
+            return
+        progress = ReplayProgress(self._position.consumed + sum(self.skipped.by_reason.values()), self._total, phase)
+        for sink in self._watchers:
+            sink.on_progress(progress)
 
     def _catch_up(self) -> None:
         """Read again the events a resumed checkpoint had consumed; they must be the same."""
@@ -251,6 +266,7 @@ class ReplayRun:
             snapshots = {n: dataclasses.replace(s, wall_s=record.seconds[n]) for n, s in record.snapshots.items()}
             for sink in self._sinks:
                 sink.on_step(record.step, snapshots, self.engine.frontend.truth)
+            self._tell()
         if self._checkpoint is not None and self.engine.steps % self._checkpoint.every == 0:
             self._save(self._checkpoint)
 

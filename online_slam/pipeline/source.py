@@ -3,16 +3,20 @@ counted (``on_error="skip"``); the association method chosen (``auto``: by the s
 
 from __future__ import annotations
 
+import gzip
 import itertools
-from collections.abc import Callable, Iterable, Iterator
+import zlib
+from collections.abc import Callable, Iterable, Iterator, Sized
 from dataclasses import dataclass
 from pathlib import Path
 
 from online_slam.errors import InputError
+from online_slam.importers.detect import detect_format
 from online_slam.importers.resolve import open_source
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.sources.events import Event, Observation, Scan
 from online_slam.sources.validate import validate_events
+from online_slam.sources.worlds import WORLDS
 
 
 class SkippedLines:
@@ -46,6 +50,8 @@ class OpenedSource:
     """How the replay associates sightings: ``known``, ``nn`` or ``jcbb`` (``auto`` resolved)."""
     skipped: SkippedLines
     """The bad lines skipped while reading it."""
+    total: int | None = None
+    """Items it holds (see :class:`~online_slam.sinks.protocol.ReplayProgress`), when counted and countable."""
 
 
 def open_events(
@@ -55,8 +61,12 @@ def open_events(
     name: str | None = None,
     on_skip: Callable[[InputError], None] | None = None,
     validate: bool = True,
+    count: bool = False,
 ) -> OpenedSource:
-    """Open a replay's source (see :func:`~online_slam.pipeline.replay` for the arguments).
+    """Open a replay's source (see :func:`~online_slam.pipeline.replay` for the other arguments).
+
+    Args:
+        count: Count the items the source holds, for a progress display (see :func:`count_items`).
 
     Raises:
         InputError: A path that does not exist; a bad line before the first sighting (``on_error="stop"``).
@@ -67,11 +77,41 @@ def open_events(
         label, events = open_source(source, on_error, **dict(config.dataset))
     else:
         label, events = "<events>", validate_events(source, on_error) if validate else iter(source)
+    total = None
+    if count and not config.dataset.get("format"):  # a format named: a dataset, whose records are not events
+        total, events = count_items(source, events)
     method = config.association
     if method == "auto":
         has_id, events = first_sighting_has_id(events)
         method = "known" if has_id else "jcbb"
-    return OpenedSource(name or label, iter(events), method, skipped)
+    return OpenedSource(name or label, iter(events), method, skipped, total)
+
+
+def count_items(source: str | Path | Iterable[Event], events: Iterable[Event]) -> tuple[int | None, Iterable[Event]]:
+    """How many items a source holds, and its events to read from the start.
+
+    A stream file's lines are counted (decompressed on the fly for ``.gz``, a pass over the bytes that costs a
+    small part of the replay); a built-in world's events are generated once and kept; a list is measured. Standard
+    input, datasets (whose records are not one event each) and other iterables give None.
+    """
+    if not isinstance(source, (str, Path)):
+        return (len(source) if isinstance(source, Sized) else None), events
+    text = str(source)
+    path = Path(text)
+    if text in WORLDS and not path.exists():
+        events = list(events)
+        return len(events), events
+    if text == "-" or not path.is_file() or detect_format(path) is not None:
+        return None, events
+    opener = gzip.open if path.suffix == ".gz" else open
+    lines, last = 0, b"\n"
+    try:
+        with opener(path, "rb") as handle:
+            while chunk := handle.read(1 << 20):
+                lines, last = lines + chunk.count(b"\n"), chunk[-1:]
+    except (OSError, EOFError, zlib.error):  # the reader reports what is wrong with the file
+        return None, events
+    return lines + (last != b"\n"), events
 
 
 def first_sighting_has_id(events: Iterable[Event]) -> tuple[bool, Iterable[Event]]:

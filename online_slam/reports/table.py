@@ -1,75 +1,163 @@
-"""The replay table, laid out like the article's: one column per estimator, odometry first."""
+"""The results table that ``replay`` and ``compare`` both print: one row per estimator (dead reckoning first), the
+same columns and labels, a short legend of the metrics under it, then notes (convergence, outliers, input)."""
 
 from __future__ import annotations
 
-from online_slam.evaluation.results import EstimatorResult, Results
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from online_slam.evaluation.results import EstimatorResult, Results, Row
+from online_slam.evaluation.scoring import nees_bounds
 from online_slam.wording import counted
 
+CLOSED_SHARE = 0.01
+"""A true path is closed when its end lies within this share of its length of its start: only then does the
+estimated end-to-start gap measure drift, and the table shows it."""
 
-def _metres(value: float | None) -> str:
-    return "-" if value is None or value != value else f"{value:.3f} m"
+
+def _m(value: float | None) -> str:
+    return "-" if value is None or value != value else f"{value:.3f}"
 
 
-def _number(value: float | None) -> str:
+def _n(value: float | None) -> str:
     return "-" if value is None or value != value else f"{value:.2f}"
 
 
-def _latency(result: EstimatorResult) -> str:
-    if result.step_ms is None:
+def _share(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:.0f}%"
+
+
+def _latency(row: Row) -> str:
+    if row.step_median_ms is None:
         return "-"
-    return f"{result.step_ms.median:.2f} / {result.step_ms.p95:.2f}"
+    return f"{row.step_median_ms:.2f}/{row.step_p95_ms:.2f}/{row.step_max_ms:.2f}"
 
 
-def _association(result: EstimatorResult) -> str:
-    a = result.association
+def _association(result: EstimatorResult | None) -> str:
+    a = None if result is None else result.association
     if a is None:
         return "-"
     right = "-" if a.accuracy is None else f"{a.accuracy:.3f}"
     return f"{right}, {a.landmarks_mapped}/{'-' if a.landmarks_true is None else a.landmarks_true}"
 
 
-def format_results(results: Results) -> str:
-    """Render results as a plain-text table.
+Cell = Callable[[str, Row], str]
+
+COLUMNS: tuple[tuple[str, Cell], ...] = (
+    ("online RMSE m", lambda name, row: _m(row.online_rmse_m)),
+    ("final RMSE m", lambda name, row: _m(row.final_rmse_m)),
+    ("landmark RMSE m", lambda name, row: _m(row.landmark_rmse_m)),
+    ("end gap m", lambda name, row: _m(row.endpoint_gap_m)),
+    ("NEES", lambda name, row: _n(row.nees_mean)),
+    ("NEES in band", lambda name, row: _share(row.nees_in_bounds)),
+    ("NIS", lambda name, row: _n(row.nis_mean)),
+    ("step ms med/p95/max", lambda name, row: _latency(row)),
+    ("total s", lambda name, row: "-" if name == "odometry" else f"{row.total_s:.3f}"),
+)
+"""The table's columns after the estimator's name: header, and the cell of a row (``end gap m`` only on closed
+paths, see :func:`path_closure`)."""
+
+
+@dataclass(frozen=True)
+class Closure:
+    """How far the true path ends from its start."""
+
+    gap_m: float
+    """Distance between the last and first true positions, metres."""
+    length_m: float
+    """Length of the true path, metres."""
+
+    @property
+    def closed(self) -> bool:
+        """Whether the path returns to its start (its gap is at most :data:`CLOSED_SHARE` of its length)."""
+        return self.gap_m <= CLOSED_SHARE * self.length_m
+
+
+def path_closure(results: Results) -> Closure | None:
+    """The true path's end-to-start gap and length (positions with truth, in step order); None without truth."""
+    truth = results.truth_poses
+    if truth is None:
+        return None
+    xy = truth[np.isfinite(truth[:, :2]).all(axis=1), :2]
+    if len(xy) < 2:
+        return None
+    length = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
+    return Closure(float(np.linalg.norm(xy[-1] - xy[0])), length)
+
+
+def title(results: Results) -> str:
+    """The table's first line: source, robot (when the stream names one) and sizes."""
+    robot = "" if results.robot is None else f", robot {results.robot}"
+    size = [counted(results.poses, "pose"), counted(results.landmarks, "landmark")]
+    return f"{results.source}{robot}: {', '.join([*size, counted(results.observations, 'observation')])}"
+
+
+def table_lines(results: Results, rows: Mapping[str, Row]) -> list[str]:
+    """The table of ``rows`` (by estimator name, ``odometry`` first), its title and its legend.
 
     Args:
-        results: What :func:`online_slam.replay` returned.
-
-    Returns:
-        Lines of text, ending without a newline.
+        results: The replay the rows come from (title, truth, association scores, step count).
+        rows: One row per estimator.
     """
-    columns = ["Odometry only", *results.estimators]
-    est = list(results.estimators.values())
-    odo = results.odometry
-    rows: list[tuple[str, list[str]]] = [
-        ("Position RMSE over the path", [_metres(odo.rmse_m)] + [_metres(r.final_rmse_m) for r in est]),
-        ("Estimated end-to-start gap", [_metres(odo.endpoint_gap_m)] + [_metres(r.endpoint_gap_m) for r in est]),
-        ("Landmark RMSE", [_metres(odo.landmark_rmse_m)] + [_metres(r.landmark_rmse_m) for r in est]),
-        ("Online position RMSE", [_metres(odo.rmse_m)] + [_metres(r.online_rmse_m) for r in est]),
-        ("Pose NEES, mean (3 = consistent)", ["-"] + [_number(r.nees_mean) for r in est]),
-        ("Step time median / p95 (ms)", ["-"] + [_latency(r) for r in est]),
-        ("Total time", ["-"] + [f"{r.total_s:.3f} s" for r in est]),
+    closure = path_closure(results)
+    columns = [c for c in COLUMNS if c[0] != "end gap m" or closure is None or closure.closed]
+    header = ["estimator", *(h for h, _ in columns)]
+    cells = [[name, *(cell(name, row) for _, cell in columns)] for name, row in rows.items()]
+    if any(r.association is not None for r in results.estimators.values()):
+        header.append("association right, mapped/true")
+        for line in cells:
+            line.append(_association(results.estimators.get(line[0])))
+    widths = [max(len(h), *(len(line[k]) for line in cells)) for k, h in enumerate(header)]
+
+    def laid(line: list[str]) -> str:
+        return "  ".join([line[0].ljust(widths[0]), *(c.rjust(w) for c, w in zip(line[1:], widths[1:]))])
+
+    out = [title(results), "", laid(header), "  ".join("-" * w for w in widths)]
+    out += [laid(line) for line in cells]
+    return [*out, "", *legend(results, rows, closure)]
+
+
+def legend(results: Results, rows: Mapping[str, Row], closure: Closure | None) -> list[str]:
+    """What the columns mean, one line per idea: online vs final, NEES and its band, the end gap."""
+    lines = [
+        "online: each pose as estimated when it was the newest (what the robot knew then); final: the last estimate."
     ]
-    if any(r.association is not None for r in est):
-        rows.append(("Association right, landmarks mapped/true", ["-"] + [_association(r) for r in est]))
-    label_width = max(len("Metric"), *(len(label) for label, _ in rows))
-    widths = [max(len(c), *(len(cells[k]) for _, cells in rows)) for k, c in enumerate(columns)]
-    title = (
-        f"{results.source}: {counted(results.poses, 'pose')}, {counted(results.landmarks, 'landmark')}, "
-        f"{counted(results.observations, 'observation')}"
-    )
-    lines = [title, ""]
-    lines.append("  ".join(["Metric".ljust(label_width), *(c.rjust(w) for c, w in zip(columns, widths))]))
-    lines.append("  ".join(["-" * label_width, *("-" * w for w in widths)]))
-    for label, cells in rows:
-        lines.append("  ".join([label.ljust(label_width), *(c.rjust(w) for c, w in zip(cells, widths))]))
-    notes = []
+    steps = max((int(np.isfinite(s.nees).sum()) for s in results.series.values()), default=0)
+    if steps and any(row.nees_mean is not None for row in rows.values()):
+        low, high = nees_bounds(steps)
+        one_low, one_high = nees_bounds(1)
+        lines.append(
+            f"NEES: 3 if consistent (its 95% band over {counted(steps, 'step')}: {low:.2f}..{high:.2f}); "
+            f"in band: steps within {one_low:.2f}..{one_high:.2f}; NIS: 2 if consistent."
+        )
+    if closure is None:
+        lines.append("end gap: estimated end to start; without truth it measures drift only if the robot came back.")
+    elif closure.closed:
+        lines.append(
+            f"end gap: estimated end to start, shown as the true path closes (ends {closure.gap_m:.3f} m from its "
+            f"start, within {CLOSED_SHARE:.0%} of its {closure.length_m:.1f} m)."
+        )
+    else:
+        lines.append(
+            f"end gap: not shown, the true path does not close (ends {closure.gap_m:.3f} m from its start, "
+            f"{closure.gap_m / closure.length_m:.0%} of its {closure.length_m:.1f} m; "
+            f"closed: within {CLOSED_SHARE:.0%})."
+        )
+    return lines
+
+
+def notes(results: Results) -> list[str]:
+    """Lines after the legend: alignment, convergence, outliers, skipped input, an early stop."""
+    out = []
     if results.alignment != "anchor":
-        notes.append(f"errors after {results.alignment} alignment")
+        out.append(f"errors after {results.alignment} alignment")
     for name, result in results.estimators.items():
         d = result.details
         if "iterations" in d:
             state = "converged" if d.get("converged") else "NOT converged"
-            notes.append(
+            out.append(
                 f"{name}: {state} in {counted(d['iterations'], 'iteration')} "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
@@ -80,13 +168,23 @@ def format_results(results: Results) -> str:
                 if o.true_outliers is not None
                 else ""
             )
-            notes.append(f"{name}: {o.rejected} of {counted(o.sightings, 'sighting')} rejected as outliers{scored}")
+            out.append(f"{name}: {o.rejected} of {counted(o.sightings, 'sighting')} rejected as outliers{scored}")
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
-        notes.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
+        out.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
     if results.error:
-        notes.append(f"stopped early at bad input; figures cover the {counted(results.poses, 'pose')} before it")
-    if notes:
-        lines.append("")
-        lines.extend(notes)
-    return "\n".join(lines)
+        out.append(f"stopped early at bad input; figures cover the {counted(results.poses, 'pose')} before it")
+    return out
+
+
+def format_results(results: Results) -> str:
+    """Render results as a plain-text table (``online-slam replay``).
+
+    Args:
+        results: What :func:`online_slam.replay` returned.
+
+    Returns:
+        Lines of text, ending without a newline.
+    """
+    extra = notes(results)
+    return "\n".join([*table_lines(results, results.rows()), *([""] + extra if extra else [])])

@@ -11,7 +11,10 @@ from online_slam.estimators.protocol import Snapshot
 from online_slam.frontend.steps import GroundTruth, Step
 
 if TYPE_CHECKING:
+    from tqdm import tqdm
+
     from online_slam.evaluation.results import Results
+    from online_slam.sinks.protocol import ReplayProgress
 
 
 class Pacer:
@@ -41,34 +44,56 @@ class Pacer:
         """Nothing to do."""
 
 
+_WITH_TOTAL = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} events, {rate_fmt}, ETA {remaining}{postfix}"
+_WITHOUT_TOTAL = "{desc}: {n_fmt} events, {rate_fmt}{postfix}"
+
+
 class Progress:
-    """A one-line progress counter on a terminal (stderr), redrawn at most 10 times a second.
+    """A replay's progress on a terminal (stderr), drawn by tqdm: how much of the source is read out of its total,
+    the percentage, the rate and the time left (a count and the rate when the total is unknown, e.g. stdin), then
+    a line while the final phase runs (the batch solve). Nothing at all unless the stream is a terminal.
+
+    A :class:`~online_slam.sinks.protocol.ProgressSink`.
 
     Args:
-        total: Expected number of steps, if known.
-        stream: Where to draw (default stderr); nothing is drawn unless it is a terminal.
+        stream: Where to draw (default stderr).
     """
 
-    def __init__(self, total: int | None = None, stream: IO[str] | None = None) -> None:
+    def __init__(self, stream: IO[str] | None = None) -> None:
         self.stream = stream or sys.stderr
         self.enabled = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.total = total
-        self._last = 0.0
-        self._started = time.perf_counter()
+        """Whether anything is drawn (the stream is a terminal)."""
+        self._bar: tqdm | None = None
 
     def on_step(self, step: Step, snapshots: Mapping[str, Snapshot], truth: GroundTruth) -> None:
-        """Redraw the counter."""
-        now = time.perf_counter()
-        if not self.enabled or now - self._last < 0.1:
+        """Show the step reached beside the count."""
+        if self._bar is not None:
+            self._bar.set_postfix_str(f"step {step.index + 1}", refresh=False)
+
+    def on_progress(self, progress: ReplayProgress) -> None:
+        """Advance the bar while the source is read; replace it with the phase's line once it is."""
+        if not self.enabled:
             return
-        self._last = now
-        rate = (step.index + 1) / max(now - self._started, 1e-9)
-        of = f"/{self.total}" if self.total else ""
-        self.stream.write(f"\rstep {step.index + 1}{of}  t={step.t:.2f} s  {rate:.0f} steps/s ")
-        self.stream.flush()
+        if progress.phase is not None:
+            self._close()
+            self._bar = self._open(progress.phase + "...", None, "{desc}")
+            return
+        if self._bar is None:
+            known = progress.total is not None
+            self._bar = self._open("replay", progress.total, _WITH_TOTAL if known else _WITHOUT_TOTAL)
+        self._bar.update(progress.read - self._bar.n)
 
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
         """Clear the line."""
-        if self.enabled:
-            self.stream.write("\r\033[K")
-            self.stream.flush()
+        self._close()
+
+    def _open(self, description: str, total: int | None, layout: str) -> tqdm:
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc=description, bar_format=layout, unit=" events", file=self.stream,
+                    leave=False, mininterval=0.1, dynamic_ncols=True)  # fmt: skip
+
+    def _close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None

@@ -32,6 +32,8 @@ class RecordingSummary:
 
     source: str
     """Name of the replayed source."""
+    robot: int | str | None
+    """The robot the stream's header names (e.g. an MRCLAM robot), or None."""
     steps: int
     """Number of steps logged."""
     time_span: tuple[float, float]
@@ -227,6 +229,7 @@ class Recording:
                 }
         return RecordingSummary(
             source=results.get("source", "?"),
+            robot=results.get("robot"),
             steps=(max(steps) + 1) if steps else 0,
             time_span=(min(seconds), max(seconds)) if seconds else (math.nan, math.nan),
             estimators=estimators,
@@ -291,10 +294,11 @@ class Recording:
         return sorted({n.split(":")[0] for n in names if n.startswith("/")})
 
     def state_at(self, step: int, layout: Layout | None = None) -> dict[str, Any]:
-        """Per estimator: pose and landmark count at a step (latest values), and that step's events."""
+        """Per estimator: pose and landmark count at a step (latest values); the step's time and events."""
         layout = layout or self.summary().layout
         table = self._table(["/world/**"], "step", fill_latest_at=True, using_index_values=[step])
-        state: dict[str, Any] = {"step": step, "estimators": {}}
+        times = [t for t in table.column("time").to_pylist() if t is not None] if "time" in table.column_names else []
+        state: dict[str, Any] = {"step": step, "t": _seconds(times[0]) if times else None, "estimators": {}}
         for name in (*layout.online, TRUTH):
             root = "/world/truth" if name == TRUTH else f"/{layout.world(name)}"
             origins = _column(table, f"{root}/pose:Arrows2D:origins")

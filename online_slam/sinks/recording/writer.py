@@ -47,6 +47,7 @@ from online_slam.reports.palette import COLORS
 from online_slam.sinks.geometry import ellipses
 from online_slam.sinks.recording.blueprint import blueprint
 from online_slam.sinks.recording.layout import TRUTH, Layout
+from online_slam.wording import counted
 
 Array = NDArray[np.float64]
 
@@ -79,6 +80,12 @@ class _Path:
         if n - self.sent >= max(50, int(math.sqrt(n))):  # whole resends ~n^2/2T points, tails ~nT/2: T ~ sqrt(n)
             whole, self.sent = np.array(self.points), n
         return whole, np.array(self.points[max(self.sent - 1, 0) :])
+
+
+def _ids(noun: str, ids: Any) -> str:
+    """``landmark id 15``, ``landmark ids 3, 7``: ids that no one reads as a count."""
+    ids = list(ids)
+    return f"{noun} id{'s' if len(ids) > 1 else ''} {', '.join(map(str, ids))}"
 
 
 def viewer_unreachable(address: str, timeout_s: float = VIEWER_PROBE_S) -> str | None:
@@ -367,22 +374,22 @@ class RerunSink:
             if np.isfinite(nis).any():
                 self.columns.add(f"{metrics}/nis", "scalar", step, float(np.nanmean(nis)))
         if info.get("new_landmarks"):
-            out.append(f"{name}: landmarks initialised {', '.join(map(str, info['new_landmarks']))}")
+            out.append(f"{name}: initialised {_ids('landmark', info['new_landmarks'])}")
         if info.get("gated"):
-            out.append(f"{name}: observations gated (chi-square) of {', '.join(map(str, info['gated']))}")
+            out.append(f"{name}: sightings gated (chi-square) of {_ids('landmark', info['gated'])}")
         if info.get("window") is not None and info.get("window_poses") is not None:
             self.columns.add(f"{self._root(name)}/window", "points", step, info["window_poses"][:, :2])
         if info.get("relinearized") and "iterations" in info:
             for key in ("cost_before", "cost_after", "iterations"):
                 self.columns.add(f"{metrics}/{key}", "scalar", step, float(info[key]))
-            out.append(f"{name}: relinearized, {info['iterations']} iterations")
+            out.append(f"{name}: relinearized, {counted(info['iterations'], 'iteration')}")
         if "global_s" in info:
             if info.get("global_rejected"):
                 out.append(f"{name}: global relinearization not kept (the history did not reconcile)")
             else:
-                out.append(f"{name}: relinearized globally, {info['global_iterations']} iterations")
+                out.append(f"{name}: relinearized globally, {counted(info['global_iterations'], 'iteration')}")
         if info.get("marginalized"):
-            out.append(f"{name}: marginalized poses {', '.join(map(str, info['marginalized']))}")
+            out.append(f"{name}: marginalized {_ids('pose', info['marginalized'])}")
         return out
 
     def _truth_landmarks(self, truth: GroundTruth) -> None:
@@ -430,6 +437,8 @@ class RerunSink:
             )
         if results.error:
             rec.log("events", rr.TextLog(f"input stopped early: {results.error}", level="ERROR"))
+        if results.robot is not None:  # known from the stream's header, read after the recording was opened
+            rec.send_recording_name(f"{results.source}, robot {results.robot}")
         summary = dict(results.to_json(), recording=self.layout.to_json())
         rec.log("summary", rr.TextDocument(json.dumps(summary, indent=2), media_type="text/plain"), static=True)
         try:  # a viewer that never answers must not hang the run (rerun-sdk 0.41 can wait for it forever)
