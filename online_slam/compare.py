@@ -87,6 +87,7 @@ class Comparison:
         """The documented JSON of ``compare --json``."""
         out: dict[str, Any] = {
             "source": self.results.source,
+            "robot": self.results.robot,
             "poses": self.results.poses,
             "landmarks": self.results.landmarks,
             "observations": self.results.observations,

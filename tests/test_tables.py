@@ -97,6 +97,8 @@ def test_the_robot_is_in_the_title_and_the_json(mrclam: Results, square: Results
     assert mrclam.to_json()["robot"] == 1
     assert format_results(square).splitlines()[0] == "square: 25 poses, 12 landmarks, 95 observations"
     assert square.to_json()["robot"] is None
+    comparison = compare(str(MRCLAM), CompareConfig(replay=ReplayConfig(estimators=("ekf",)), windows=(5,)))
+    assert comparison.to_json()["robot"] == 1
 
 
 def test_compare_and_replay_print_one_layout(square: Results) -> None:
