@@ -103,6 +103,7 @@ def test_limits_drop_detections_and_stream_round_trips(tmp_path: Path) -> None:
     assert sum(isinstance(e, Truth) for e in again) > 0
 
 
+@pytest.mark.slow
 def test_simulated_log_replays_without_ids(tmp_path: Path) -> None:
     *_, trees_seen = _simulate(tmp_path)
     results = replay(tmp_path, ReplayConfig(estimators=("ekf", "smoother", "batch")))
@@ -113,6 +114,7 @@ def test_simulated_log_replays_without_ids(tmp_path: Path) -> None:
         assert 0.8 * trees_seen <= mapped <= 1.1 * trees_seen, (name, mapped)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not VICTORIA_RAW.is_dir(), reason="../shared/data/victoria_park_acfr_ascii is not present")
 def test_real_victoria_park_log_first_minutes() -> None:
     header = next(iter(read_acfr(VICTORIA_RAW)))

@@ -127,6 +127,7 @@ def assert_identical(a: Any, b: Any, where: str = "state") -> None:
         assert a == b, f"{where}: {a!r} != {b!r}"
 
 
+@pytest.mark.slow
 @settings(
     max_examples=150,
     deadline=None,
@@ -238,6 +239,7 @@ def test_values_that_are_not_data_are_refused(value: Any, tmp_path: Path) -> Non
         ("without ids", ReplayConfig(association="jcbb")),
     ],
 )
+@pytest.mark.slow
 def test_every_state_a_replay_saves_is_rebuilt_by_its_types(
     world: str, config: ReplayConfig, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

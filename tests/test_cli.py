@@ -36,6 +36,7 @@ def parse_table(text: str) -> dict[str, dict[str, str]]:
     return table
 
 
+@pytest.mark.slow
 def test_default_replay_prints_the_article_table() -> None:
     done = cli("replay")
     assert done.returncode == 0, done.stderr
@@ -53,6 +54,7 @@ def test_no_command_means_replay() -> None:
     assert done.returncode == 0 and parse_table(done.stdout)["odometry"]["final RMSE m"] == "1.338"
 
 
+@pytest.mark.slow
 def test_json_to_stdout_keeps_stdout_pure_and_the_table_on_stderr() -> None:
     done = cli("replay", "--json", "-")
     assert done.returncode == 0, done.stderr
@@ -64,6 +66,7 @@ def test_json_to_stdout_keeps_stdout_pure_and_the_table_on_stderr() -> None:
     assert "smoother W=5..120 D=18 K=1" in done.stderr
 
 
+@pytest.mark.slow
 def test_compare_rows_say_what_ran() -> None:
     """A window kept longer by --window-distance is labelled so; with distance 0 each W is exactly W poses."""
     sized = parse_compare(cli("compare", "square", "--window", "5,20", "--estimators", "smoother").stdout)
@@ -94,6 +97,7 @@ def test_help_is_grouped_with_readable_defaults() -> None:
     assert not re.search(r"\d\.\d{8,}", cli("simulate", "--help").stdout)  # no 0.008726646259971648
 
 
+@pytest.mark.slow
 def test_first_observation_only_and_json(tmp_path: Path) -> None:
     out = tmp_path / "r.json"
     done = cli("replay", "--first-observation-only", "--json", str(out))
@@ -106,6 +110,7 @@ def test_first_observation_only_and_json(tmp_path: Path) -> None:
     assert data["observations"] == 12 and data["error"] is None
 
 
+@pytest.mark.slow
 def test_simulate_then_replay_file_gz_and_stdin(tmp_path: Path) -> None:
     plain, packed = tmp_path / "square.jsonl", tmp_path / "square.jsonl.gz"
     assert cli("simulate", "square", "-o", str(plain)).returncode == 0
@@ -118,6 +123,7 @@ def test_simulate_then_replay_file_gz_and_stdin(tmp_path: Path) -> None:
     assert gzip.decompress(packed.read_bytes()).decode() == plain.read_text()
 
 
+@pytest.mark.slow
 def test_simulate_grid_options(tmp_path: Path) -> None:
     path = tmp_path / "g.jsonl"
     done = cli("simulate", "grid", "--poses", "120", "--landmarks", "30", "--seed", "4", "-o", str(path))
@@ -127,6 +133,7 @@ def test_simulate_grid_options(tmp_path: Path) -> None:
     assert cli("simulate", "grid", "--sensor-range", "-1", "-o", str(path)).returncode == 2
 
 
+@pytest.mark.slow
 def test_simulate_waypoint_world(tmp_path: Path) -> None:
     """The random-waypoint world: steps of the given length, turns within the limit, sightings within range and
     outside the blind zone (checked on the written stream's truth), bad settings a one-line error."""
@@ -178,6 +185,7 @@ def write_lines(path: Path, lines: list[str]) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(BAD))
 def test_bad_input_gives_one_line_and_exit_2(tmp_path: Path, case: str) -> None:
     line, where, what = BAD[case]
@@ -196,6 +204,7 @@ def test_bad_input_gives_one_line_and_exit_2(tmp_path: Path, case: str) -> None:
     assert partial["poses"] == 3 and partial["error"] is not None and "batch" in partial["estimators"]
 
 
+@pytest.mark.slow
 def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
     path = tmp_path / "cut.jsonl.gz"
     write_stream(path, square_world())
@@ -234,12 +243,14 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["sweep", "square", "-o", "/nonexistent/dir/rows.csv", "--quiet"], "--output: cannot write"),  # traceback
     ],
 )
+@pytest.mark.slow
 def test_usage_errors_are_one_line(args: list[str], message: str) -> None:
     done = cli(*args)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and message in done.stderr
 
 
+@pytest.mark.slow
 def test_a_failed_convert_writes_nothing_and_keeps_an_existing_file(tmp_path: Path) -> None:
     bad = tmp_path / "bad.g2o"  # the second line is cut short: the reader stops there
     bad.write_text("EDGE_SE2 0 1 1.0 0.0 0.0 100 0 0 100 0 100\nEDGE_SE2 1 2 1.0 0.0 0.0\n")
@@ -255,6 +266,7 @@ def test_a_failed_convert_writes_nothing_and_keeps_an_existing_file(tmp_path: Pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.g2o", "folder", "out.jsonl"]
 
 
+@pytest.mark.slow
 def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:
     path = tmp_path / "empty.jsonl"
     path.write_text("{oops\n")
@@ -282,6 +294,7 @@ def test_benchmarks_ask_for_the_mrclam_folder_before_running() -> None:
     )
 
 
+@pytest.mark.slow
 def test_benchmarks_print_ratio_against_gtsam() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
     done = benchmarks(

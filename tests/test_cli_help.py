@@ -64,6 +64,7 @@ def test_usage_errors_suggest_the_closest_spelling(args: list[str], expected: st
     assert expected in one_error(cli(*args))
 
 
+@pytest.mark.slow
 def test_output_files_are_named_alike(tmp_path: Path) -> None:
     """-o/--output is the output file of simulate, convert and sweep (sweep had --out)."""
     stream = tmp_path / "s.jsonl"
@@ -75,6 +76,7 @@ def test_output_files_are_named_alike(tmp_path: Path) -> None:
     assert rows.read_text().count("\n") == 2  # header and the EKF's row
 
 
+@pytest.mark.slow
 def test_connect_without_a_viewer_stops_before_the_replay(tmp_path: Path) -> None:
     """It replayed everything and only then exited 2; now it says how to start a viewer, before any work."""
     with socket.socket() as s:

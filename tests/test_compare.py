@@ -26,6 +26,7 @@ def cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=600)
 
 
+@pytest.mark.slow
 def test_square_table_has_the_article_figures_beside_ekf_and_smoothers() -> None:
     done = cli("compare", "square", "--window", "10,20", "--relinearize-every", "1,5")
     assert done.returncode == 0, done.stderr
@@ -39,6 +40,7 @@ def test_square_table_has_the_article_figures_beside_ekf_and_smoothers() -> None
     assert set(rows) >= {"ekf", *grid}
 
 
+@pytest.mark.slow
 def test_compare_equals_replay_for_the_same_configuration(tmp_path: Path) -> None:
     from online_slam.sources import GridConfig, grid_world, write_stream
 
@@ -77,6 +79,7 @@ def test_rows_flatten_every_estimators_figures_odometry_first() -> None:
     assert rows["ekf"].nis_mean == float(np.nanmean(results.series["ekf"].nis)) and rows["smoother"].nis_mean is None
 
 
+@pytest.mark.slow
 def test_figures_are_written_and_every_panel_has_content(tmp_path: Path) -> None:
     from PIL import Image
 
@@ -92,6 +95,7 @@ def test_figures_are_written_and_every_panel_has_content(tmp_path: Path) -> None
         assert quadrant.mean() > 0.005  # curves drawn in every panel
 
 
+@pytest.mark.slow
 def test_monte_carlo_50_runs_reports_average_nees_with_bounds(tmp_path: Path) -> None:
     out = tmp_path / "mc.json"
     done = cli("compare", "square", "--runs", "50", "--json", str(out), "--quiet")
@@ -105,6 +109,7 @@ def test_monte_carlo_50_runs_reports_average_nees_with_bounds(tmp_path: Path) ->
     assert mc["std"]["ekf"]["online_rmse_m"] > 0
 
 
+@pytest.mark.slow
 def test_monte_carlo_needs_a_simulated_world(tmp_path: Path) -> None:
     stream = tmp_path / "s.jsonl"
     assert cli("simulate", "square", "-o", str(stream)).returncode == 0

@@ -187,6 +187,7 @@ def test_joint_equals_sequential_for_single_observations() -> None:
     assert np.allclose(a.pose, b.pose, atol=1e-12) and np.allclose(a.pose_cov, b.pose_cov, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_monte_carlo_nees_within_chi_square_bounds() -> None:
     """Average pose NEES over 50 noise seeds of the square world lies inside the 95% bounds (3 dof)."""
     runs = 50
@@ -207,6 +208,7 @@ def test_monte_carlo_nees_within_chi_square_bounds() -> None:
     assert np.sum((average < low) | (average > high)) <= 2, average
 
 
+@pytest.mark.slow
 def test_covariance_stays_symmetric_psd_over_10000_steps() -> None:
     ekf = EkfSlam()
     worst = 0.0
@@ -221,6 +223,7 @@ def test_covariance_stays_symmetric_psd_over_10000_steps() -> None:
     assert -np.pi <= ekf.x[2, 0] < np.pi
 
 
+@pytest.mark.slow
 def test_ekf_accuracy_on_square_and_grid() -> None:
     square = online_slam.replay("square")
     ekf = square.estimators["ekf"]

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from benchmarks.fuzz import run_fuzz
 
 
+@pytest.mark.slow
 def test_reader_and_engine_api_refuse_bad_input_with_input_error_only() -> None:
     report = run_fuzz(examples=150, seed=20261201)
     assert report.cases["bytes"] == report.cases["json"] == report.cases["perturbed lines"] == 150

@@ -24,6 +24,7 @@ def solve_both(events):
     return ours, peer
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "events",
     [pytest.param(lambda: square_world(), id="square"), pytest.param(lambda: grid_world(GridConfig()), id="grid2000")],

@@ -130,6 +130,7 @@ def test_mrclam_robot_counts_match_the_provenance() -> None:
     assert len(events_of(LandmarkTruth, events)) == 15 and len(events_of(Observation, events)) == 1534
 
 
+@pytest.mark.slow
 @needs_mrclam
 def test_mrclam_batch_equals_gtsam_from_the_same_initial_values() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
@@ -150,6 +151,7 @@ def test_mrclam_batch_equals_gtsam_from_the_same_initial_values() -> None:
     assert np.max(np.linalg.norm(ours.poses[:, :2] - peer.poses[:, :2], axis=1)) <= 1e-4
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not CITY.is_dir(), reason="../shared/data/isam_citytrees10000_synthetic is not present")
 def test_citytrees_truth_is_the_noise_free_twin() -> None:
     events = list(open_dataset(CITY / "cityTrees10000.txt", truth=CITY / "cityTrees10000_groundtruth.txt"))
@@ -183,6 +185,7 @@ def test_variance_fit_recovers_the_coefficients_of_simulated_increments() -> Non
     assert a == pytest.approx(3e-4, rel=0.15) and b == pytest.approx(0.02, rel=0.1) and c < 2e-3
 
 
+@pytest.mark.slow
 @needs_mrclam
 def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path: Path) -> None:
     fit = fit_mrclam_noise(MRCLAM)

@@ -61,6 +61,7 @@ def streams(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, list[
     return clean, path, dirty
 
 
+@pytest.mark.slow
 def test_skip_reports_each_bad_line_once_and_changes_nothing_else(streams, tmp_path: Path) -> None:
     clean, dirty, _ = streams
     done = cli("replay", str(dirty), "--on-error", "skip", "--json", str(tmp_path / "d.json"), "--quiet")
@@ -82,6 +83,7 @@ def test_skip_reports_each_bad_line_once_and_changes_nothing_else(streams, tmp_p
     assert _figures(report) == _figures(reference)
 
 
+@pytest.mark.slow
 def test_stop_is_the_default_for_files_and_skip_for_stdin(streams) -> None:
     _, dirty, lines = streams
     stopped = cli("replay", str(dirty), "--quiet", "--json", "-")
@@ -93,6 +95,7 @@ def test_stop_is_the_default_for_files_and_skip_for_stdin(streams) -> None:
     assert forced.returncode == 2
 
 
+@pytest.mark.slow
 def test_compare_and_convert_skip_too(streams, tmp_path: Path) -> None:
     clean, dirty, _ = streams
     done = cli("compare", str(dirty), "--on-error", "skip", "--json", "-", "--quiet", "--window", "10")

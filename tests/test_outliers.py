@@ -39,6 +39,7 @@ def test_contamination_is_seeded_marked_and_leaves_the_clean_draws_alone() -> No
     assert a[0].meta["contamination"]["wrong_ids"] == 0.1
 
 
+@pytest.mark.slow
 def test_no_estimator_reads_the_marks(clean_and_dirty) -> None:
     _, dirty, events = clean_and_dirty
     assert "truth_outlier" not in {f.name for f in dataclasses.fields(Step)}

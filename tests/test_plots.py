@@ -166,6 +166,7 @@ def test_results_carry_the_robot_of_the_stream_header(tmp_path: Path) -> None:
     assert replay("square", ReplayConfig(estimators=("ekf",))).robot is None
 
 
+@pytest.mark.slow
 def test_figure_without_truth_or_online_estimators_is_written(square: Comparison, tmp_path: Path) -> None:
     blind = replace(square.results, truth_poses=None, truth_landmarks={})
     width, height = plot_comparison(replace(square, results=blind), tmp_path / "blind.png")

@@ -10,6 +10,7 @@ from online_slam.pipeline import ReplayConfig, replay
 MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not MRCLAM.is_dir(), reason="../shared/data/MRCLAM_Dataset6 is not present")
 @pytest.mark.parametrize("robot", [1, 2, 3, 4, 5])
 def test_mrclam_every_estimator_beats_dead_reckoning_and_smoother_and_batch_reach_25_cm(robot: int) -> None:

@@ -34,6 +34,7 @@ def square(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, Record
     return rrd, json.loads(out.read_text()), online_slam.read_recording(rrd)
 
 
+@pytest.mark.slow
 def test_series_are_the_tables_figures(square: tuple[Path, dict, RecordingSeries]) -> None:
     _, results, series = square
     assert series.source == "square" and series.results["poses"] == 25

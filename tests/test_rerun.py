@@ -39,6 +39,7 @@ def square_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, di
     return rrd, json.loads(out.read_text())
 
 
+@pytest.mark.slow
 def test_recording_reads_back_with_the_json_figures(square_recording: tuple[Path, dict]) -> None:
     rrd, results = square_recording
     with Recording(rrd) as recording:
@@ -66,6 +67,7 @@ def test_recording_reads_back_with_the_json_figures(square_recording: tuple[Path
     assert ekf["landmarks"] == 12 and abs(ekf["pose"][0]) < 0.2 and abs(ekf["pose"][1]) < 0.2
 
 
+@pytest.mark.slow
 def test_recorded_errors_are_the_tables_even_after_se2_alignment(tmp_path: Path) -> None:
     rrd, out = tmp_path / "se2.rrd", tmp_path / "se2.json"
     done = cli("replay", "square", "--align", "se2", "--rrd", str(rrd), "--json", str(out), "--quiet")
@@ -102,6 +104,7 @@ def compare_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, d
 CONFIGS = ("ekf", "smoother W=10..120 D=18 K=1", "smoother W=20..120 D=18 K=1", "batch")
 
 
+@pytest.mark.slow
 def test_compare_recording_holds_every_configuration_with_the_tables_figures(compare_recording) -> None:
     rrd, table, _ = compare_recording
     assert tuple(n for n in table["estimators"] if n != "odometry") == CONFIGS
@@ -131,6 +134,7 @@ def test_compare_recording_holds_every_configuration_with_the_tables_figures(com
     assert done.returncode == 0, done.stderr
 
 
+@pytest.mark.slow
 def test_inspect_lists_every_configuration_of_a_comparison(compare_recording) -> None:
     rrd, table, _ = compare_recording
     done = cli("inspect", str(rrd))
@@ -145,6 +149,7 @@ def test_inspect_lists_every_configuration_of_a_comparison(compare_recording) ->
     assert set(state["estimators"]) >= {"odometry", *CONFIGS[:-1], "truth"}
 
 
+@pytest.mark.slow
 def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) -> None:
     rrd, results = square_recording
     done = cli("inspect", str(rrd))
@@ -157,6 +162,7 @@ def test_inspect_prints_summary_and_step(square_recording: tuple[Path, dict]) ->
     assert any("relinearized" in e for e in state["events"])
 
 
+@pytest.mark.slow
 def test_inspect_step_shows_that_step_alone_aligned(compare_recording) -> None:
     rrd = compare_recording[0]
     done = cli("inspect", str(rrd), "--step", "24")
@@ -170,6 +176,7 @@ def test_inspect_step_shows_that_step_alone_aligned(compare_recording) -> None:
     assert rows[1].split()[-1] == "12"  # landmarks: a count
 
 
+@pytest.mark.slow
 def test_recorded_events_name_ids_as_ids(square_recording: tuple[Path, dict]) -> None:
     done = cli("inspect", str(square_recording[0]), "--step", "0")
     assert done.returncode == 0, done.stderr
@@ -177,6 +184,7 @@ def test_recorded_events_name_ids_as_ids(square_recording: tuple[Path, dict]) ->
     assert re.search(r"^  ekf: initialised landmark ids \w+, \w+, \w+$", done.stdout, re.MULTILINE), done.stdout
 
 
+@pytest.mark.slow
 def test_the_robot_is_in_the_recording_and_inspect(tmp_path: Path) -> None:
     head, rrd = tmp_path / "head.jsonl", tmp_path / "robot1.rrd"
     with gzip.open(MRCLAM, "rt", encoding="utf-8") as lines:
@@ -192,6 +200,7 @@ def test_the_robot_is_in_the_recording_and_inspect(tmp_path: Path) -> None:
     assert cli("inspect", str(rrd), "--step", "3").stdout.startswith(f"{rrd} ({head}, robot 1): step 3 of 0..")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["truncated", "text", "missing", "step"])
 def test_inspect_bad_files_give_one_line_and_exit_2(
     square_recording: tuple[Path, dict], tmp_path: Path, case: str
@@ -210,6 +219,7 @@ def test_inspect_bad_files_give_one_line_and_exit_2(
     assert len(lines) == 1 and lines[0].startswith("online-slam: error:")
 
 
+@pytest.mark.slow
 def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path, processes) -> None:
     rerun_cli = shutil.which("rerun")
     if rerun_cli is None:
@@ -239,6 +249,7 @@ def test_live_stream_reaches_a_viewer_and_rate_paces(tmp_path: Path, processes) 
     assert summary.steps == 25 and summary.source == "square"
 
 
+@pytest.mark.slow
 def test_unreachable_viewer_is_one_line_before_the_replay(tmp_path: Path) -> None:
     out, rrd = tmp_path / "r.json", tmp_path / "r.rrd"
     started = time.perf_counter()

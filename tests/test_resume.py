@@ -60,6 +60,7 @@ def stream(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     return path, json.loads((folder / "whole.json").read_text())
 
 
+@pytest.mark.slow
 def test_kill_9_half_way_then_resume_gives_the_uninterrupted_figures(stream, tmp_path: Path) -> None:
     path, whole = stream
     folder = tmp_path / "ck"
@@ -102,6 +103,7 @@ def _rewrite(source: Path, target: Path, edit) -> None:
             archive.writestr(name, content)
 
 
+@pytest.mark.slow
 def test_damaged_foreign_and_other_version_checkpoints_are_one_line_exit_2(stream, tmp_path: Path) -> None:
     path, _ = stream
     small = tmp_path / "small.jsonl"

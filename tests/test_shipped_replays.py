@@ -24,6 +24,7 @@ def test_square_is_the_simulators_output() -> None:
     assert (REPLAY / "square.jsonl").read_text() == buffer.getvalue()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", STREAMS, ids=[p.name for p in STREAMS])
 def test_shipped_stream_replays(path: Path) -> None:
     assert sum(1 for _ in read_stream(path)) > 0

@@ -40,6 +40,7 @@ def online_rmse(poses: list[np.ndarray], truth: dict[int, np.ndarray]) -> float:
     return float(np.sqrt(np.mean(np.square(errors))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])
 def test_event_by_event_equals_replay(estimator: str) -> None:
     events = list(grid_world(SMALL_GRID))
@@ -210,6 +211,7 @@ def test_smoother_landmark_covariances_after_marginalization_stay_close() -> Non
 # -- checkpoints ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])
 def test_save_load_continue_equals_uninterrupted(tmp_path: Path, estimator: str) -> None:
     events = list(grid_world(GridConfig(poses=1000, landmarks=80, seed=5)))
@@ -350,6 +352,7 @@ def _fingerprint(slam: Slam) -> tuple:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
@@ -400,6 +403,7 @@ def test_each_kind_of_bad_input_names_its_field(call, field: str) -> None:
 # -- scans ---------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_scans_equal_single_sightings() -> None:
     events = list(grid_world(GridConfig(poses=200, landmarks=40, seed=9)))
     one, scans = Slam("smoother"), Slam("smoother")

@@ -39,6 +39,7 @@ def rmse(poses: np.ndarray, fe: FrontEnd) -> float:
     return float(np.sqrt(np.mean(np.sum((poses[:, :2] - truth[:, :2]) ** 2, axis=1))))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("events", [square_world, lambda: grid_world(GridConfig(poses=300, seed=5))])
 def test_window_covering_the_stream_equals_batch(events) -> None:
     fe, _, final, _, batch, _ = run(events(), SmootherConfig(window=WindowConfig(size=10_000)))
@@ -52,6 +53,7 @@ def test_window_10_on_square_is_within_5_percent_of_batch() -> None:
     assert rmse(final.poses, fe) <= 1.05 * rmse(batch.poses, fe)
 
 
+@pytest.mark.slow
 def test_window_20_on_the_2000_pose_grid() -> None:
     results = online_slam.replay("grid", ReplayConfig(estimators=("ekf", "smoother", "batch")))
     smoother, batch, ekf = (results.estimators[k] for k in ("smoother", "batch", "ekf"))
@@ -222,6 +224,7 @@ def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> 
     assert np.max(np.abs(smoother.landmarks[order] - batch.landmarks)) < 1e-6
 
 
+@pytest.mark.slow
 def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estimate() -> None:
     """``global_information_max``: re-anchoring replaces the prior's covariance by the exact marginal of the
     history's factors at the revised estimate (checked against a dense elimination); without it the covariance
@@ -258,6 +261,7 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
     assert difference > 1e-6
 
 
+@pytest.mark.slow
 def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
     events = list(grid_world(GridConfig(poses=600, seed=5)))
     fe, _, frozen, _, batch, _ = run(
@@ -273,6 +277,7 @@ def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
     assert ratio_revised <= 1.02 and ratio_revised < ratio_frozen
 
 
+@pytest.mark.slow
 def test_background_global_relinearization_is_deterministic_and_survives_a_checkpoint(tmp_path: Path) -> None:
     """The hand-over step is fixed, so results never depend on thread timing; a checkpoint taken while a global
     solve is pending carries its result (in memory, and through a file), and the run continues identically."""

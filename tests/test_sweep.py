@@ -64,6 +64,7 @@ def assert_row_is_replay(rows: list[dict], cell, reference: dict) -> None:
             assert row[f] == figures.get(f), (name, f)
 
 
+@pytest.mark.slow
 def test_local_sweep_rows_equal_replay(cells, local_rows) -> None:
     assert len(cells) == 8 and len(local_rows) == 8 * 3
     assert {dict(c.settings)["window"] for c in cells} == {5, 10} and local_rows[0]["window_distance"] == 18.0
@@ -72,6 +73,7 @@ def test_local_sweep_rows_equal_replay(cells, local_rows) -> None:
         assert_row_is_replay(local_rows, cell, replayed("square", *flags))
 
 
+@pytest.mark.slow
 def test_a_sweep_cell_gives_replays_figures_with_huber() -> None:
     """A sweep's outlier setting is replay's (a sweep once used another Huber threshold than replay's)."""
     for settings, flags in (({"robust": ("huber",)}, ()), ({"robust": ("cauchy",), "robust_scale": (2.5,)},
@@ -87,6 +89,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_a_real_scheduler_with_two_workers_gives_the_local_rows(cells, local_rows, processes, tmp_path) -> None:
     dask = shutil.which("dask")
     if dask is None:
@@ -123,6 +126,7 @@ def test_a_real_scheduler_with_two_workers_gives_the_local_rows(cells, local_row
     assert_same(read_rows(out), local_rows)
 
 
+@pytest.mark.slow
 def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows, processes, tmp_path) -> None:
     out = tmp_path / "sweep.csv"
     command = [*EXE, "sweep", "square", "--window", "5,10", "--robust", "auto,none", "--runs", "2", "--workers", "1",
@@ -150,6 +154,7 @@ def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows
     assert_same(rows, local_rows)
 
 
+@pytest.mark.slow
 def test_a_failing_cell_is_a_row_not_a_dead_sweep(tmp_path: Path) -> None:
     missing = str(tmp_path / "missing.jsonl")
     report = sweep(make_cells(["square", missing], {"window": (5,)}, estimators=("ekf",)), workers=1)
@@ -158,6 +163,7 @@ def test_a_failing_cell_is_a_row_not_a_dead_sweep(tmp_path: Path) -> None:
     assert any(r["estimator"] == "ekf" and r["final_rmse_m"] is not None for r in report.rows)
 
 
+@pytest.mark.slow
 def test_parquet_output_round_trips_and_resumes(cells, local_rows, tmp_path: Path) -> None:
     from online_slam.sweep import read_rows
 

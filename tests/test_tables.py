@@ -91,6 +91,7 @@ def test_legend_explains_online_final_and_the_nees_band(square: Results, mrclam:
     assert "over 1012 steps: 2.85..3.15" in nees  # MRCLAM's 11.71 is far outside
 
 
+@pytest.mark.slow
 def test_the_robot_is_in_the_title_and_the_json(mrclam: Results, square: Results) -> None:
     title = format_results(mrclam).splitlines()[0]
     assert title.endswith("mrclam6_robot1.jsonl.gz, robot 1: 1012 poses, 15 landmarks, 1534 observations")

@@ -25,6 +25,7 @@ def ape_rmse(reference: Path, estimate: Path) -> float:
     return float(ape.get_statistic(metrics.StatisticsType.rmse))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("alignment", ["anchor", "se2"])
 def test_evo_ape_on_the_tum_files_equals_the_tables_rmse(tmp_path: Path, alignment: str) -> None:
     out, folder = tmp_path / "r.json", tmp_path / "tum"

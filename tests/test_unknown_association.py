@@ -33,6 +33,7 @@ def small_runs() -> dict[str, object]:
     }
 
 
+@pytest.mark.slow
 def test_jcbb_on_a_small_world_pairs_right_and_stays_close_to_known_ids(small_runs) -> None:
     known, jcbb = small_runs["known"], small_runs["jcbb"]
     for name in ("ekf", "smoother", "batch"):
@@ -104,6 +105,7 @@ def test_clutter_only_scans_map_nothing() -> None:
         np.testing.assert_allclose(estimate.poses[:, :2], 0.0, atol=0.25)  # 3 sigmas of the odometry alone
 
 
+@pytest.mark.slow
 def test_clutter_in_a_world_is_not_mapped() -> None:
     events = list(contaminate(grid_world(SMALL), Contamination(clutter=0.1, seed=2)))
     results = replay(events, ReplayConfig(association="jcbb", estimators=("ekf", "smoother")), name="cluttered")
@@ -113,6 +115,7 @@ def test_clutter_in_a_world_is_not_mapped() -> None:
         assert score.landmarks_mapped <= 1.1 * score.landmarks_true, (name, score)
 
 
+@pytest.mark.slow
 def test_streams_without_ids_round_trip_and_default_to_jcbb(tmp_path: Path) -> None:
     path = tmp_path / "noids.jsonl"
     write_stream(path, without_ids(grid_world(replace(SMALL, poses=120))))
@@ -138,6 +141,7 @@ FIGURES = ("final_rmse_m", "endpoint_gap_m", "landmark_rmse_m", "online_rmse_m",
 """What a replay's JSON reports of an estimator, but for timings."""
 
 
+@pytest.mark.slow
 def test_simulate_no_ids_scores_as_the_built_in_world_replayed_under_jcbb(tmp_path: Path) -> None:
     """``simulate --no-ids`` keeps each id as hidden truth: replaying the file scores association and landmark
     RMSE exactly as replaying the built-in world (ids hidden from the estimators by ``--association jcbb``)."""
@@ -160,6 +164,7 @@ def test_simulate_no_ids_scores_as_the_built_in_world_replayed_under_jcbb(tmp_pa
             assert file["estimators"][name].get(key) == figures.get(key), (name, key)
 
 
+@pytest.mark.slow
 def test_hidden_true_ids_score_a_contaminated_world_as_its_ids_do() -> None:
     """Clutter, wrong ids and range spikes: the marks keep their meaning when the ids are hidden truth."""
     world = list(contaminate(grid_world(replace(SMALL, poses=150)), Contamination(0.05, 0.05, 0.1, seed=3)))
@@ -175,6 +180,7 @@ def test_hidden_true_ids_score_a_contaminated_world_as_its_ids_do() -> None:
         assert a.estimators[name].association.accuracy > 0.9
 
 
+@pytest.mark.slow
 def test_cli_association_flag_and_table(tmp_path: Path) -> None:
     stream = tmp_path / "grid.jsonl"
     write_stream(stream, grid_world(replace(SMALL, poses=120)))
@@ -195,6 +201,7 @@ def test_cli_association_flag_and_table(tmp_path: Path) -> None:
         assert association["accuracy"] > 0.9
 
 
+@pytest.mark.slow
 def test_cli_new_density_option(tmp_path: Path) -> None:
     stream = tmp_path / "grid.jsonl"
     write_stream(stream, grid_world(replace(SMALL, poses=80)))
@@ -216,6 +223,7 @@ def test_cli_new_density_option(tmp_path: Path) -> None:
     assert len(bad.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])
 def test_api_without_ids_save_load_continue_equals_uninterrupted(tmp_path: Path, estimator: str) -> None:
     events = list(without_ids(grid_world(replace(SMALL, poses=160))))
@@ -284,6 +292,7 @@ def test_association_config_is_validated() -> None:
         AssociationConfig(confirm=0)
 
 
+@pytest.mark.slow
 def test_replay_resumed_from_a_checkpoint_scores_association_as_the_whole_run(tmp_path: Path) -> None:
     """Checkpoints hold the landmark books and the ids gathered for scoring: a resumed run reports the same."""
     from online_slam.pipeline import Checkpointing
@@ -312,6 +321,7 @@ def test_square_world_with_large_odometry_noise_confirms_the_smoothers_landmarks
     assert jcbb.estimators["smoother"].final_rmse_m <= 1.5 * known.estimators["smoother"].final_rmse_m
 
 
+@pytest.mark.slow
 def test_association_covariance_from_the_last_solve_equals_relinearizing_the_window() -> None:
     """The joint covariance association reads from the last solve's factor, carried through the newest odometry
     and the prior's conditional for landmarks only the prior holds, is the one a relinearization of the window
