@@ -43,6 +43,17 @@ class RobustnessRow:
     """iSAM2 (Cauchy kernel) final RMSE."""
 
 
+def _isam2(events: list[Event], cauchy: float) -> tuple[float, float]:
+    """GTSAM iSAM2 with a Cauchy kernel on the same steps: its online and final position RMSE."""
+    engine = Engine([])
+    steps = [r.step for r in (engine.push(e) for e in events) if r is not None]
+    last = engine.close()
+    steps += [last.step] if last is not None else []
+    truth = np.array([engine.frontend.truth.poses[s.index] for s in steps])
+    peer = gtsam_peer.isam2_online(steps, cauchy=cauchy)
+    return _rmse(peer.poses, truth), _rmse(peer.final_poses, truth)
+
+
 def _rmse(poses: np.ndarray, truth: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((poses[:, :2] - truth[:, :2]) ** 2, axis=1))))
 
@@ -60,13 +71,7 @@ def run_robustness(
         figures = results.estimators
         isam_online = isam_final = None
         if gtsam_peer.available():
-            engine = Engine([])
-            steps = [r.step for r in (engine.push(e) for e in events) if r is not None]
-            last = engine.close()
-            steps += [last.step] if last is not None else []
-            truth = np.array([engine.frontend.truth.poses[s.index] for s in steps])
-            peer = gtsam_peer.isam2_online(steps, cauchy=cauchy)
-            isam_online, isam_final = _rmse(peer.poses, truth), _rmse(peer.final_poses, truth)
+            isam_online, isam_final = _isam2(events, cauchy)
         rows.append(
             RobustnessRow(
                 level,
@@ -129,13 +134,7 @@ def _figures(events: list[Event], peer: bool, cauchy: float) -> dict[str, float]
         "batch final": figures["batch"].final_rmse_m or float("nan"),
     }
     if peer:
-        engine = Engine([])
-        steps = [r.step for r in (engine.push(e) for e in events) if r is not None]
-        last = engine.close()
-        steps += [last.step] if last is not None else []
-        truth = np.array([engine.frontend.truth.poses[s.index] for s in steps])
-        isam = gtsam_peer.isam2_online(steps, cauchy=cauchy)
-        out["isam2 online"], out["isam2 final"] = _rmse(isam.poses, truth), _rmse(isam.final_poses, truth)
+        out["isam2 online"], out["isam2 final"] = _isam2(events, cauchy)
     return out
 
 
