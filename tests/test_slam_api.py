@@ -159,7 +159,7 @@ def test_add_refuses_a_bad_record_naming_its_field(item, field: str, message: st
     assert _fingerprint(slam) == before
 
 
-def test_bearings_in_degrees_are_refused() -> None:
+def test_angles_in_degrees_are_refused() -> None:
     slam = Slam("ekf")
     slam.add_observation(0.0, 1, 2.0, -2 * math.pi, sigma=[0.1, 0.01])  # the limits themselves are radians
     with pytest.raises(InputError, match=r"\[-2 pi, 2 pi\].*degrees") as caught:
@@ -169,6 +169,12 @@ def test_bearings_in_degrees_are_refused() -> None:
         slam.add_observations(0.0, [1, 2], [2.0, 3.0], [0.5, -90.0], sigma=[0.1, 0.01])
     assert caught.value.field == "bearing[1]"
     assert slam.estimate().landmark_ids == (1,)  # the scan changed nothing
+    with pytest.raises(InputError, match="degrees") as caught:
+        slam.add_odometry(1.0, delta=[1.0, 0.0, 90.0], sigma=[0.05, 0.05, 0.01])
+    assert caught.value.field == "delta[2]" and slam.poses == 1
+    with pytest.raises(InputError, match="degrees") as caught:
+        Slam("ekf").start(0.0, [0.0, 0.0, 90.0])
+    assert caught.value.field == "pose[2]"
 
 
 def test_smoother_landmark_covariances_equal_batch_marginals_with_a_covering_window() -> None:

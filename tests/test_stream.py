@@ -29,6 +29,7 @@ from online_slam.sources import (
 finite = st.floats(-1e6, 1e6, allow_nan=False, allow_infinity=False)
 positive = st.floats(1e-6, 1e3, allow_nan=False)
 bearings = st.floats(-2 * math.pi, 2 * math.pi)
+angles = bearings  # every angle of a stream is within [-2 pi, 2 pi]
 ids = st.one_of(st.integers(-1000, 10**12), st.text(min_size=1, max_size=8))
 
 
@@ -38,12 +39,12 @@ def streams(draw: st.DrawFn) -> list:
     t = draw(st.floats(-100, 100))
     if draw(st.booleans()):
         sigma = draw(st.one_of(st.none(), st.tuples(positive, positive, positive)))
-        events.append(Start(t=t, pose=draw(st.tuples(finite, finite, finite)), sigma=sigma))
+        events.append(Start(t=t, pose=draw(st.tuples(finite, finite, angles)), sigma=sigma))
     for _ in range(draw(st.integers(0, 12))):
         t += draw(st.floats(0, 10))
         kind = draw(st.sampled_from(["odometry", "observation", "truth", "landmark_truth", "cov"]))
         if kind == "odometry":
-            events.append(Odometry(t=t, delta=draw(st.tuples(finite, finite, finite)), sigma=(0.1, 0.2, 0.3)))
+            events.append(Odometry(t=t, delta=draw(st.tuples(finite, finite, angles)), sigma=(0.1, 0.2, 0.3)))
         elif kind == "cov":
             a, b = draw(positive), draw(positive)
             events.append(Odometry(t=t, delta=(1.0, 0.0, 0.5), cov=((a, 0.0, 0.0), (0.0, b, 0.0), (0.0, 0.0, a))))
@@ -112,6 +113,7 @@ BAD_LINES = [
     (json.dumps({**OK_OBS, "range": 0}), "range", "range > 0"),
     (json.dumps({**OK_OBS, "bearing": 45.0}), "bearing", "in degrees?"),
     (json.dumps({**OK_OBS, "bearing": -6.3}), "bearing", "in degrees?"),
+    (json.dumps({**OK_ODO, "delta": [1, 0, 90]}), "delta[2]", "in degrees?"),
     (json.dumps({**OK_OBS, "sigma": [0.1, 0.0]}), "sigma[1]", "> 0"),
     (json.dumps({**OK_OBS, "landmark": 1.5}), "landmark", "integer or a non-empty string"),
     (json.dumps({**OK_OBS, "landmark": True}), "landmark", "integer or a non-empty string"),

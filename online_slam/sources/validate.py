@@ -79,7 +79,8 @@ MIN_RANGE = 1e-6
 SIGMA_RANGE = (1e-8, 1e8)
 """Allowed standard deviations (and square roots of covariance eigenvalues)."""
 MAX_BEARING = 2 * math.pi
-"""Largest magnitude of a bearing, radians: a larger one is most likely in degrees (45.0 for pi/4), so refused."""
+"""Largest magnitude of an angle (a bearing, an odometry turn, a start heading), radians: a larger one is most
+likely in degrees (45.0 for pi/4), so refused."""
 
 
 def _plain_floats(delta: Any, sigma: Any) -> bool:
@@ -92,7 +93,7 @@ def _plain_floats(delta: Any, sigma: Any) -> bool:
     return (
         type(a) is float and type(b) is float and type(c) is float
         and type(u) is float and type(v) is float and type(w) is float
-        and -big <= a <= big and -big <= b <= big and -big <= c <= big
+        and -big <= a <= big and -big <= b <= big and -MAX_BEARING <= c <= MAX_BEARING
         and low <= u <= high and low <= v <= high and low <= w <= high
     )  # fmt: skip
 
@@ -281,6 +282,13 @@ class EventValidator:
         return tuple(ranges), tuple(bearings)
 
     # -- field helpers -------------------------------------------------------------------------
+    def radians(self, value: float, field: str, line: int) -> float:
+        """An angle within [-2 pi, 2 pi]; a larger one is refused as likely degrees."""
+        if not -MAX_BEARING <= value <= MAX_BEARING:
+            message = f"expected radians within [-2 pi, 2 pi], got {value} (in degrees? convert them)"
+            raise self.fail(line, field, message)
+        return value
+
     def number(self, record: dict[str, Any], key: str, line: int) -> float:
         value = record.get(key)
         if type(value) is float and -MAX_MAGNITUDE <= value <= MAX_MAGNITUDE:  # the common case (NaN fails)
@@ -403,12 +411,14 @@ class EventValidator:
             raise self.fail(line, "type", "start must come before every timed event")
         t = self.time(record, line)
         pose = self.vector(record, "pose", 3, line)
+        self.radians(pose[2], "pose[2]", line)
         sigma, cov = self.noise(record, 3, line, required=False)
         return Start(t=t, pose=pose, sigma=sigma, cov=cov)
 
     def _odometry(self, record: dict[str, Any], line: int) -> Odometry:
         t = self.time(record, line)
         delta = self.vector(record, "delta", 3, line)
+        self.radians(delta[2], "delta[2]", line)
         sigma, cov = self.noise(record, 3, line)
         return Odometry(t=t, delta=delta, sigma=sigma, cov=cov)
 
@@ -418,11 +428,7 @@ class EventValidator:
         rng = self.number(record, "range", line)
         if rng < MIN_RANGE:
             raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")
-        bearing = self.number(record, "bearing", line)
-        if not -MAX_BEARING <= bearing <= MAX_BEARING:
-            raise self.fail(
-                line, "bearing", f"expected radians within [-2 pi, 2 pi], got {bearing} (in degrees? convert them)"
-            )
+        bearing = self.radians(self.number(record, "bearing", line), "bearing", line)
         sigma, cov = self.noise(record, 2, line)
         mark = record.get("truth_outlier")
         if mark is not None and mark not in OUTLIER_KINDS:
