@@ -352,9 +352,25 @@ def replay_config(values: Mapping[str, Any], naming: Callable[[str], str] = str)
                 config = _set(config, path.split("."), value)
         except ValueError as exc:
             raise ConfigError(f"{naming(name)}: {exc}") from None
+    _check_estimators(config.estimators, given, naming)
     robust, scale = given.get("robust", OPTIONS["robust"].value), given.get("robust_scale", RobustLoss.scale)
     smoother, batch = robust_settings(robust, scale, config.smoother, config.batch)
     return dataclasses.replace(config, smoother=smoother, batch=batch)
+
+
+def _check_estimators(running: tuple[str, ...], given: Mapping[str, Any], naming: Callable[[str], str]) -> None:
+    """Refuse an empty estimator list, and a setting (other than its default) of an estimator that does not run."""
+    from online_slam.pipeline import ESTIMATORS
+
+    if not running:
+        raise ConfigError(f"{naming('estimators')}: give at least one of {', '.join(ESTIMATORS)}")
+    for name, value in given.items():
+        owners = set(OPTIONS[name].owners)
+        if owners <= set(ESTIMATORS) and not owners & set(running) and value != OPTIONS[name].value:
+            whose = " and the ".join(sorted(owners))
+            raise ConfigError(
+                f"{naming(name)}: a setting of the {whose}, which does not run (estimators: {', '.join(running)})"
+            )
 
 
 def on_error_of(given: str | None, source: object) -> str:

@@ -223,6 +223,10 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
     [
         (["replay", "/nonexistent/stream.jsonl"], "no such file"),
         (["replay", "--estimators", "magic"], "unknown estimator"),
+        (["replay", "--estimators", ""], "--estimators: give at least one of ekf, smoother, batch"),  # was exit 0
+        (["simulate", "square", "--poses", "10"], "--poses shapes the grid and waypoint worlds"),  # was ignored
+        (["replay", "--estimators", "ekf", "--window", "5"], "--window: a setting of the smoother, which does not"),
+        (["compare", "square", "--estimators", "ekf", "--window", "5,10"], "--window: a setting of the smoother"),
         (["compare", "square", "--window", "0"], "--window: window must be >= 1"),  # was a traceback
         (["compare", "square", "--window", "5,x"], "expected comma-separated ints"),
         (["replay", "--align", "SE2"], "invalid choice 'SE2' (did you mean se2?)"),  # was 23 lines of usage

@@ -58,6 +58,7 @@ def test_help_loads_no_heavy_library() -> None:
         (["replay", "--align", "SE2"], "invalid choice 'SE2' (did you mean se2?); choose from anchor, se2"),
         (["sweep", "square", "--out", "rows.csv"], "unknown option --out (did you mean --output?)"),
         (["square"], "unknown command 'square' (to replay it: online-slam replay square)"),
+        (["replay", "square", "--plot", "x.png"], "--plot is an option of compare, not of replay"),  # was --robot?
     ],
 )
 def test_usage_errors_suggest_the_closest_spelling(args: list[str], expected: str) -> None:

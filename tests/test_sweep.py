@@ -157,7 +157,7 @@ def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows
 @pytest.mark.slow
 def test_a_failing_cell_is_a_row_not_a_dead_sweep(tmp_path: Path) -> None:
     missing = str(tmp_path / "missing.jsonl")
-    report = sweep(make_cells(["square", missing], {"window": (5,)}, estimators=("ekf",)), workers=1)
+    report = sweep(make_cells(["square", missing], {"gate_probability": (0.999,)}, estimators=("ekf",)), workers=1)
     errors = [r for r in report.rows if r["error"]]
     assert report.failed == 1 and len(errors) == 1 and "no such file" in errors[0]["error"]
     assert any(r["estimator"] == "ekf" and r["final_rmse_m"] is not None for r in report.rows)

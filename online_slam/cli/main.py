@@ -72,14 +72,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def unknown(extras: list[str], parser: argparse.ArgumentParser) -> str:
-    """The usage error for arguments no option took: the first unknown option, with the closest spelling."""
+def unknown(extras: list[str], parser: argparse.ArgumentParser, commands: dict[str, argparse.ArgumentParser]) -> str:
+    """The usage error for arguments no option took: the first unknown option, the commands that have it, or the
+    closest spelling."""
     options = [o for o in extras if o.startswith("-") and o != "-"]
     if not options:
         return f"unexpected argument{'s' if len(extras) > 1 else ''}: {' '.join(extras)}"
     given = options[0].split("=", 1)[0]
-    known = [s for action in parser._actions for s in action.option_strings if s.startswith("--")]
-    return f"unknown option {given}{did_you_mean(given, known)}"
+    owners = [name for name, command in commands.items() if given in _flags(command)]
+    if owners:
+        named = ", ".join(owners[:-1]) + " and " + owners[-1] if len(owners) > 1 else owners[0]
+        return f"{given} is an option of {named}, not of {parser.prog.split()[-1]}"
+    return f"unknown option {given}{did_you_mean(given, _flags(parser))}"
+
+
+def _flags(parser: argparse.ArgumentParser) -> list[str]:
+    return [s for action in parser._actions for s in action.option_strings if s.startswith("--")]
 
 
 def parse(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -92,7 +100,7 @@ def parse(argv: Sequence[str] | None) -> argparse.Namespace:
     if extras:
         (commands,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
         command = commands.choices[args.command]
-        command.error(unknown(extras, command))
+        command.error(unknown(extras, command, commands.choices))
     return args
 
 

@@ -159,7 +159,8 @@ class EventValidator:
         if kind != "header":
             unknown = record.keys() - FIELDS[kind]
             if unknown:
-                raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for a {kind} event")
+                article = "an" if kind[0] in "aeiou" else "a"
+                raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for {article} {kind} event")
         state = self.state
         self._pending = ValidatorState(state.last_t, state.first_pose_t, state.seen_content)
         event = self._parsers[kind](record, line)
