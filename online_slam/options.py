@@ -22,6 +22,7 @@ import dataclasses
 import importlib
 import json
 import math
+import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -261,8 +262,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            ("cli",), metavar="DIR", commands=("replay",)),
     Option("plot", "write the figures (map, error, NEES, latency) to this PNG", "output", ("cli",),
            metavar="PATH", commands=("compare",)),
-    Option("rrd", "log every step (of every configuration) to a Rerun recording (.rrd)", "output", ("cli",),
-           metavar="PATH", commands=("replay", "compare")),
+    Option("rrd", "log every step to a Rerun recording (.rrd) (compare: every configuration in one)", "output",
+           ("cli",), metavar="PATH", commands=("replay", "compare")),
     Option("output", "the command's output file: simulate and convert write a stream (.jsonl; .gz compresses; "
            "convert FORMAT stream: .g2o), sweep its rows (.csv or .parquet, written as replays finish: re-running "
            "skips the replays it holds)", "output", ("cli",), metavar="PATH", short="-o",
@@ -314,7 +315,9 @@ def check_value(option: Option, value: Any) -> None:
         else isinstance(value, str)
     )
     if not ok:
-        raise ConfigError(f"option {option.name}: expected {kind.__name__}, got {value!r} ({option.help})")
+        raise ConfigError(
+            f"option {option.name}: expected {kind.__name__}, got {value!r} ({for_command(option.help, 'Slam')})"
+        )
     if option.choices and value not in option.choices:
         raise ConfigError(f"option {option.name}: expected one of {', '.join(option.choices)}, got {value!r}")
 
@@ -405,13 +408,29 @@ def add_options(parser: argparse.ArgumentParser, command: str, lists: Iterable[s
     chosen = [o for o in OPTIONS.values() if command in o.commands]
     groups = {g: parser.add_argument_group(g) for g in GROUPS if any(o.group == g for o in chosen)}
     for option in chosen:
-        add_option(groups[option.group], option, option.name in set(lists))
+        add_option(groups[option.group], option, option.name in set(lists), command)
 
 
-def add_option(group: Any, option: Option, listed: bool) -> None:
+_NOTE = re.compile(r" \(((?:replay|compare|sweep|convert|Slam): [^()]*)\)")
+"""A help text's note for some commands: ``(compare: a list)``, ``(compare: Monte Carlo runs; sweep: ...)``."""
+
+
+def for_command(help: str, command: str) -> str:
+    """A help text as one command shows it: its own part of each per-command note kept, the others' dropped."""
+
+    def own(match: re.Match[str]) -> str:
+        parts = [part.split(": ", 1) for part in match.group(1).split("; ")]
+        kept = [text for name, text in parts if name == command]
+        return f" ({kept[0]})" if kept else ""
+
+    return _NOTE.sub(own, help)
+
+
+def add_option(group: Any, option: Option, listed: bool, command: str) -> None:
     """Add one option to an argparse group."""
     shown = option.shown_default()
-    text = f"{option.help} (default: {shown})" if shown and option.kind is not bool else option.help
+    told = for_command(option.help, command)
+    text = f"{told} (default: {shown})" if shown and option.kind is not bool else told
     kw: dict[str, Any] = {"help": text.replace("%", "%%")}
     if option.kind is bool:
         kw.update(action="store_const", const=(True,)) if listed else kw.update(action="store_true")

@@ -130,3 +130,14 @@ def test_slam_takes_new_density_and_refuses_bad_values() -> None:
         Slam("smoother", window=2.5)
     with pytest.raises(ConfigError, match="robust_scale: must be > 0"):
         Slam("smoother", robust_scale=0.0)
+
+
+def test_help_shows_each_command_its_own_notes() -> None:
+    from online_slam.options import for_command
+
+    text = OPTIONS["workers"].help
+    assert "compare:" in text and "sweep:" in text  # one definition, notes for two commands
+    assert "sweep" not in for_command(text, "compare") and "Monte Carlo" in for_command(text, "compare")
+    assert "(a list)" in for_command(OPTIONS["window"].help, "compare")
+    assert "list" not in for_command(OPTIONS["window"].help, "replay")
+    assert "(Slam: known)" not in for_command(OPTIONS["association"].help, "replay")
