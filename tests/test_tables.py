@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from online_slam.compare import CompareConfig, compare
+from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import nees_bounds
 from online_slam.pipeline import ReplayConfig, replay
@@ -126,3 +127,12 @@ def test_the_readme_shows_the_table_as_replay_prints_it(square: Results) -> None
     assert table(shown)[0] == table(printed)[0] and untimed[0] == untimed[1]
     assert shown.split("\n\n")[0] == printed.split("\n\n")[0]  # the title
     assert shown.split("\n\n")[2:] == printed.split("\n\n")[2:]  # legend and notes
+
+
+@pytest.mark.slow
+def test_compare_says_when_smoother_configurations_ran_identically() -> None:
+    same = format_comparison(compare("square", CompareConfig(windows=(10, 20))))
+    assert "identical figures: smoother W=10..120 D=18 K=1, smoother W=20..120 D=18 K=1" in same
+    exact = ReplayConfig(estimators=("ekf",), smoother=SmootherConfig(window=WindowConfig(distance=0.0)))
+    distinct = format_comparison(compare("square", CompareConfig(windows=(5, 20), replay=exact)))
+    assert "identical figures" not in distinct and "smoother W=5 K=1" in distinct

@@ -17,12 +17,32 @@ def format_comparison(comparison: Comparison) -> str:
         Lines of text, ending without a newline.
     """
     out = table_lines(comparison.results, comparison.rows)
-    extra = notes(comparison.results)
+    extra = [*notes(comparison.results), *_same_smoothers(comparison)]
     if extra:
         out += ["", *extra]
     if comparison.monte_carlo is not None:
         out += ["", *_monte_carlo(comparison.monte_carlo)]
     return "\n".join(out)
+
+
+def _same_smoothers(comparison: Comparison) -> list[str]:
+    """A line per group of smoother configurations whose figures are identical: their windows held the same poses
+    (a window sized by distance keeps more than W poses where the robot moves little per pose)."""
+    groups: dict[tuple, list[str]] = {}
+    for name, row in comparison.rows.items():
+        if name.startswith("smoother"):
+            key = (row.online_rmse_m, row.final_rmse_m, row.landmark_rmse_m, row.nees_mean)
+            groups.setdefault(key, []).append(name)
+    same = [names for names in groups.values() if len(names) > 1]
+    return [
+        line
+        for names in same
+        for line in (
+            f"identical figures: {', '.join(names)}",
+            "  their windows held the same poses: a window sized by distance keeps more than W poses where the robot"
+            " moves little per pose; --window-distance 0 keeps exactly W",
+        )
+    ]
 
 
 def _monte_carlo(mc: MonteCarlo) -> list[str]:
