@@ -349,7 +349,7 @@ def replay_config(values: Mapping[str, Any], naming: Callable[[str], str] = str)
         if option.positive and not value > 0:
             raise ConfigError(f"{naming(name)}: must be > 0, got {value}")
         if name == "estimators":
-            value = tuple(n.strip() for n in value.split(",") if n.strip())
+            value = tuple(n.strip().lower() for n in value.split(",") if n.strip())
         try:
             for path in option.lands:
                 config = _set(config, path.split("."), value)

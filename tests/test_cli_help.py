@@ -109,3 +109,11 @@ def test_a_file_of_an_mrclam_folder_asks_for_the_folder(tmp_path: Path) -> None:
     member.write_text("# Time [sec]    v [m/s]    w [rad/s]\n1248272272.841 0.0 0.0\n")
     line = one_error(cli("replay", str(member)))
     assert "a file of an MRCLAM folder: pass the folder with --robot N" in line and "invalid JSON" not in line
+
+
+def test_a_recording_given_as_a_stream_points_to_inspect(tmp_path: Path) -> None:
+    recording = tmp_path / "run.rrd"
+    recording.write_bytes(b"RRF2")  # never read: the name says what it is
+    assert "a Rerun recording, not a stream: read it with 'online-slam inspect'" in one_error(
+        cli("replay", str(recording))
+    )

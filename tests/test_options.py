@@ -141,3 +141,7 @@ def test_help_shows_each_command_its_own_notes() -> None:
     assert "(a list)" in for_command(OPTIONS["window"].help, "compare")
     assert "list" not in for_command(OPTIONS["window"].help, "replay")
     assert "(Slam: known)" not in for_command(OPTIONS["association"].help, "replay")
+
+
+def test_estimator_names_are_case_insensitive_as_in_slam() -> None:
+    assert replay_config({"estimators": "EKF, Batch"}).estimators == ("ekf", "batch")

@@ -53,6 +53,8 @@ def open_source(
         return text, open_dataset(text, kind, **options)
     if text != "-" and not Path(text).is_file():
         raise _not_found(text)
+    if text.endswith(".rrd"):
+        raise InputError(text, 0, "", "a Rerun recording, not a stream: read it with 'online-slam inspect' or rerun")
     if MRCLAM_FILE.fullmatch(Path(text).name):
         raise InputError(text, 0, "", f"a file of an MRCLAM folder: pass the folder with --robot N, e.g. "
                          f"'online-slam replay {Path(text).parent} --robot 1'")  # fmt: skip
