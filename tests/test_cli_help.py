@@ -59,6 +59,7 @@ def test_help_loads_no_heavy_library() -> None:
         (["sweep", "square", "--out", "rows.csv"], "unknown option --out (did you mean --output?)"),
         (["square"], "unknown command 'square' (to replay it: online-slam replay square)"),
         (["replay", "square", "--plot", "x.png"], "--plot is an option of compare, not of replay"),  # was --robot?
+        (["replay", "--connect", "square"], "--connect: 'square' is not a viewer address"),  # took the source
     ],
 )
 def test_usage_errors_suggest_the_closest_spelling(args: list[str], expected: str) -> None:

@@ -89,6 +89,11 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
             sinks.append(Pacer(args.rate))
         except ValueError as exc:
             raise OnlineSlamError(f"--rate: {exc}") from None
+    if args.connect not in (None, "default") and "://" not in args.connect:
+        raise OnlineSlamError(
+            f"--connect: {args.connect!r} is not a viewer address (rerun+http://HOST:PORT/proxy); "
+            "give the source before --connect, or --connect=URL"
+        )
     if args.rrd or args.connect:
         from online_slam.pipeline import estimator_names
         from online_slam.sinks.recording import Layout, RerunConfig, RerunSink
