@@ -101,8 +101,9 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
         name = "<stdin>" if args.source == "-" else str(args.source)
         layout = Layout(*estimator_names(config))
         sinks.append(RerunSink(RerunConfig(path=args.rrd, connect=args.connect), name, layout))
-    if not args.quiet:
-        sinks.append(Progress())
+    progress = Progress()
+    if progress.enabled and not args.quiet:  # a source is counted for its total only when a bar is drawn
+        sinks.append(progress)
     return sinks
 
 
