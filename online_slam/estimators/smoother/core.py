@@ -66,11 +66,10 @@ class SlidingWindowSmoother:
     def __init__(self, config: SmootherConfig | None = None, name: str = "smoother") -> None:
         self.config = config or SmootherConfig()
         self.name = name
+        keep_factors = self.config.global_solve.every > 0  # every factor, for global solves
         self.state = SmootherState(
             Window(),
-            Relinearization(
-                ProblemLog(keep_factors=self.config.global_solve.every > 0)
-            ),  # every factor, for global solves
+            Relinearization(ProblemLog(keep_factors=keep_factors)),
             AssociationState(LandmarkBook(self.config.association, inside=False)),
         )
         self._reject_bound = (
