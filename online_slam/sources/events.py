@@ -3,6 +3,10 @@
 Numbers are stored as Python floats in tuples so that events compare and round-trip exactly; ``covariance``
 gives the numpy matrix. Noise is given either as ``sigma`` (standard deviations, a diagonal covariance) or as a
 full ``cov``; exactly one of the two is set (for ``Start`` neither means a fixed start pose).
+
+Several robots share a stream by naming theirs on every ``start``, ``odometry``, ``observation`` and ``truth``
+(``robot``); without it the stream has one robot, as every stream before robots had. A sighting of another
+robot is an ``Observation`` with ``robot_seen`` instead of ``landmark``.
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ OUTLIER_KINDS = ("wrong_id", "spike", "clutter")
 LandmarkId = int | str
 """Landmark identifiers: integers or strings (``3`` and ``"3"`` are different landmarks)."""
 
+RobotId = int | str
+"""Robot identifiers: integers or strings, as landmark ids (``1`` and ``"1"`` are different robots)."""
+
 Vector = tuple[float, ...]
 Matrix = tuple[tuple[float, ...], ...]
 
@@ -29,6 +36,10 @@ def _covariance(sigma: Vector | None, cov: Matrix | None, n: int) -> NDArray[np.
     if sigma is not None:
         return np.diag(np.square(np.array(sigma, dtype=float)))
     return np.zeros((n, n))
+
+
+def _robot_record(robot: RobotId | None) -> dict[str, Any]:
+    return {} if robot is None else {"robot": robot}
 
 
 def _noise_record(sigma: Vector | None, cov: Matrix | None) -> dict[str, Any]:
@@ -71,6 +82,8 @@ class Start:
     """Standard deviations ``[sx, sy, stheta]`` of a prior on the first pose, or None."""
     cov: Matrix | None = None
     """Full 3x3 prior covariance, or None."""
+    robot: RobotId | None = None
+    """The robot this first pose is of, or None: the stream's one robot (then no event names a robot)."""
 
     @property
     def fixed(self) -> bool:
@@ -84,7 +97,8 @@ class Start:
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""
-        return {"type": "start", "t": self.t, "pose": list(self.pose), **_noise_record(self.sigma, self.cov)}
+        record = {"type": "start", "t": self.t, "pose": list(self.pose), **_noise_record(self.sigma, self.cov)}
+        return {**record, **_robot_record(self.robot)}
 
 
 @dataclass(frozen=True)
@@ -99,6 +113,8 @@ class Odometry:
     """Standard deviations of the increment, or None when ``cov`` is given."""
     cov: Matrix | None = None
     """Full 3x3 covariance of the increment, or None when ``sigma`` is given."""
+    robot: RobotId | None = None
+    """The robot that moved (its previous pose), or None in a stream of one unnamed robot."""
 
     @property
     def covariance(self) -> NDArray[np.float64]:
@@ -112,22 +128,23 @@ class Odometry:
             "t": self.t,
             "delta": list(self.delta),
             **_noise_record(self.sigma, self.cov),
+            **_robot_record(self.robot),
         }
 
 
 @dataclass(frozen=True)
 class Observation:
-    """Range and bearing (from the robot's heading) to a landmark, taken at time ``t``."""
+    """Range and bearing (from the robot's heading) to a landmark, or to another robot, taken at time ``t``."""
 
     t: float
-    """Time of the observation; it belongs to the newest pose with time <= t."""
+    """Time of the observation; it belongs to the newest pose with time <= t (of its ``robot``)."""
     landmark: LandmarkId | None
     """Identifier of the observed landmark (known data association), or None: unknown (absent from the line),
-    for the estimators to associate."""
+    for the estimators to associate; always None for a sighting of a robot (``robot_seen``)."""
     range: float
-    """Distance to the landmark, metres (> 0)."""
+    """Distance to the landmark (or to the seen robot's position), metres (> 0)."""
     bearing: float
-    """Angle to the landmark from the robot's heading, radians."""
+    """Angle to the landmark (or to the seen robot's position) from the robot's heading, radians."""
     sigma: Vector | None = None
     """Standard deviations ``[s_range, s_bearing]``, or None when ``cov`` is given."""
     cov: Matrix | None = None
@@ -139,6 +156,11 @@ class Observation:
     """Evaluation only: the true landmark of this sighting (hidden truth, e.g. of a stream written without ids),
     or None. It scores the estimators' data association; the front-end keeps it with the truth and no estimator
     sees it."""
+    robot: RobotId | None = None
+    """The robot that took the sighting, or None in a stream of one unnamed robot."""
+    robot_seen: RobotId | None = None
+    """The robot sighted (another started robot; then ``landmark`` is None), or None: a landmark sighting. It
+    relates the sighting robot's newest pose with time <= t to the seen robot's newest pose with time <= t."""
 
     @property
     def covariance(self) -> NDArray[np.float64]:
@@ -161,6 +183,10 @@ class Observation:
             record["truth_outlier"] = self.truth_outlier
         if self.truth_landmark is not None:
             record["truth_landmark"] = self.truth_landmark
+        if self.robot_seen is not None:
+            record["robot_seen"] = self.robot_seen
+        if self.robot is not None:
+            record["robot"] = self.robot
         return record
 
 
@@ -172,12 +198,14 @@ class Truth:
     """Time, seconds; it applies to the pose whose time equals t."""
     pose: Vector
     """True ``[x, y, theta]``; theta is NaN for position-only truth (a ``position: [x, y]`` line, e.g. GPS)."""
+    robot: RobotId | None = None
+    """The robot whose pose this is, or None in a stream of one unnamed robot."""
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""
         if self.pose[2] != self.pose[2]:  # NaN heading: position only
-            return {"type": "truth", "t": self.t, "position": list(self.pose[:2])}
-        return {"type": "truth", "t": self.t, "pose": list(self.pose)}
+            return {"type": "truth", "t": self.t, "position": list(self.pose[:2]), **_robot_record(self.robot)}
+        return {"type": "truth", "t": self.t, "pose": list(self.pose), **_robot_record(self.robot)}
 
 
 @dataclass(frozen=True)

@@ -26,10 +26,12 @@ from online_slam.sources.events import (
     LandmarkTruth,
     Observation,
     Odometry,
+    RobotId,
     Scan,
     Start,
     Truth,
 )
+from online_slam.sources.robot_rules import ROBOT_FIELDS, RobotRules
 
 FORMAT = "online-slam"
 VERSION = 1
@@ -64,10 +66,11 @@ def _finite(value: Any) -> bool | None:
 
 FIELDS: dict[str, set[str]] = {
     "header": {"type"},  # free-form: every other field is metadata
-    "start": {"type", "t", "pose", "sigma", "cov"},
-    "odometry": {"type", "t", "delta", "sigma", "cov"},
-    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier", "truth_landmark"},
-    "truth": {"type", "t", "pose", "position"},
+    "start": {"type", "t", "pose", "sigma", "cov"} | ROBOT_FIELDS["start"],
+    "odometry": {"type", "t", "delta", "sigma", "cov"} | ROBOT_FIELDS["odometry"],
+    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier", "truth_landmark"}
+    | ROBOT_FIELDS["observation"],
+    "truth": {"type", "t", "pose", "position"} | ROBOT_FIELDS["truth"],
     "landmark_truth": {"type", "landmark", "position"},
 }
 """Allowed fields of each event type."""
@@ -108,9 +111,11 @@ class ValidatorState:
     """Time of the first timed event (the first pose), or None before it."""
     seen_content: bool = False
     """True once any event was accepted (a header must come first)."""
+    robots: tuple[RobotId, ...] = ()
+    """Robots named by a ``start`` so far, in order; empty for a stream of one unnamed robot."""
 
 
-class EventValidator:
+class EventValidator(RobotRules):
     """Checks one record at a time; a record that fails changes nothing.
 
     Args:
@@ -162,7 +167,7 @@ class EventValidator:
                 article = "an" if kind[0] in "aeiou" else "a"
                 raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for {article} {kind} event")
         state = self.state
-        self._pending = ValidatorState(state.last_t, state.first_pose_t, state.seen_content)
+        self._pending = ValidatorState(state.last_t, state.first_pose_t, state.seen_content, state.robots)
         event = self._parsers[kind](record, line)
         self.state = self._pending
         return event
@@ -194,6 +199,9 @@ class EventValidator:
         if per_sighting and (not isinstance(noise, list) or len(noise) != k):
             raise self.fail(0, noise_key, f"expected one {noise_key} shared by all sightings or one per sighting")
         saved = self.state
+        if saved.robots:
+            raise self.fail(0, "robot", "a scan names no robot, and this stream's robots are named: add each sighting "
+                            "as an observation record with its robot")  # fmt: skip
         fast = None if per_sighting else self._scan_fast(landmarks, ranges, bearings)
         if (  # the commonest case: float time moving on, one plain sigma for all
             fast is not None
@@ -255,7 +263,8 @@ class EventValidator:
             InputError: The first rule it breaks; the validator's state is unchanged.
         """
         state = self.state
-        if cov is None and type(t) is float and state.last_t <= t < math.inf and _plain_floats(delta, sigma):
+        fast = cov is None and not state.robots and type(t) is float and state.last_t <= t < math.inf
+        if fast and _plain_floats(delta, sigma):
             first = state.first_pose_t
             if first is None or t >= first:  # the common case, checked at once
                 self.state = ValidatorState(t, t if first is None else first, True)
@@ -369,7 +378,8 @@ class EventValidator:
         t = self.number(record, "t", line)
         last = self._pending.last_t
         if t < last:
-            raise self.fail(line, "t", f"time goes backwards ({t} after {last}); expected non-decreasing")
+            everyone = " over all robots (one clock)" if self._pending.robots else ""
+            raise self.fail(line, "t", f"time goes backwards ({t} after {last}); expected non-decreasing{everyone}")
         self._pending.last_t = t
         if self._pending.first_pose_t is None:
             self._pending.first_pose_t = t
@@ -408,23 +418,27 @@ class EventValidator:
         return Header(name=name, meta=meta, version=VERSION)
 
     def _start(self, record: dict[str, Any], line: int) -> Start:
-        if self._pending.first_pose_t is not None:
+        robot = self.new_robot(record, line)
+        if robot is None and self._pending.first_pose_t is not None:
             raise self.fail(line, "type", "start must come before every timed event")
         t = self.time(record, line)
         pose = self.vector(record, "pose", 3, line)
         self.radians(pose[2], "pose[2]", line)
         sigma, cov = self.noise(record, 3, line, required=False)
-        return Start(t=t, pose=pose, sigma=sigma, cov=cov)
+        return Start(t=t, pose=pose, sigma=sigma, cov=cov, robot=robot)
 
     def _odometry(self, record: dict[str, Any], line: int) -> Odometry:
         t = self.time(record, line)
+        robot = self.robot(record, line)
         delta = self.vector(record, "delta", 3, line)
         self.radians(delta[2], "delta[2]", line)
         sigma, cov = self.noise(record, 3, line)
-        return Odometry(t=t, delta=delta, sigma=sigma, cov=cov)
+        return Odometry(t=t, delta=delta, sigma=sigma, cov=cov, robot=robot)
 
     def _observation(self, record: dict[str, Any], line: int) -> Observation:
         t = self.time(record, line)
+        robot = self.robot(record, line)
+        seen = self.sighted_robot(record, line, robot)
         landmark = self.landmark(record, line, optional=True)
         rng = self.number(record, "range", line)
         if rng < MIN_RANGE:
@@ -435,14 +449,26 @@ class EventValidator:
         if mark is not None and mark not in OUTLIER_KINDS:
             raise self.fail(line, "truth_outlier", f"expected one of {', '.join(OUTLIER_KINDS)}, got {_show(mark)}")
         true_id = self.landmark(record, line, optional=True, key="truth_landmark")
-        return Observation(t, landmark, rng, bearing, sigma, cov, truth_outlier=mark, truth_landmark=true_id)
+        return Observation(
+            t,
+            landmark,
+            rng,
+            bearing,
+            sigma,
+            cov,
+            truth_outlier=mark,
+            truth_landmark=true_id,
+            robot=robot,
+            robot_seen=seen,
+        )
 
     def _truth(self, record: dict[str, Any], line: int) -> Truth:
         t = self.time(record, line)
+        robot = self.robot(record, line)
         if "pose" not in record and "position" in record:  # position-only truth (e.g. GPS): heading unknown
             x, y = self.vector(record, "position", 2, line)
-            return Truth(t=t, pose=(x, y, math.nan))
-        return Truth(t=t, pose=self.vector(record, "pose", 3, line))
+            return Truth(t=t, pose=(x, y, math.nan), robot=robot)
+        return Truth(t=t, pose=self.vector(record, "pose", 3, line), robot=robot)
 
     def _landmark_truth(self, record: dict[str, Any], line: int) -> LandmarkTruth:
         landmark = self.landmark(record, line)
