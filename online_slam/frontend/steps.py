@@ -5,6 +5,11 @@ pose with time <= t. A step is complete when the next pose begins, or at the end
 is pending (the engine may show it to the estimators early, so that queries see every sighting at once).
 Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
 
+A stream of several robots (``robot`` on its lines) stops at the second robot's start with one
+:class:`~online_slam.errors.InputError`: the estimators take one robot at a time. A step carries its robot
+(None: the stream names none) and its sightings of other robots (``robot_seen``) apart from its landmark
+sightings, so that no estimator mistakes a robot for a landmark.
+
 Optional keyframing merges consecutive odometry events with no observation in between into one step (the
 increments composed and their covariance propagated), up to distance, angle and time limits.
 """
@@ -19,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.errors import InputError
 from online_slam.models.motion import compose_increments
 from online_slam.sources.events import (
     Event,
@@ -27,12 +33,18 @@ from online_slam.sources.events import (
     LandmarkTruth,
     Observation,
     Odometry,
+    RobotId,
     Scan,
     Start,
     Truth,
 )
 
 Array = NDArray[np.float64]
+
+_NO_ROBOT_Z = np.zeros((0, 2))
+_NO_ROBOT_Z.flags.writeable = False
+_NO_ROBOT_Z_COV = np.zeros((0, 2, 2))
+_NO_ROBOT_Z_COV.flags.writeable = False
 
 
 @dataclass(frozen=True)
@@ -89,6 +101,15 @@ class Step:
     """Covariance of the start pose, shape (3, 3); None means the start pose is held fixed."""
     merged: int = 1
     """How many odometry events this step's increment stands for (keyframing)."""
+    robot: RobotId | None = None
+    """The robot this pose is of (its lines' ``robot``); None for a stream that names no robot."""
+    robots_seen: tuple[RobotId, ...] = ()
+    """Robots sighted from this pose (``robot_seen``), length m; each sighting relates this pose to the seen
+    robot's newest pose at the step's time."""
+    z_robots: Array = field(default_factory=lambda: _NO_ROBOT_Z)
+    """Range and bearing to each seen robot's position, shape (m, 2)."""
+    z_robots_cov: Array = field(default_factory=lambda: _NO_ROBOT_Z_COV)
+    """Their covariances, shape (m, 2, 2)."""
 
 
 @dataclass
@@ -122,6 +143,10 @@ class PendingStep:
     z_noise: list[Any] = field(default_factory=list)  # per sighting: its sigma (2,) or its covariance (2, 2)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
     full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
+    robot: RobotId | None = None
+    robots_seen: list[RobotId] = field(default_factory=list)
+    z_robots: list[tuple[float, float]] = field(default_factory=list)
+    z_robots_cov: list[Array] = field(default_factory=list)
     _frozen: tuple | None = field(default=None, init=False, repr=False, compare=False)  # freeze's cache
 
     def z_covariances(self) -> Array:
@@ -142,7 +167,7 @@ class PendingStep:
 
     def freeze(self) -> Step:
         """The step as it stands (cached until an observation or a merge changes it)."""
-        key = (len(self.landmarks), self.merged)
+        key = (len(self.landmarks), self.merged, len(self.robots_seen))
         if self._frozen is not None and self._frozen[0] == key:
             return self._frozen[1]
         step = self._freeze()
@@ -162,7 +187,20 @@ class PendingStep:
             prior=self.prior,
             prior_cov=self.prior_cov,
             merged=self.merged,
+            **self._robot_fields(),
         )
+
+    def _robot_fields(self) -> dict[str, Any]:
+        """The step's robot and robot sightings (nothing for a stream that names no robot)."""
+        if self.robot is None and not self.robots_seen:
+            return {}
+        m = len(self.robots_seen)
+        return {
+            "robot": self.robot,
+            "robots_seen": tuple(self.robots_seen),
+            "z_robots": np.array(self.z_robots, dtype=float).reshape(m, 2),
+            "z_robots_cov": np.array(self.z_robots_cov, dtype=float).reshape(m, 2, 2),
+        }
 
 
 @dataclass(eq=False)
@@ -236,7 +274,14 @@ class FrontEnd:
                     t_begin=pending.t,
                     odometry=np.array(event.delta),
                     odometry_cov=self._odometry_covariance(event),
+                    robot=pending.robot,
                 )
+        elif isinstance(event, Observation) and event.robot_seen is not None:
+            self._count("robot_observation")
+            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            pending.robots_seen.append(event.robot_seen)
+            pending.z_robots.append((event.range, event.bearing))
+            pending.z_robots_cov.append(event.covariance)
         elif isinstance(event, Observation):
             self._count("observation")
             pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
@@ -280,6 +325,8 @@ class FrontEnd:
             if event.t == pending.t:
                 self.truth.poses[pending.index] = np.array(event.pose)
         elif isinstance(event, Start):
+            if self.pending is not None:  # a validated stream starts again only for another robot
+                raise several_robots(self.pending.robot, event.robot)
             self._start_pose(event, event.t)
         elif isinstance(event, LandmarkTruth):
             self._count("landmark_truth")
@@ -307,8 +354,9 @@ class FrontEnd:
     def _start_pose(self, start: Start | None, t: float) -> PendingStep:
         prior_cov = None if start is None or start.fixed else start.covariance
         pose = np.zeros(3) if start is None else np.array(start.pose)
+        robot = None if start is None else start.robot
         self.pending = PendingStep(
-            index=0, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov
+            index=0, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov, robot=robot
         )
         return self.pending
 
@@ -330,3 +378,10 @@ class FrontEnd:
         # The pose moved on in time: a truth recorded for its earlier time no longer applies.
         self.truth.poses.pop(pending.index, None)
         return True
+
+
+def several_robots(first: RobotId | None, second: RobotId | None) -> InputError:
+    """The one-line error for a stream of several robots (the estimators take one at a time)."""
+    which = f"robot {second!r} starts after robot {first!r}"
+    advice = "replay one robot (an MRCLAM folder: --robot N)"
+    return InputError("several robots", 0, "", f"the estimators take one robot at a time ({which}); {advice}")
