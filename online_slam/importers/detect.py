@@ -42,24 +42,13 @@ def detect_format(path: str | Path) -> str | None:
 def open_dataset(path: str | Path, format: str | None = None, **options: Any) -> Iterator[Event]:
     """Events of a dataset, by format (detected when None).
 
-    Options: ``robot`` and ``noise`` (MRCLAM: ``None`` or ``"builtin"`` for the built-in coefficients, ``"fit"``
-    to fit them against the folder's Vicon data, or a ``MrclamNoise``), ``truth``, ``dt``, ``convention`` (GTSAM
-    text).
+    Options: ``robot`` (MRCLAM: 1..5, or ``"all"``: every robot in one stream) and ``noise`` (MRCLAM: ``None`` or
+    ``"builtin"`` for the built-in coefficients, ``"fit"`` to fit them against the folder's Vicon data, or a
+    ``MrclamNoise``), ``truth``, ``dt``, ``convention`` (GTSAM text).
     """
     kind = format or detect_format(path)
     if kind == "mrclam":
-        from online_slam.importers.mrclam import read_mrclam
-
-        if options.get("robot") is None:
-            raise InputError(str(path), 0, "robot", "an MRCLAM folder needs --robot N (1..5)")
-        noise = options.get("noise")
-        if noise == "fit":
-            from online_slam.importers.mrclam_noise import fit_mrclam_noise
-
-            noise = fit_mrclam_noise(path).noise
-        elif noise == "builtin":
-            noise = None
-        return read_mrclam(path, int(options["robot"]), noise)
+        return _open_mrclam(path, options.get("robot"), options.get("noise"))
     if kind == "gtsam":
         from online_slam.importers.gtsam_text import read_gtsam_text
 
@@ -75,3 +64,25 @@ def open_dataset(path: str | Path, format: str | None = None, **options: Any) ->
 
         return read_g2o(path, dt=options.get("dt") or 1.0)
     raise InputError(str(path), 0, "", f"unknown dataset format {kind!r}; expected one of {', '.join(DATASET_FORMATS)}")
+
+
+def _open_mrclam(path: str | Path, robot: Any, noise: Any) -> Iterator[Event]:
+    """One MRCLAM robot's events, or all five robots' (``robot="all"``), with the noise model asked for."""
+    from online_slam.importers.mrclam import read_mrclam
+    from online_slam.importers.mrclam_robots import read_mrclam_robots
+
+    if robot is None:
+        raise InputError(str(path), 0, "robot", "an MRCLAM folder needs --robot N (1..5) or --robot all")
+    if noise == "fit":
+        from online_slam.importers.mrclam_noise import fit_mrclam_noise
+
+        noise = fit_mrclam_noise(path).noise
+    elif noise == "builtin":
+        noise = None
+    if robot == "all":
+        return read_mrclam_robots(path, noise)
+    try:
+        number = int(robot)
+    except (TypeError, ValueError):
+        raise InputError(str(path), 0, "robot", f"expected a robot number 1..5 or all, got {robot!r}") from None
+    return read_mrclam(path, number, noise)

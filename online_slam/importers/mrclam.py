@@ -1,4 +1,5 @@
-"""UTIAS MRCLAM (multi-robot cooperative localization and mapping) -> stream v1, one robot at a time.
+"""UTIAS MRCLAM (multi-robot cooperative localization and mapping) -> stream v1, one robot at a time (all five
+robots in one stream: :mod:`online_slam.importers.mrclam_robots`).
 
 - Poses at the robot's landmark-measurement times; rows sharing a timestamp (one camera image) share a pose.
 - Odometry between poses is integrated exactly from the piecewise-constant (v, w) commands (each command holds
@@ -140,15 +141,37 @@ class RobotData:
     truth: np.ndarray
     """Vicon poses (t, x, y, theta), shape (G, 4)."""
     dropped_robots: int
-    """Sightings of other robots, dropped."""
+    """Sightings of other robots (dropped when the robot is converted alone)."""
     dropped_unknown: int
     """Sightings of barcodes not in ``Barcodes.dat``, dropped."""
+    robot_rows: np.ndarray
+    """Sightings of other robots (t, barcode, range, bearing), sorted by t (stable), shape (M, 4)."""
+    robots_seen: np.ndarray
+    """The robot (subject 1..5) each of ``robot_rows`` sees, shape (M,)."""
+    dropped_self: int
+    """Sightings of the robot's own barcode, dropped."""
+
+
+SWAPPED_SUBJECTS = {"MRCLAM_Dataset1": (11, 17)}
+"""Folders whose ``Barcodes.dat`` gives two subjects each other's barcode, by folder name (as the MRCLAM site's
+archives unpack): Dataset 1 has subjects 11 and 17 swapped (the anchor, Brossard et al.'s ``esde``, swaps them
+back). Not checked on data here: only Dataset 6 is at hand."""
+
+
+def subjects_of_barcodes(root: Path) -> dict[int, int]:
+    """Subject of each barcode, from ``Barcodes.dat`` (with a known swap of the folder's undone)."""
+    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
+    subject_of = {int(b): int(s) for s, b in barcodes}
+    swapped = SWAPPED_SUBJECTS.get(root.resolve().name)
+    if swapped is not None:
+        a, b = swapped
+        subject_of = {code: {a: b, b: a}.get(subject, subject) for code, subject in subject_of.items()}
+    return subject_of
 
 
 def load_robot(root: Path, robot: int) -> RobotData:
-    """Read one robot's odometry, measurements and Vicon truth, keeping landmark sightings only."""
-    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
-    subject_of = {int(b): int(s) for s, b in barcodes}
+    """Read one robot's odometry, measurements and Vicon truth; landmark sightings apart from robot sightings."""
+    subject_of = subjects_of_barcodes(root)
     odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
     measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
     truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
@@ -156,6 +179,9 @@ def load_robot(root: Path, robot: int) -> RobotData:
     is_landmark = subjects >= 6
     kept, kept_subjects = measurements[is_landmark], subjects[is_landmark]
     order = np.argsort(kept[:, 0], kind="stable")
+    is_other = (subjects >= 1) & (subjects <= 5) & (subjects != robot)
+    others, others_seen = measurements[is_other], subjects[is_other]
+    by_time = np.argsort(others[:, 0], kind="stable")
     return RobotData(
         odometry=odometry[np.argsort(odometry[:, 0], kind="stable")],
         measurements=kept[order],
@@ -164,6 +190,9 @@ def load_robot(root: Path, robot: int) -> RobotData:
         truth=truth,
         dropped_robots=int(np.sum((subjects >= 1) & (subjects <= 5))),
         dropped_unknown=int(np.sum(subjects < 0)),
+        robot_rows=others[by_time],
+        robots_seen=others_seen[by_time],
+        dropped_self=int(np.sum(subjects == robot)),
     )
 
 
@@ -190,6 +219,32 @@ def increment_covariances(increments: np.ndarray, variances: np.ndarray) -> np.n
     return 0.5 * (cov + np.swapaxes(cov, 1, 2))
 
 
+def odometry_increments(commands: np.ndarray, times: np.ndarray, cfg: MrclamNoise) -> tuple[np.ndarray, np.ndarray]:
+    """The commanded increments between poses at ``times`` and their covariances (the noise model).
+
+    Args:
+        commands: Velocity commands (t, v, w), sorted by t, shape (C, 3).
+        times: Pose times, sorted, shape (P,).
+        cfg: The noise model.
+
+    Returns:
+        (increments ``[dx, dy, dtheta]`` in the earlier pose's frame, shape (P - 1, 3); covariances, shape
+        (P - 1, 3, 3)).
+    """
+    poses, path, turn = _dead_reckoning(commands, times)
+    increments = between(poses[:-1], poses[1:])
+    dt, ds, da = np.diff(times), np.diff(path), np.diff(turn)
+    variances = np.stack(
+        [
+            cfg.x_per_s * dt + cfg.x_per_m * np.abs(ds) + cfg.x_per_m2 * ds**2 + cfg.floor,
+            cfg.y_per_s * dt + cfg.y_per_m * np.abs(ds) + cfg.y_per_m2 * ds**2 + cfg.floor,
+            cfg.theta_per_s * dt + cfg.theta_per_rad * np.abs(da) + cfg.theta_per_rad2 * da**2 + cfg.floor,
+        ],
+        -1,
+    )
+    return increments, increment_covariances(increments, variances)
+
+
 def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None) -> Iterator[Event]:
     """Stream one MRCLAM robot as events.
 
@@ -208,17 +263,7 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     data = load_robot(root, robot)
     kept, kept_subjects, times, truth = data.measurements, data.subjects, data.times, data.truth
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
-    poses, path, turn = _dead_reckoning(data.odometry, times)
-    increments = between(poses[:-1], poses[1:])
-    dt, ds, da = np.diff(times), np.diff(path), np.diff(turn)
-    variances = np.stack(
-        [
-            cfg.x_per_s * dt + cfg.x_per_m * np.abs(ds) + cfg.x_per_m2 * ds**2 + cfg.floor,
-            cfg.y_per_s * dt + cfg.y_per_m * np.abs(ds) + cfg.y_per_m2 * ds**2 + cfg.floor,
-            cfg.theta_per_s * dt + cfg.theta_per_rad * np.abs(da) + cfg.theta_per_rad2 * da**2 + cfg.floor,
-        ],
-        -1,
-    )
+    increments, covariances = odometry_increments(data.odometry, times, cfg)
     true_poses, covered = _interpolate_truth(truth, times)
     yield Header(
         name=f"MRCLAM Dataset6 robot {robot}",
@@ -238,7 +283,6 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
         yield LandmarkTruth(int(subject), (float(x), float(y)))
     bounds = np.searchsorted(kept[:, 0], np.r_[times, np.inf])
     sigma = (cfg.range_sigma, cfg.bearing_sigma)
-    covariances = increment_covariances(increments, variances)
     for k, t in enumerate(times):
         if k > 0:
             yield Odometry(
