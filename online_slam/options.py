@@ -103,6 +103,8 @@ class Option:
     """Value of a flag given without its optional value."""
     short: str = ""
     """A one-letter spelling besides the flag (``-o``), or empty."""
+    parse: Callable[[str], Any] | None = None
+    """How the command line's text becomes a value, when not by ``kind`` (``--robot``: a number or ``all``)."""
 
     @property
     def flag(self) -> str:
@@ -166,6 +168,18 @@ def _estimator(name: str, help: str, group: str, owner: str, field: tuple[str, s
 
 
 _DATASET = ("replay", "compare", "convert")
+
+
+def robot_choice(text: str) -> int | str:
+    """An MRCLAM robot on the command line: its number, or ``all``."""
+    if text == "all":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a robot number or all, got {text!r}") from None
+
+
 _WORLD_NAMES = ", ".join(WORLDS)
 
 OPTIONS: dict[str, Option] = {o.name: o for o in (
@@ -176,8 +190,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            nargs="+", commands=("sweep",)),
     Option("format", "dataset format", "input", ("dataset",), choices=DATASET_FORMATS, unset="detected",
            lands=("dataset.format",), commands=("replay", "compare")),
-    Option("robot", "MRCLAM: robot number 1..5 (sweep: a list)", "input", ("dataset",), kind=int,
-           metavar="N", lands=("dataset.robot",), commands=(*_DATASET, "sweep")),
+    Option("robot", "MRCLAM: robot number 1..5, or all: the five robots in one stream (sweep: a list)", "input",
+           ("dataset",), kind=int, metavar="N", parse=robot_choice, lands=("dataset.robot",),
+           commands=(*_DATASET, "sweep")),
     Option("noise", NOISE_HELP, "input", ("dataset",), choices=("builtin", "fit"),
            lands=("dataset.noise",), commands=_DATASET),
     Option("truth", "GTSAM/iSAM text: the noise-free twin file (truth)", "input", ("dataset",), metavar="PATH",
@@ -438,7 +453,7 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> None:
         values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
         kw.update(type=_list_of(option), metavar=f"{values}[,...]")
     else:
-        kw.update(type=option.kind, metavar=option.metavar, choices=option.choices or None)
+        kw.update(type=option.parse or option.kind, metavar=option.metavar, choices=option.choices or None)
         kw["default"] = option.value
     if option.nargs is not None:
         kw["nargs"] = option.nargs
@@ -454,7 +469,7 @@ def _list_of(option: Option) -> Callable[[str], tuple]:
 
     def parse(text: str) -> tuple:
         try:
-            items = tuple(option.kind(v.strip()) for v in text.split(",") if v.strip())
+            items = tuple((option.parse or option.kind)(v.strip()) for v in text.split(",") if v.strip())
         except ValueError:
             raise argparse.ArgumentTypeError(
                 f"expected comma-separated {option.kind.__name__}s, got {text!r}"

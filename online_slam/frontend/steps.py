@@ -6,7 +6,9 @@ is pending (the engine may show it to the estimators early, so that queries see 
 Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
 
 A stream of several robots (``robot`` on its lines) stops at the second robot's start with one
-:class:`~online_slam.errors.InputError`: the estimators take one robot at a time. A step carries its robot
+:class:`~online_slam.errors.OnlineSlamError`: the estimators take one robot at a time. It is no bad line (an
+:class:`~online_slam.errors.InputError`, after which a replay reports what it estimated so far): nothing of
+such a stream is estimated. A step carries its robot
 (None: the stream names none) and its sightings of other robots (``robot_seen``) apart from its landmark
 sightings, so that no estimator mistakes a robot for a landmark.
 
@@ -24,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.errors import InputError
+from online_slam.errors import OnlineSlamError
 from online_slam.models.motion import compose_increments
 from online_slam.sources.events import (
     Event,
@@ -380,8 +382,8 @@ class FrontEnd:
         return True
 
 
-def several_robots(first: RobotId | None, second: RobotId | None) -> InputError:
+def several_robots(first: RobotId | None, second: RobotId | None) -> OnlineSlamError:
     """The one-line error for a stream of several robots (the estimators take one at a time)."""
     which = f"robot {second!r} starts after robot {first!r}"
     advice = "replay one robot (an MRCLAM folder: --robot N)"
-    return InputError("several robots", 0, "", f"the estimators take one robot at a time ({which}); {advice}")
+    return OnlineSlamError(f"several robots: the estimators take one robot at a time ({which}); {advice}")
