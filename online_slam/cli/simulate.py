@@ -85,15 +85,14 @@ def _shown(value: object, units: tuple[str, ...]) -> str:
 def run(args: argparse.Namespace) -> int:
     """Simulate and write; prints a one-line summary on stderr."""
     output = args.output or "-"
-    if args.world == "square":
+    if args.world not in ("grid", "waypoint"):
         shaped = ("poses", "landmarks", "step", "sensor_range", "odometry_sigma", "sensor_sigma")
         given = [name for name in shaped if getattr(args, name) is not None]
         if given:
             flag = "--" + given[0].replace("_", "-")
-            raise OnlineSlamError(
-                f"simulate: {flag} shapes the grid and waypoint worlds; square is the article's fixed world"
-            )
-        events = WORLDS["square"].events(args.seed)
+            fixed = "the article's fixed world" if args.world == "square" else "a fixed world"
+            raise OnlineSlamError(f"simulate: {flag} shapes the grid and waypoint worlds; {args.world} is {fixed}")
+        events = WORLDS[args.world].events(args.seed)
     else:
         base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
         given = {

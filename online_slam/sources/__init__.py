@@ -7,11 +7,21 @@ from online_slam.sources.events import (
     LandmarkTruth,
     Observation,
     Odometry,
+    RobotId,
     Start,
     Truth,
 )
 from online_slam.sources.stream import read_stream, write_stream
-from online_slam.sources.worlds import WORLDS, GridConfig, WaypointConfig, grid_world, square_world, waypoint_world
+from online_slam.sources.worlds import (
+    WORLDS,
+    GridConfig,
+    MeetConfig,
+    WaypointConfig,
+    grid_world,
+    meet_world,
+    square_world,
+    waypoint_world,
+)
 
 __all__ = [
     "WORLDS",
@@ -21,11 +31,14 @@ __all__ = [
     "Header",
     "LandmarkId",
     "LandmarkTruth",
+    "MeetConfig",
     "Observation",
     "Odometry",
+    "RobotId",
     "Start",
     "Truth",
     "grid_world",
+    "meet_world",
     "waypoint_world",
     "read_stream",
     "square_world",
