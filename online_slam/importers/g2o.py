@@ -106,7 +106,7 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
         Number of lines written.
 
     Raises:
-        OnlineSlamError: A sighting without a landmark id.
+        OnlineSlamError: A sighting without a landmark id; a second robot.
     """
     poses: list[np.ndarray] = []
     edges: list[str] = []
@@ -115,6 +115,8 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
     sightings: list[tuple[int, object, np.ndarray, np.ndarray]] = []
     for event in events:
         if isinstance(event, Start):
+            if poses and event.robot is not None:  # a validated stream starts again only for another robot
+                raise OnlineSlamError(f"g2o holds one pose chain; robot {event.robot!r} is a second robot")
             poses = poses if poses else [np.array(event.pose)]
         elif isinstance(event, Odometry):
             if not poses:

@@ -359,6 +359,7 @@ def meet_world(config: MeetConfig | None = None) -> Iterator[Event]:
         seen.append((np.searchsorted(pose, np.arange(c.poses + 1)), landmark, z))
     robot_z = _robot_sightings(c, truth, rng)
     meta = {"generator": "online-slam simulate meet", **asdict(c), "robots": list(range(1, c.robots + 1))}
+    meta["odometry_sigma"], meta["sensor_sigma"] = list(c.odometry_sigma), list(c.sensor_sigma)
     yield Header(name="meet" if c.share_landmarks else "meet-apart", meta=meta)
     for k in range(c.robots):
         yield Start(t=0.0, pose=tuple(map(float, truth[k, 0])), robot=k + 1)
