@@ -85,15 +85,15 @@ def _shown(value: object, units: tuple[str, ...]) -> str:
 def run(args: argparse.Namespace) -> int:
     """Simulate and write; prints a one-line summary on stderr."""
     output = args.output or "-"
-    if args.world == "square":
+    if args.world in ("square", "circle"):
         shaped = ("poses", "landmarks", "step", "sensor_range", "odometry_sigma", "sensor_sigma")
         given = [name for name in shaped if getattr(args, name) is not None]
         if given:
             flag = "--" + given[0].replace("_", "-")
             raise OnlineSlamError(
-                f"simulate: {flag} shapes the grid and waypoint worlds; square is the article's fixed world"
+                f"simulate: {flag} shapes the grid and waypoint worlds; {args.world} is a fixed world (only --seed)"
             )
-        events = WORLDS["square"].events(args.seed)
+        events = WORLDS[args.world].events(args.seed)
     else:
         base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
         given = {
