@@ -305,8 +305,8 @@ class CircleConfig:
     """Noise of each axis of a sighting's position in the robot frame, metres."""
     lateral_sigma: float = 1e-6
     """Standard deviation given to the increment's lateral component, metres. The velocity-input increment
-    ``(v_m dt, 0, omega_m dt)`` has none; stream v1 needs a positive one (at least 1e-8). The EKF's prediction
-    is the same to ~1e-12 m^2 for any floor up to 1e-6 (benchmarks/RESULTS.md, "circle")."""
+    ``(v_m dt, 0, omega_m dt)`` has none; stream v1 needs a positive one (at least 1e-8). The EKF's figures are
+    the same to 4 digits for 0, 1e-8 and 1e-6 (benchmarks/RESULTS.md, "Circle protocol")."""
     model: str = "range-bearing"
     """``range-bearing``: each sighting's noisy position ``(dx, dy)`` as range and bearing, with its propagated
     covariance ``diag(sigma_xy^2, sigma_xy^2 / r^2)`` (r the measured range; exact for isotropic noise)."""
