@@ -45,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="recording: the stream to compare with and without --rrd (default: the shipped MRCLAM robot 1 stream)",
     )
     p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
+    p.add_argument("--circle-runs", type=int, default=100, help="circle: Monte Carlo runs (esde's 100)")
+    p.add_argument("--workers", type=int, default=None, help="circle: processes for the runs (default: all cores)")
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
     p.add_argument(
         "--mrclam",

@@ -286,6 +286,22 @@ def _sweep(args: argparse.Namespace, world: GridConfig) -> None:
           f"{report.failed} failed")  # fmt: skip
 
 
+def _circle(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.circle import ESDE, run_circle
+
+    band, rows = run_circle(args.circle_runs, args.workers)
+    print(f"circle world (esde's protocol, range-bearing sightings): {args.circle_runs} Monte Carlo runs from seed 0;")
+    print(f"figures over esde's steps 5..399 (0-based 4..398); 95% ANEES band: {band[0]:.2f} .. {band[1]:.2f}")
+    head = f"{'ANEES':>7}{'in band':>9}{'landmark ANEES':>16}{'position RMSE m':>17}{'heading RMSE':>14}"
+    print(f"{'estimator':<34}{head}")
+    for r in rows:
+        landmark = f"{r.landmark_anees:>16.2f}" if r.landmark_anees is not None else f"{'-':>16}"
+        print(f"{r.label:<34}{r.anees:>7.2f}{r.in_band:>9.0%}{landmark}{r.position_rmse_m:>17.4f}"
+              f"{r.heading_rmse_rad:>14.4f}")  # fmt: skip
+    for label, (anees, rmse) in ESDE.items():
+        print(f"{'esde ' + label + ' (xy, 100 runs)':<34}{anees:>7.2f}{'':>25}{rmse:>17.4f}")
+
+
 Section = Callable[[argparse.Namespace, GridConfig], None]
 """Measures, then prints: given the options and the grid world they describe."""
 
@@ -301,13 +317,15 @@ SECTIONS: dict[str, Section] = {
     "robust": _robust,
     "big": _big,
     "waypoint": _waypoint,
+    "circle": _circle,
     "mrclam": _mrclam,
     "sweep": _sweep,
     "soak": _soak,
 }
 """Every section by name, in the order they run."""
-DEFAULT_SECTIONS = tuple(SECTIONS)[:-5]
-"""The big and waypoint worlds (5000 poses beside iSAM2, minutes), MRCLAM and the sweep (MRCLAM data) and the soak
-(100,000 poses, minutes) run only when asked for (``--only``)."""
+DEFAULT_SECTIONS = tuple(SECTIONS)[:-6]
+"""The big and waypoint worlds (5000 poses beside iSAM2, minutes), the circle protocol (100 Monte Carlo runs,
+minutes), MRCLAM and the sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for
+(``--only``)."""
 MRCLAM_SECTIONS = ("mrclam", "sweep")
 """The sections that read the MRCLAM Dataset 6 folder (``--mrclam``)."""

@@ -2,7 +2,9 @@
 on the same stream and gathers what the table, the plots and the JSON all read.
 
 Monte Carlo (simulated worlds only) repeats the comparison over noise seeds on all cores and tests the
-average NEES across runs against its chi-square bounds.
+average NEES across runs against its chi-square bounds. Its figures over steps follow Bar-Shalom, Li &
+Kirubarajan (2001, 5.4) and esde (Brossard et al. 2019): per step, the NEES averaged over runs (ANEES) and the
+error's root mean square over runs; then both averaged over the world's scored steps (:attr:`World.scored`).
 """
 
 from __future__ import annotations
@@ -18,9 +20,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.errors import InputError, OnlineSlamError
+from online_slam.estimators.protocol import Estimate
 from online_slam.estimators.smoother import SmootherConfig, WindowConfig
+from online_slam.evaluation.metrics import apply_transform
 from online_slam.evaluation.results import Results, Row
-from online_slam.evaluation.scoring import nees_bounds, share_in_bounds
+from online_slam.evaluation.scoring import evaluate, nees_bounds, share_in_bounds
+from online_slam.frontend.steps import GroundTruth
+from online_slam.geometry.angles import wrap
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sinks.protocol import ReplaySink
 from online_slam.sources.worlds import WORLDS, World
@@ -63,13 +69,24 @@ class MonteCarlo:
     std: dict[str, dict[str, float | None]]
     """Per estimator, the standard deviation of each figure over runs."""
     anees: dict[str, float]
-    """Per online estimator: NEES averaged over runs and steps."""
+    """Per online estimator: pose NEES averaged over runs, then over the scored steps (3 = consistent)."""
     anees_bounds: tuple[float, float]
     """Two-sided 95% bounds for a per-step NEES averaged over ``runs`` runs (3 dof)."""
     anees_in_bounds: dict[str, float]
-    """Per online estimator: fraction of steps whose run-averaged NEES lies inside those bounds."""
+    """Per online estimator: fraction of scored steps whose run-averaged NEES lies inside those bounds."""
     anees_per_step: dict[str, list[float]]
-    """Per online estimator: the run-averaged NEES of every step."""
+    """Per online estimator: the run-averaged NEES of every step (NaN where a run has none)."""
+    scored_steps: tuple[int, int]
+    """First and last step (0-based, inclusive) the figures over steps average (the world's
+    :attr:`~online_slam.sources.worlds.World.scored`, else every step with a NEES in every run)."""
+    landmark_anees: dict[str, float | None]
+    """Per online estimator: 2-dof NEES of each landmark of its final map, averaged over landmarks and runs
+    (2 = consistent); None where it gives no landmark covariance."""
+    position_rmse_m: dict[str, float]
+    """Per online estimator: per step, the root mean square over runs of the newest pose's position error;
+    averaged over the scored steps, metres (esde's RMSE)."""
+    heading_rmse_rad: dict[str, float]
+    """Per online estimator: the same for the heading error, radians."""
 
 
 @dataclass(frozen=True)
@@ -138,10 +155,63 @@ def _world(source: str) -> World:
     return WORLDS[source]
 
 
-def _run_seed(args: tuple[str, int, ReplayConfig]) -> tuple[dict[str, Row], dict[str, Array]]:
+@dataclass(frozen=True)
+class RunErrors:
+    """One online estimator's errors in one Monte Carlo run (N steps)."""
+
+    nees: Array
+    """Pose NEES of each step, shape (N,), NaN where there is none."""
+    position_error_m: Array
+    """Position error of the newest pose at each step (after the replay's alignment), shape (N,)."""
+    heading_error_rad: Array
+    """Heading error of the newest pose at each step, wrapped, shape (N,)."""
+    landmark_nees: float | None
+    """2-dof NEES of the final map's landmarks, averaged over those with truth (None without covariances)."""
+
+
+Outcome = tuple[dict[str, Row], dict[str, RunErrors]]
+"""One run's table rows, and errors per online estimator."""
+
+
+def _run_seed(args: tuple[str, int, ReplayConfig]) -> Outcome:
     source, seed, config = args
     results = replay(_world(source).events(seed), config, name=source, validate=False)
-    return results.rows(), {name: s.nees for name, s in results.series.items()}
+    return results.rows(), run_errors(results)
+
+
+def run_errors(results: Results) -> dict[str, RunErrors]:
+    """Per online estimator of a replay with truth: what Monte Carlo averages (see :class:`RunErrors`)."""
+    poses = {} if results.truth_poses is None else dict(enumerate(results.truth_poses))
+    truth = GroundTruth(
+        poses={i: p for i, p in poses.items() if np.isfinite(p).all()}, landmarks=results.truth_landmarks
+    )
+    out = {}
+    for name, series in results.series.items():
+        online = evaluate(Estimate(name, series.poses, (), np.zeros((0, 2))), truth, results.alignment)
+        heading = np.full(len(series.poses), np.nan)
+        if online.indices is not None and online.transform is not None:
+            moved = apply_transform(online.transform, series.poses[online.indices])
+            true_poses = np.array([truth.poses[i] for i in online.indices])
+            heading[online.indices] = np.abs(wrap(moved[:, 2] - true_poses[:, 2]))
+        final = results.estimates[name]
+        landmark_nees = _landmark_nees(final, evaluate(final, truth, results.alignment).transform, truth)
+        out[name] = RunErrors(series.nees, series.position_error_m, heading, landmark_nees)
+    return out
+
+
+def _landmark_nees(estimate: Estimate, transform: Array | None, truth: GroundTruth) -> float | None:
+    """Mean 2-dof NEES of the estimate's landmarks that have truth, moved into the truth's frame."""
+    if estimate.landmark_covs is None or transform is None:
+        return None
+    known = [k for k, lid in enumerate(estimate.landmark_ids) if lid in truth.landmarks]
+    if not known:
+        return None
+    c, s = np.cos(transform[2]), np.sin(transform[2])
+    R = np.array([[c, -s], [s, c]])
+    e = apply_transform(transform, estimate.landmarks[known])
+    e = e - np.array([truth.landmarks[estimate.landmark_ids[k]] for k in known])
+    covs = R @ estimate.landmark_covs[known] @ R.T
+    return float(np.mean(np.einsum("ki,ki->k", e, np.linalg.solve(covs, e[..., None])[..., 0])))
 
 
 def compare(
@@ -177,11 +247,19 @@ def compare(
                 outcomes = list(pool.map(_run_seed, jobs))
         else:
             outcomes = [_run_seed(job) for job in jobs]
-        monte_carlo = _summarise(outcomes, seeds)
+        monte_carlo = summarise(outcomes, seeds, _world(name).scored)
     return Comparison(results, rows, monte_carlo)
 
 
-def _summarise(outcomes: list[tuple[dict[str, Row], dict[str, Array]]], seeds: tuple[int, ...]) -> MonteCarlo:
+def summarise(outcomes: list[Outcome], seeds: tuple[int, ...], scored: tuple[int, int] | None = None) -> MonteCarlo:
+    """Monte Carlo figures from the runs' outcomes.
+
+    Args:
+        outcomes: Per run, its table rows and its online estimators' errors.
+        seeds: The runs' seeds.
+        scored: Steps (first, last; inclusive) the figures over steps average; None: every step with a NEES in
+            every run.
+    """
     runs = len(outcomes)
     names = list(outcomes[0][0])
     keys = ("online_rmse_m", "final_rmse_m", "landmark_rmse_m", "endpoint_gap_m", "nees_mean", "nis_mean", "total_s")
@@ -194,17 +272,44 @@ def _summarise(outcomes: list[tuple[dict[str, Row], dict[str, Array]]], seeds: t
             ok = np.isfinite(values)
             mean[name][key] = float(values[ok].mean()) if ok.any() else None
             std[name][key] = float(values[ok].std(ddof=1)) if ok.sum() > 1 else None
-    low, high = nees_bounds(runs)
-    anees, in_bounds, per_step = {}, {}, {}
-    for name in outcomes[0][1]:
-        stack = np.array([o[1][name] for o in outcomes])  # (runs, N)
-        usable = np.isfinite(stack).all(axis=0)
-        if not usable.any():
-            continue
-        average = stack[:, usable].mean(axis=0)
-        anees[name] = float(average.mean())
-        in_bounds[name] = share_in_bounds(average, runs)
-        per_step[name] = [
-            float(v) if ok else float("nan") for v, ok in zip(np.where(usable, stack.mean(axis=0), np.nan), usable)
-        ]
-    return MonteCarlo(runs, seeds, mean, std, anees, (low, high), in_bounds, per_step)
+    figures = {name: _over_steps([o[1][name] for o in outcomes], scored) for name in outcomes[0][1]}
+    figures = {name: f for name, f in figures.items() if f is not None}
+    steps = next(iter(figures.values()))["steps"] if figures else (0, -1)
+    return MonteCarlo(
+        runs,
+        seeds,
+        mean,
+        std,
+        anees={name: f["anees"] for name, f in figures.items()},
+        anees_bounds=nees_bounds(runs),
+        anees_in_bounds={name: f["in_bounds"] for name, f in figures.items()},
+        anees_per_step={name: f["per_step"] for name, f in figures.items()},
+        scored_steps=steps,
+        landmark_anees={name: f["landmark"] for name, f in figures.items()},
+        position_rmse_m={name: f["position"] for name, f in figures.items()},
+        heading_rmse_rad={name: f["heading"] for name, f in figures.items()},
+    )
+
+
+def _over_steps(errors: list[RunErrors], scored: tuple[int, int] | None) -> dict[str, Any] | None:
+    """One online estimator's figures over steps from its runs' errors (None when no step has a NEES)."""
+    nees = np.array([e.nees for e in errors])  # (runs, N)
+    usable = np.isfinite(nees).all(axis=0)
+    steps = np.flatnonzero(usable)
+    if scored is not None:
+        steps = steps[(steps >= scored[0]) & (steps <= scored[1])]
+    if not len(steps):
+        return None
+    average = nees.mean(axis=0)
+    position = np.sqrt(np.mean(np.array([e.position_error_m for e in errors]) ** 2, axis=0))
+    heading = np.sqrt(np.mean(np.array([e.heading_error_rad for e in errors]) ** 2, axis=0))
+    landmark = [e.landmark_nees for e in errors if e.landmark_nees is not None]
+    return {
+        "anees": float(average[steps].mean()),
+        "in_bounds": share_in_bounds(average[steps], len(errors)),
+        "per_step": [float(v) if ok else float("nan") for v, ok in zip(average, usable)],
+        "landmark": float(np.mean(landmark)) if landmark else None,
+        "position": float(position[steps].mean()),
+        "heading": float(heading[steps].mean()),
+        "steps": (int(steps[0]), int(steps[-1])),
+    }

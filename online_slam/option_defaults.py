@@ -20,6 +20,7 @@ DEFAULTS: dict[str, object] = {
     "gate_probability": 0.9999,
     "gate_persistence": 8,
     "ekf_update": "joint",
+    "ekf_linearization": "standard",
     "window": 20,
     "window_distance": 18.0,
     "window_max": 120,
@@ -37,5 +38,6 @@ DEFAULTS: dict[str, object] = {
 CHOICES: dict[str, tuple[str, ...]] = {
     "association": ("known", "nn", "jcbb"),
     "robust": ("auto", "none", "huber", "cauchy"),
+    "ekf_linearization": ("standard", "fej", "oc"),
 }
 """Allowed values of the options whose choices the estimators define."""

@@ -60,6 +60,7 @@ CONFIGS = {
 CHOICE_HOMES = {
     "association": ("online_slam.estimators.landmark_book", "ASSOCIATION_CHOICES"),
     "robust": ("online_slam.estimators.presets", "ROBUST_CHOICES"),
+    "ekf_linearization": ("online_slam.estimators.linearization", "LINEARIZATIONS"),
 }
 """Where the choices of an option are defined: (module, name)."""
 
@@ -235,6 +236,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                lands=("ekf.gate_persistence",)),
     _estimator("ekf_update", "one update per step with all sightings (joint) or one per sighting", "EKF", "ekf",
                ("EkfConfig", "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
+    _estimator("ekf_linearization", "where the EKF's Jacobians are evaluated: the current estimate (standard), "
+               "each variable's first estimate (fej) or the current one constrained to the unobservable directions "
+               "(oc); fej and oc are consistent", "EKF", "ekf", ("EkfConfig", "linearization"),
+               choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
                ("WindowConfig", "size"), metavar="W", lands=("smoother.window.size",)),

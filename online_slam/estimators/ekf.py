@@ -21,6 +21,10 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
   explains them, the filter has drifted: a confirmed landmark failing ``gate_persistence`` times in a row is
   used again (without it a strict gate starves the filter on Victoria Park).
   Bearing innovations are wrapped; the heading is wrapped after every update.
+- ``linearization``: the standard EKF evaluates its Jacobians at the current estimate and grows overconfident;
+  ``fej`` (First-Estimates Jacobians) and ``oc`` (observability-constrained) keep the unobservable directions
+  unobserved (:mod:`~online_slam.estimators.linearization`). They need the newest pose as predicted and each
+  landmark's first estimate, which the state keeps.
 
 ``x_prior``/``P_prior``/``x_post``/``P_post`` are not maintained (copying P every step would cost O(n^2) for
 nothing); ``dim_x``, ``_I``, ``F`` and ``Q`` follow the state size so that stock filterpy calls stay valid.
@@ -46,6 +50,7 @@ from online_slam.checkpoint import from_tree, to_tree
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
+from online_slam.estimators.linearization import LINEARIZATIONS, heading_column, observable
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
@@ -77,6 +82,10 @@ class EkfConfig:
     update: str = "joint"
     """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
     relinearized after each."""
+    linearization: str = "standard"
+    """Where the Jacobians are evaluated: ``standard`` at the current estimate; ``fej`` at each variable's first
+    estimate; ``oc``: the standard ones constrained to see nothing of the unobservable directions (both
+    consistent: :mod:`~online_slam.estimators.linearization`)."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     filter's own mean and covariance (with tentative landmarks)."""
@@ -88,6 +97,8 @@ class EkfConfig:
             raise ValueError("gate_persistence must be >= 0")
         if self.update not in ("joint", "sequential"):
             raise ValueError("update must be 'joint' or 'sequential'")
+        if self.linearization not in LINEARIZATIONS:
+            raise ValueError(f"linearization must be one of {', '.join(LINEARIZATIONS)}")
 
 
 AGREEMENT_UPDATES = 5
@@ -166,6 +177,8 @@ class EkfSlam(ExtendedKalmanFilter):
             landmark_ids=list(landmark_ids),
             streak=np.zeros(m, dtype=np.int64),
             confirmed=np.ones(m, dtype=bool),
+            predicted=np.array(x, dtype=float).reshape(-1)[:3].copy(),
+            first=np.array(x, dtype=float).reshape(-1)[3:].reshape(-1, 2).copy(),
         )
         ekf._resized()
         return ekf
@@ -214,6 +227,9 @@ class EkfSlam(ExtendedKalmanFilter):
         """
         Q = self.state.Q if Q is None else np.asarray(Q, dtype=float)
         pose, F, G = compose_with_jacobians(self.x[:3, 0], u)
+        if self.config.linearization != "standard":  # at the poses as predicted: p_k+1|k - p_k|k-1, not - p_k|k
+            F[:2, 2] = heading_column(pose[:2], self.state.predicted[:2])
+        self.state.predicted = pose.copy()
         self.x[:3, 0] = pose
         P = self.P
         P[:3, 3:] = F @ P[:3, 3:]
@@ -229,14 +245,23 @@ class EkfSlam(ExtendedKalmanFilter):
 
         ``l = g(x_r, z)``; ``P_ll = G_r P_rr G_r^T + G_z R G_z^T``; ``P_lx = G_r P_rx`` (robot and map).
         """
-        position, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        position, G_r, G_z = self._placed(z)
         cross = G_r @ self.P[:3, :]
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
         self.state.index[landmark] = len(self.landmark_ids)
         self.landmark_ids.append(landmark)
         self.state.streak = np.append(self.state.streak, 0)
         self.state.confirmed = np.append(self.state.confirmed, False)
+        self.state.first = np.vstack([self.state.first, position[None]])
         self._grow(position, cross, 0.5 * (block + block.T))
+
+    def _placed(self, z: Array) -> tuple[Array, Array, Array]:
+        """A landmark placed from sighting z (2,) at the robot's estimate: (position (2,), d/drobot (2, 3),
+        d/dz (2, 2)); fej and oc take d/drobot at the newest pose as predicted (``[I, J (l - p_k|k-1)]``)."""
+        position, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        if self.config.linearization != "standard":
+            G_r[:, 2] = heading_column(position, self.state.predicted[:2])
+        return position, G_r, G_z
 
     def remove_landmarks(self, ids: list[LandmarkId]) -> None:
         """Delete landmarks from the state: their rows and columns (exact marginalization in covariance form)."""
@@ -252,6 +277,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self.state.landmark_ids = [self.landmark_ids[j] for j in kept]
         self.state.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
         self.state.streak, self.state.confirmed = self.state.streak[kept], self.state.confirmed[kept]
+        self.state.first = self.state.first[kept]
         self.state.recent = {int(renumber[j]): v for j, v in self.state.recent.items() if renumber[j] >= 0}
 
     def _mapped(self) -> NDArray[np.bool_] | None:
@@ -265,6 +291,10 @@ class EkfSlam(ExtendedKalmanFilter):
         """Innovations y (k, 2), compact Jacobian H_s (2k, 3 + 2k) and its state columns (3 + 2k,)."""
         landmarks = self.x[3:, 0].reshape(-1, 2)[indices]
         z_hat, J_p, J_l = range_bearing_with_jacobians(self.x[:3, 0], landmarks)
+        if self.config.linearization == "fej":  # Jacobians at the first estimates, innovation at the current one
+            _, J_p, J_l = range_bearing_with_jacobians(self.state.predicted, self.state.first[indices])
+        elif self.config.linearization == "oc":
+            J_p, J_l = observable(J_p, J_l, self.state.predicted[:2], self.state.first[indices])
         y = z - z_hat
         y[:, 1] = wrap(y[:, 1])
         H_s = stacked_jacobian(J_p, J_l)
@@ -393,7 +423,7 @@ class EkfSlam(ExtendedKalmanFilter):
 
         ``l = g(x_r, z)``; ``P_ll = G_r P_rr G_r^T + G_z R G_z^T``; ``P_lx = G_r P_rx`` for every other entry.
         """
-        position, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        position, G_r, G_z = self._placed(z)
         cols = 3 + 2 * index + np.arange(2)
         cross = G_r @ self.P[:3, :]
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
@@ -401,6 +431,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self.P[:, cols] = cross.T
         self.P[np.ix_(cols, cols)] = 0.5 * (block + block.T)
         self.x[cols, 0] = position
+        self.state.first[index] = position
         self.state.recent.pop(index, None)
         self.state.confirmed[index] = False
         self.state.reanchored += 1
@@ -432,6 +463,7 @@ class EkfSlam(ExtendedKalmanFilter):
         if step.odometry is None:
             self.x[:3, 0] = step.prior
             self.P[:3, :3] = 0.0 if step.prior_cov is None else step.prior_cov
+            self.state.predicted = self.x[:3, 0].copy()
         else:
             self.state.history.append(self.x[:3, 0])  # the previous pose is complete
             self.predict(step.odometry, step.odometry_cov)

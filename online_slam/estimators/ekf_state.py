@@ -38,6 +38,10 @@ class EkfState:
     """Consecutive gated sightings per landmark, shape (M,)."""
     confirmed: NDArray[np.bool_] = _zeros(0, dtype=bool)
     """Per landmark: has passed the gate since it was (re)initialised, shape (M,)."""
+    predicted: Array = _zeros(3)
+    """The newest pose as predicted, before any update (its first estimate: FEJ's linearization point)."""
+    first: Array = _zeros(0, 2)
+    """Each landmark's position when it was placed (its first estimate), shape (M, 2)."""
     recent: dict[int, list[tuple[Array, Array]]] = field(default_factory=dict)
     """Recent gated sightings per landmark index, as (position (2,), its covariance (2, 2))."""
     agreement: list[tuple[int, int]] = field(default_factory=list)
@@ -63,6 +67,7 @@ class EkfState:
 
     def __post_init__(self) -> None:
         n, m = len(self.x), len(self.landmark_ids)
-        if n != 3 + 2 * m or self.P.shape != (n, n) or len(self.streak) != m or len(self.confirmed) != m:
+        sizes = (len(self.streak), len(self.confirmed), len(self.first))
+        if n != 3 + 2 * m or self.P.shape != (n, n) or any(size != m for size in sizes):
             raise ValueError("x, P, landmark_ids and the per-landmark arrays disagree in size")
         self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}

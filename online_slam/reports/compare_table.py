@@ -58,9 +58,22 @@ def _monte_carlo(mc: MonteCarlo) -> list[str]:
             m, s = mc.mean[name].get(k), mc.std[name].get(k)
             cells.append("-" if m is None else f"{m:.4f} +- {s:.4f}" if s is not None else f"{m:.4f}")
         out.append(f"{name:<{width}}" + "".join(f"{c:>24}" for c in cells))
-    out.append(f"average NEES over runs (95% bounds for {counted(mc.runs, 'run')}: {low:.2f} .. {high:.2f}):")
+    first, last = mc.scored_steps
+    out.append(
+        f"over steps {first}..{last}: NEES averaged over runs (ANEES; 95% band for {counted(mc.runs, 'run')}: "
+        f"{low:.2f} .. {high:.2f}), RMS errors over runs:"
+    )
+    out.append(
+        f"  {'estimator':<{width}}{'ANEES':>8}{'verdict':>13}{'in band':>9}{'landmark ANEES':>16}"
+        f"{'position RMSE m':>17}{'heading RMSE rad':>18}"
+    )
     for name, value in mc.anees.items():
         verdict = "consistent" if low <= value <= high else "optimistic" if value > high else "pessimistic"
-        inside = 100 * mc.anees_in_bounds[name]
-        out.append(f"  {name:<{width}}ANEES {value:.2f} ({verdict}); steps inside bounds {inside:.0f}%")
+        landmark = mc.landmark_anees[name]
+        out.append(
+            f"  {name:<{width}}{value:>8.2f}{verdict:>13}{100 * mc.anees_in_bounds[name]:>8.0f}%"
+            f"{'-' if landmark is None else f'{landmark:.2f}':>16}{mc.position_rmse_m[name]:>17.4f}"
+            f"{mc.heading_rmse_rad[name]:>18.4f}"
+        )
+    out.append("  (pose ANEES: 3 = consistent; landmark ANEES, over the final map: 2 = consistent)")
     return out

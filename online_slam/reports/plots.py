@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import chi2
 
-from online_slam.compare import Comparison, Row
+from online_slam.compare import Comparison, MonteCarlo, Row
 from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import NEES_DOF, position_errors
 from online_slam.reports.palette import palette
@@ -232,6 +232,27 @@ def draw_nees(ax: Any, r: Results, look: dict[str, Look]) -> None:
         _note(ax)
 
 
+def draw_anees(ax: Any, mc: MonteCarlo, look: dict[str, Look]) -> None:
+    """Pose NEES averaged over the Monte Carlo runs, step by step, over its 95% band (esde's Fig. 2)."""
+    low, high = mc.anees_bounds
+    first, last = mc.scored_steps
+    ax.axhspan(low, high, color="0.55", alpha=0.18, lw=0, zorder=0)
+    ax.axhline(NEES_DOF, color="0.4", lw=0.8, ls=_DOTTED, zorder=0)
+    ax.axvspan(first, last, color="0.85", alpha=0.25, lw=0, zorder=0)
+    top = high
+    for name, values in mc.anees_per_step.items():
+        average = np.asarray(values, dtype=float)
+        ax.plot(np.arange(len(average)), average, color=look[name].color, ls=look[name].dashes, lw=look[name].width)
+        top = max(top, float(np.nanmax(average)))
+    ax.set_ylim(0.0, 1.05 * top)
+    ax.set(
+        xlabel="step",
+        ylabel="pose NEES, mean over runs",
+        title=f"pose NEES averaged over {counted(mc.runs, 'run')} (grey: its 95% band; light: steps {first}..{last} "
+        "scored)",
+    )
+
+
 def draw_latency(ax: Any, r: Results, look: dict[str, Look]) -> None:
     """Wall time of every step on a log axis (every spike shown), each estimator's slowest step marked."""
     drawn = []
@@ -309,7 +330,10 @@ def comparison_figure(comparison: Comparison) -> Any:
     for ax in online:  # the final error's limits, labelled sparsely in these short strips
         log_axis(ax, errors, most=3)
     log_axis(ax_final, errors)
-    draw_nees(ax_nees, r, look)
+    if comparison.monte_carlo is not None and comparison.monte_carlo.anees_per_step:
+        draw_anees(ax_nees, comparison.monte_carlo, look)
+    else:
+        draw_nees(ax_nees, r, look)
     draw_latency(ax_lat, r, look)
     for ax in online[:-1]:
         ax.tick_params(labelbottom=False)

@@ -3,12 +3,15 @@
 ``square`` reproduces the article's worked example exactly: the same generator (``default_rng(1616)``), the
 same draws in the same order, the same landmark selection, so its numbers match the article's table.
 ``grid`` is a configurable Manhattan-street world for scale tests; ``waypoint`` a robot wandering towards random
-goals over a field of scattered landmarks (slower, with random revisits). ``meet`` has three robots whose loops
+goals over a field of scattered landmarks (slower, with random revisits). ``circle`` the Monte Carlo protocol of
+Brossard, Barrau & Bonnabel (IEEE Sensors J. 2019, code ``CAOR-MINES-ParisTech/esde``), on which the standard
+EKF's inconsistency is textbook. ``meet`` has three robots whose loops
 cross, so that they sight each other and the same landmarks; ``meet-apart`` two robots that share no landmark.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, replace
 
@@ -16,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.geometry.angles import wrap
-from online_slam.geometry.se2 import between
+from online_slam.geometry.se2 import between, compose
 from online_slam.models.range_bearing import range_bearing
 from online_slam.sources.events import (
     Event,
@@ -46,13 +49,17 @@ def _events(
     sensor_sigma: Array,
     dt: float,
 ) -> Iterator[Event]:
-    """Lay out simulated arrays as a time-ordered event stream (pose i at t = i * dt)."""
+    """Lay out simulated arrays as a time-ordered event stream (pose i at t = i * dt).
+
+    ``sensor_sigma`` is one (2,) for every sighting, or one row per sighting (k, 2).
+    """
     yield Header(name=name, meta=meta)
     yield Start(t=0.0, pose=tuple(map(float, truth[0])))
     for j, position in enumerate(landmarks):
         yield LandmarkTruth(landmark=j, position=tuple(map(float, position)))
     odo_sigma = tuple(map(float, odometry_sigma))
-    obs_sigma = tuple(map(float, sensor_sigma))
+    per_sighting = np.ndim(sensor_sigma) == 2
+    obs_sigma = tuple(map(float, sensor_sigma)) if not per_sighting else ()
     bounds = np.searchsorted(observed_pose, np.arange(len(truth) + 1))
     for i in range(len(truth)):
         t = i * dt
@@ -65,7 +72,7 @@ def _events(
                 landmark=int(observed_landmark[k]),
                 range=float(z[k, 0]),
                 bearing=float(z[k, 1]),
-                sigma=obs_sigma,
+                sigma=tuple(map(float, sensor_sigma[k])) if per_sighting else obs_sigma,
             )
 
 
@@ -267,6 +274,108 @@ def _sensed(
     )  # fmt: skip
 
 
+CIRCLE_MODELS = ("range-bearing",)
+"""How the circle world gives its sightings."""
+
+
+@dataclass(frozen=True)
+class CircleConfig:
+    """The Monte Carlo world of Brossard, Barrau & Bonnabel 2019 (``esde``: ``simulations/main.m``, ``rws.m``,
+    ``gen_map.m``): a unicycle on a circle inside a ring of landmarks, the same landmarks in every run."""
+
+    poses: int = 400
+    """Number of poses (esde's ``nSteps``)."""
+    v: float = 0.25
+    """True forward speed, m/s."""
+    omega: float = 0.075
+    """True turn rate, rad/s."""
+    dt: float = 1.0
+    """Time between poses, seconds."""
+    landmarks: int = 15
+    """Landmarks, evenly on a circle of radius ``v / omega + 2 min_range``; landmark j at angle 2 pi (j + 1) / n."""
+    center: tuple[float, float] = (0.1251, 3.3318)
+    """Centre of the landmarks' circle, metres (esde's ``cx``, ``cy``)."""
+    min_range: float = 0.5
+    """A landmark is seen when ``min_range < range < max_range`` (strict), metres."""
+    max_range: float = 5.0
+    """See ``min_range``, metres."""
+    sigma_v: float = 0.02 / math.sqrt(2.0)
+    """Noise on the measured speed, m/s."""
+    sigma_omega: float = 2.0 * math.sqrt(2.0) * 0.02
+    """Noise on the measured turn rate, rad/s."""
+    sigma_xy: float = 0.1
+    """Noise of each axis of a sighting's position in the robot frame, metres."""
+    lateral_sigma: float = 1e-6
+    """Standard deviation given to the increment's lateral component, metres. The velocity-input increment
+    ``(v_m dt, 0, omega_m dt)`` has none; stream v1 needs a positive one (at least 1e-8). The EKF's figures are
+    the same to 4 digits for 0, 1e-8 and 1e-6 (benchmarks/RESULTS.md, "Circle protocol")."""
+    model: str = "range-bearing"
+    """``range-bearing``: each sighting's noisy position ``(dx, dy)`` as range and bearing, with its propagated
+    covariance ``diag(sigma_xy^2, sigma_xy^2 / r^2)`` (r the measured range; exact for isotropic noise)."""
+    seed: int = 0
+    """Seed of ``numpy.random.default_rng``."""
+
+    def __post_init__(self) -> None:
+        if self.poses < 2 or self.landmarks < 1 or not 0.0 <= self.min_range < self.max_range:
+            raise ValueError("circle world needs poses >= 2, landmarks >= 1 and 0 <= min range < max range")
+        if self.model not in CIRCLE_MODELS:
+            raise ValueError(f"circle world: model must be one of {', '.join(CIRCLE_MODELS)}, not {self.model!r}")
+
+    @property
+    def radius(self) -> float:
+        """Radius of the landmarks' circle, metres."""
+        return self.v / self.omega + 2.0 * self.min_range
+
+
+def circle_landmarks(c: CircleConfig) -> Array:
+    """The landmarks of the circle world (esde's ``gen_map``), shape (n, 2)."""
+    angle = 2.0 * np.pi * np.arange(1, c.landmarks + 1) / c.landmarks
+    return np.c_[c.radius * np.cos(angle), c.radius * np.sin(angle)] + np.array(c.center)
+
+
+def circle_world(config: CircleConfig | None = None) -> Iterator[Event]:
+    """esde's simulation (``rws.m``): truth, velocity-input odometry and sightings, in their order of draws.
+
+    Draw order: the measured speeds of every pose, then the turn rates, then pose by pose each visible
+    landmark's 2-D noise (landmarks in order). Like esde, the first pose's sightings are drawn but not used:
+    the first pose is known exactly, and sightings from it would anchor the map to the truth.
+
+    Args:
+        config: World settings; the defaults are esde's.
+
+    Yields:
+        Stream-v1 events, truth included.
+    """
+    c = config or CircleConfig()
+    rng = np.random.default_rng(c.seed)
+    landmarks = circle_landmarks(c)
+    step = np.array([c.v * c.dt, 0.0, c.omega * c.dt])
+    truth = np.zeros((c.poses, 3))
+    for i in range(1, c.poses):
+        truth[i] = compose(truth[i - 1], step)
+    v_m = c.v + c.sigma_v * rng.normal(size=c.poses)
+    omega_m = c.omega + c.sigma_omega * rng.normal(size=c.poses)
+    odometry = np.c_[v_m * c.dt, np.zeros(c.poses), omega_m * c.dt][:-1]
+    odometry_sigma = np.array([c.sigma_v * c.dt, c.lateral_sigma, c.sigma_omega * c.dt])
+    relative = landmarks[None, :, :] - truth[:, None, :2]
+    distances = np.linalg.norm(relative, axis=2)
+    observed_pose, observed_landmark = np.nonzero((distances > c.min_range) & (distances < c.max_range))
+    angle = truth[observed_pose, 2]
+    d = relative[observed_pose, observed_landmark]
+    xy = np.c_[np.cos(angle) * d[:, 0] + np.sin(angle) * d[:, 1], -np.sin(angle) * d[:, 0] + np.cos(angle) * d[:, 1]]
+    xy = xy + c.sigma_xy * rng.normal(size=xy.shape)
+    used = observed_pose > 0
+    observed_pose, observed_landmark, xy = observed_pose[used], observed_landmark[used], xy[used]
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    z = np.c_[r, np.arctan2(xy[:, 1], xy[:, 0])]
+    sensor_sigma = np.c_[np.full(len(r), c.sigma_xy), c.sigma_xy / r]
+    meta = {"generator": "online-slam simulate circle", **asdict(c)}
+    yield from _events(
+        "circle", meta, truth, landmarks, odometry, odometry_sigma,
+        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
+    )  # fmt: skip
+
+
 @dataclass(frozen=True)
 class MeetConfig:
     """Robots on circular loops that cross: they meet, sight each other and (unless told not to) the same
@@ -464,6 +573,9 @@ class World:
     """Its default seed; Monte Carlo runs and sweeps use ``seed``, ``seed + 1``, ..."""
     description: str
     """One line for help texts."""
+    scored: tuple[int, int] | None = None
+    """Steps (first, last; 0-based, inclusive) over which Monte Carlo averages NEES and RMSE over steps; None:
+    every step that has a NEES (all but a fixed start pose)."""
 
     def events(self, seed: int | None = None) -> Iterator[Event]:
         """The world's events for ``seed`` (None: the default seed)."""
@@ -476,6 +588,10 @@ def _grid(seed: int) -> Iterator[Event]:
 
 def _waypoint(seed: int) -> Iterator[Event]:
     return waypoint_world(WaypointConfig(seed=seed))
+
+
+def _circle(seed: int) -> Iterator[Event]:
+    return circle_world(CircleConfig(seed=seed))
 
 
 def _meet(seed: int) -> Iterator[Event]:
@@ -495,6 +611,12 @@ WORLDS: dict[str, World] = {
         _waypoint,
         WaypointConfig.seed,
         f"random waypoints: {WaypointConfig.poses} poses, {WaypointConfig.landmarks} landmarks",
+    ),
+    "circle": World(
+        _circle,
+        CircleConfig.seed,
+        f"esde's Monte Carlo protocol: {CircleConfig.poses} poses on a circle, {CircleConfig.landmarks} landmarks",
+        scored=(4, CircleConfig.poses - 2),  # esde's steps 5..399 (1-based)
     ),
     "meet": World(
         _meet,

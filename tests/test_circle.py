@@ -1,0 +1,125 @@
+"""The circle world (esde's Monte Carlo protocol) and the EKF's consistent linearizations (FEJ, OC)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from online_slam.compare import run_errors, summarise
+from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.linearization import heading_column, null_space, observable
+from online_slam.frontend.steps import FrontEnd
+from online_slam.geometry.se2 import compose
+from online_slam.models.range_bearing import landmark_from_observation, range_bearing_with_jacobians
+from online_slam.pipeline import ReplayConfig, replay
+from online_slam.sources.events import LandmarkTruth, Observation, Odometry, Start, Truth
+from online_slam.sources.worlds import WORLDS, CircleConfig, circle_landmarks, circle_world
+
+
+def test_circle_landmarks_are_esdes_gen_map() -> None:
+    c = CircleConfig()
+    landmarks = circle_landmarks(c)
+    radius = 0.25 / 0.075 + 2 * 0.5
+    for i in range(1, 16):  # gen_map.m: th = 2 pi i / nL, rho = v / omega + 2 rmin, centre (0.1251, 3.3318)
+        th = 2 * np.pi * i / 15
+        assert landmarks[i - 1] == pytest.approx([radius * np.cos(th) + 0.1251, radius * np.sin(th) + 3.3318])
+    events = list(circle_world())
+    truth_landmarks = {e.landmark: e.position for e in events if isinstance(e, LandmarkTruth)}
+    assert np.array([truth_landmarks[j] for j in range(15)]) == pytest.approx(landmarks)
+
+
+def test_circle_truth_odometry_and_visibility_follow_rws() -> None:
+    c = CircleConfig()
+    events = list(circle_world(c))
+    start = next(e for e in events if isinstance(e, Start))
+    assert start.pose == (0.0, 0.0, 0.0) and start.fixed
+    truth = np.array([e.pose for e in events if isinstance(e, Truth)])
+    odometry = [e for e in events if isinstance(e, Odometry)]
+    assert len(truth) == 400 and len(odometry) == 399
+    expected = np.zeros(3)
+    for i in range(1, 400):  # rws.m: x_k = x_k-1 + v dt (cos, sin)(theta_k-1), theta_k = theta_k-1 + omega dt
+        expected = compose(expected, [0.25, 0.0, 0.075])
+        assert truth[i] == pytest.approx(expected, abs=1e-12)
+    assert all(e.delta[1] == 0.0 and e.sigma == pytest.approx((0.02 / np.sqrt(2), 1e-6, 0.04 * np.sqrt(2)))
+               for e in odometry)  # fmt: skip
+    sightings = [e for e in events if isinstance(e, Observation)]
+    landmarks = circle_landmarks(c)
+    seen = {(round(e.t), e.landmark) for e in sightings}
+    assert len(seen) == len(sightings)
+    for i, pose in enumerate(truth):
+        ranges = np.hypot(*(landmarks - pose[:2]).T)
+        visible = {(i, j) for j in range(15) if 0.5 < ranges[j] < 5.0} if i > 0 else set()
+        assert {s for s in seen if s[0] == i} == visible  # none from the first pose
+    for e in sightings[:50]:  # range/bearing with the covariance propagated from 0.1 m per axis
+        assert e.sigma == pytest.approx((0.1, 0.1 / e.range))
+        truth_xy = landmark_from_observation(truth[round(e.t)], [e.range, e.bearing])
+        assert np.hypot(*(truth_xy - landmarks[e.landmark])) < 0.6
+
+
+def test_circle_is_a_built_in_world_scored_over_esdes_steps() -> None:
+    world = WORLDS["circle"]
+    assert world.scored == (4, 398)
+    assert list(world.events(3)) == list(circle_world(CircleConfig(seed=3)))
+    with pytest.raises(ValueError, match="model"):
+        CircleConfig(model="bearing-only")
+
+
+def test_heading_column_is_the_derivative_of_a_turn() -> None:
+    v, origin, h = np.array([1.3, -0.4]), np.array([0.2, 0.7]), 1e-7
+
+    def turned(a: float) -> np.ndarray:
+        c, s = np.cos(a), np.sin(a)
+        return origin + np.array([[c, -s], [s, c]]) @ (v - origin)
+
+    assert heading_column(v, origin) == pytest.approx((turned(h) - turned(-h)) / (2 * h), abs=1e-8)
+
+
+def test_observable_jacobians_see_nothing_of_the_null_space_and_change_least() -> None:
+    rng = np.random.default_rng(4)
+    pose, landmarks = np.array([0.3, -0.2, 0.4]), rng.uniform(-3, 3, size=(5, 2))
+    _, J_p, J_l = range_bearing_with_jacobians(pose, landmarks)
+    robot_star, first = pose[:2] + [0.05, -0.03], landmarks + rng.normal(scale=0.1, size=landmarks.shape)
+    O_p, O_l = observable(J_p, J_l, robot_star, first)
+    N = null_space(robot_star, first)
+    assert np.abs(np.concatenate([O_p, O_l], axis=-1) @ N).max() < 1e-12
+    change = np.concatenate([J_p - O_p, J_l - O_l], axis=-1)  # in the row space of N^T: the nearest such H
+    assert change == pytest.approx(change @ N @ np.linalg.pinv(N), abs=1e-12)
+    # at the point itself the range-bearing Jacobians already satisfy the constraint: unchanged
+    _, J_p0, J_l0 = range_bearing_with_jacobians(pose, landmarks)
+    same_p, same_l = observable(J_p0, J_l0, pose[:2], landmarks)
+    assert same_p == pytest.approx(J_p0, abs=1e-12) and same_l == pytest.approx(J_l0, abs=1e-12)
+
+
+def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -> None:
+    ekf = EkfSlam(EkfConfig(linearization="fej"))
+    steps = FrontEnd().steps(circle_world(CircleConfig(poses=30, seed=2)))
+    placed: dict = {}
+    for step in steps:
+        before = set(ekf.landmark_ids)
+        ekf.step(step)
+        for lid in set(ekf.landmark_ids) - before:
+            placed[lid] = ekf.x[3 + 2 * ekf.state.index[lid] : 5 + 2 * ekf.state.index[lid], 0].copy()
+    assert ekf.state.first == pytest.approx(np.array([placed[lid] for lid in ekf.landmark_ids]), abs=0)
+    assert not np.allclose(ekf.state.first, ekf.x[3:, 0].reshape(-1, 2))  # estimates moved, first ones did not
+    z = np.array([2.0, 0.3])
+    position, G_r, _ = ekf._placed(z)
+    N_r = null_space(ekf.state.predicted[:2], position[None])[0]
+    assert G_r @ N_r[:3] == pytest.approx(N_r[3:], abs=1e-12)  # the robot's directions onto the landmark's
+
+
+@pytest.mark.slow
+def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc() -> None:
+    """esde's world, 20 seeded runs: the standard EKF is overconfident, FEJ and OC inside the 95% band."""
+    seeds = tuple(range(100, 120))
+    anees = {}
+    for linearization in ("standard", "fej", "oc"):
+        config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
+        outcomes = []
+        for seed in seeds:
+            results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
+            outcomes.append((results.rows(), run_errors(results)))
+        mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
+        anees[linearization] = mc.anees["ekf"]
+    low, high = mc.anees_bounds
+    assert anees["standard"] > high, anees
+    assert low <= anees["fej"] <= high and low <= anees["oc"] <= high, anees
