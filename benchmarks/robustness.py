@@ -4,13 +4,16 @@ and corruption seeds (:func:`run_robustness_grid`; ``python -m benchmarks.robust
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from benchmarks import gtsam_peer
 from online_slam.engine import Engine
+from online_slam.evaluation.metrics import align_se2, apply_transform
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.events import Event, Odometry
 from online_slam.sources.worlds import (
@@ -104,8 +107,19 @@ CORRUPTIONS: dict[str, Contamination] = {
     "10% clutter": Contamination(clutter=0.1),
 }
 """The contaminations of the robustness grid (their seeds are set per run)."""
-FIGURES = ("ekf online", "smoother online", "smoother final", "batch final", "isam2 online", "isam2 final")
-"""The figures of a run, each divided by the clean batch's final RMSE on the same world seed."""
+FIGURES = (
+    "ekf online",
+    "smoother online",
+    "smoother final",
+    "batch final",
+    "isam2 online",
+    "isam2 final",
+)
+"""The figures of a run (position RMSE after anchoring the first pose, as ``replay`` scores), each divided by
+the clean batch's final RMSE on the same world seed. ``aligned`` variants (:data:`ALIGNED`) are the same after a
+least-squares rigid alignment of the whole path on truth, which leaves out the map's rotation about the start."""
+ALIGNED = ("ekf online aligned", "smoother online aligned", "smoother final aligned", "batch final aligned")
+"""The aligned figures, each divided by the clean batch's aligned final RMSE."""
 
 
 @dataclass(frozen=True)
@@ -119,23 +133,64 @@ class GridCell:
     runs: int
     """World x corruption seeds replayed."""
     worst: dict[str, float]
-    """Largest ratio to the clean batch, by figure (:data:`FIGURES`; iSAM2 only where GTSAM is installed)."""
+    """Largest ratio to the clean batch, by figure (:data:`FIGURES` and :data:`ALIGNED`; iSAM2 only where GTSAM is
+    installed and asked for)."""
     median: dict[str, float]
     """Median ratio to the clean batch, by figure."""
 
 
+@dataclass(frozen=True)
+class GridTask:
+    """One replay of the robustness grid."""
+
+    world: str
+    """A key of :data:`WORLDS`."""
+    world_seed: int
+    """The world's seed."""
+    corruption: str | None
+    """A key of :data:`CORRUPTIONS`, or None for the clean stream."""
+    corruption_seed: int
+    """The contamination's seed."""
+    peer: bool
+    """Also run iSAM2 + Cauchy on the stream."""
+    poses: int | None
+    """Shorten the world to this many poses (a smoke run), or None."""
+
+
+def _aligned_rmse(poses: np.ndarray, truth: np.ndarray) -> float:
+    """Position RMSE after the least-squares rigid alignment of ``poses`` on ``truth``."""
+    return _rmse(apply_transform(align_se2(poses, truth), poses[:, :2]), truth)
+
+
 def _figures(events: list[Event], peer: bool, cauchy: float) -> dict[str, float]:
-    """RMSE of each estimator on a stream (metres), iSAM2 + Cauchy beside them when ``peer``."""
-    figures = replay(iter(events), ReplayConfig(), validate=False).estimators
+    """RMSE of each estimator on a stream (metres), anchored and aligned; iSAM2 + Cauchy beside them when
+    ``peer``."""
+    results = replay(iter(events), ReplayConfig(), validate=False)
+    figures, truth = results.estimators, results.truth_poses
     out = {
         "ekf online": figures["ekf"].online_rmse_m or float("nan"),
         "smoother online": figures["smoother"].online_rmse_m or float("nan"),
         "smoother final": figures["smoother"].final_rmse_m or float("nan"),
         "batch final": figures["batch"].final_rmse_m or float("nan"),
     }
+    if truth is not None:
+        for name in ("ekf", "smoother"):
+            out[f"{name} online aligned"] = _aligned_rmse(results.series[name].poses, truth)
+        for name in ("smoother", "batch"):
+            out[f"{name} final aligned"] = _aligned_rmse(results.estimates[name].poses, truth)
     if peer:
         out["isam2 online"], out["isam2 final"] = _isam2(events, cauchy)
     return out
+
+
+def run_task(task: GridTask, cauchy: float = 3.0) -> dict[str, float]:
+    """The figures of one grid replay (metres; a process pool's unit of work)."""
+    events = list(WORLDS[task.world](task.world_seed))
+    if task.poses is not None:
+        events = _shortened(events, task.poses)
+    if task.corruption is not None:
+        events = list(contaminate(events, replace(CORRUPTIONS[task.corruption], seed=task.corruption_seed)))
+    return _figures(events, task.peer, cauchy)
 
 
 def run_robustness_grid(
@@ -143,34 +198,51 @@ def run_robustness_grid(
     corruptions: tuple[str, ...] = tuple(CORRUPTIONS),
     world_seeds: tuple[int, ...] = (1, 2, 3),
     corruption_seeds: tuple[int, ...] = (0, 1, 2, 3, 4),
-    cauchy: float = 3.0,
     poses: int | None = None,
+    peer: bool = True,
+    workers: int = 1,
+    log: Callable[[GridTask, dict[str, float]], None] | None = None,
 ) -> list[GridCell]:
     """Every estimator with default flags over worlds x world seeds x contaminations x corruption seeds.
 
-    Each figure is divided by the clean batch's final RMSE on the same world seed; each cell gives the worst and
-    the median of those ratios over the seeds. ``poses`` shortens every world (a smoke run).
+    Each figure is divided by the clean batch's final RMSE on the same world seed (aligned figures by its
+    aligned one); each cell gives the worst and the median of those ratios over the seeds. ``poses`` shortens
+    every world (a smoke run); ``peer`` adds iSAM2 + Cauchy where GTSAM is installed; ``workers`` replays in
+    that many processes; ``log`` is called with each replay's figures (metres) as it ends.
     """
-    peer = gtsam_peer.available()
+    peer = peer and gtsam_peer.available()
+    tasks = [GridTask(w, s, None, 0, False, poses) for w in worlds for s in world_seeds]
+    tasks += [
+        GridTask(w, s, c, k, peer, poses)
+        for w in worlds
+        for c in corruptions
+        for s in world_seeds
+        for k in corruption_seeds
+    ]
+    done: dict[GridTask, dict[str, float]] = {}
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        for task, figures in zip(tasks, pool.map(run_task, tasks)):
+            done[task] = figures
+            if log is not None:
+                log(task, figures)
     cells = []
     for world in worlds:
-        ratios: dict[str, list[dict[str, float]]] = {c: [] for c in corruptions}
-        for world_seed in world_seeds:
-            events = list(WORLDS[world](world_seed))
-            if poses is not None:
-                events = _shortened(events, poses)
-            clean = _figures(events, False, cauchy)["batch final"]
-            for name in corruptions:
-                for seed in corruption_seeds:
-                    dirty = list(contaminate(events, replace(CORRUPTIONS[name], seed=seed)))
-                    ratios[name].append({k: v / clean for k, v in _figures(dirty, peer, cauchy).items()})
         for name in corruptions:
-            runs = ratios[name]
-            keys = [k for k in FIGURES if k in runs[0]]
-            worst = {k: float(np.max([r[k] for r in runs])) for k in keys}
-            median = {k: float(np.median([r[k] for r in runs])) for k in keys}
-            cells.append(GridCell(world, name, len(runs), worst, median))
+            ratios = []
+            for task, figures in done.items():
+                if task.world == world and task.corruption == name:
+                    clean = done[GridTask(world, task.world_seed, None, 0, False, poses)]
+                    ratios.append({k: v / clean[_reference(k)] for k, v in figures.items()})
+            keys = [k for k in FIGURES + ALIGNED if k in ratios[0]]
+            worst = {k: float(np.max([r[k] for r in ratios])) for k in keys}
+            median = {k: float(np.median([r[k] for r in ratios])) for k in keys}
+            cells.append(GridCell(world, name, len(ratios), worst, median))
     return cells
+
+
+def _reference(figure: str) -> str:
+    """The clean batch figure a figure is divided by."""
+    return "batch final aligned" if figure.endswith("aligned") else "batch final"
 
 
 def _shortened(events: list[Event], poses: int) -> list[Event]:
@@ -186,13 +258,17 @@ def _shortened(events: list[Event], poses: int) -> list[Event]:
 
 
 def print_grid(cells: list[GridCell]) -> None:
-    """The grid as a table: worst / median ratio to the clean batch per figure."""
-    keys = [k for k in FIGURES if k in cells[0].worst] if cells else []
-    print(f"{'world':<12}{'corruption':<17}{'runs':>5}" + "".join(f"{k:>20}" for k in keys))
-    for c in cells:
-        row = "".join(f"{f'{c.worst[k]:.2f} / {c.median[k]:.2f}':>20}" for k in keys)
-        print(f"{c.world:<12}{c.corruption:<17}{c.runs:>5}{row}")
-    print("worst / median over world x corruption seeds, each figure / the clean batch's final RMSE (same world)")
+    """The grid as two tables (anchored, then aligned): worst / median ratio to the clean batch per figure."""
+    for figures, what in ((FIGURES, "anchored at the first pose"), (ALIGNED, "rigidly aligned on truth")):
+        keys = [k for k in figures if cells and k in cells[0].worst]
+        if not keys:
+            continue
+        head = "".join(f"{k.removesuffix(' aligned'):>18}" for k in keys)
+        print(f"{'world':<12}{'corruption':<17}{'runs':>5}{head}")
+        for c in cells:
+            row = "".join(f"{f'{c.worst[k]:.2f} / {c.median[k]:.2f}':>18}" for k in keys)
+            print(f"{c.world:<12}{c.corruption:<17}{c.runs:>5}{row}")
+        print(f"worst / median over world x corruption seeds; each RMSE {what}, over the clean batch's (same world)\n")
 
 
 if __name__ == "__main__":
@@ -204,9 +280,27 @@ if __name__ == "__main__":
     parser.add_argument("--world-seeds", nargs="+", type=int, default=[1, 2, 3])
     parser.add_argument("--corruption-seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     parser.add_argument("--poses", type=int, default=None, help="shorten every world (smoke run)")
+    parser.add_argument("--no-peer", action="store_true", help="leave out iSAM2 + Cauchy (it is the slowest part)")
+    parser.add_argument("--workers", type=int, default=1, help="replay in this many processes")
+    parser.add_argument("--jsonl", default=None, help="also write each replay's figures (metres) to this file")
     a = parser.parse_args()
-    print_grid(
-        run_robustness_grid(
-            tuple(a.worlds), tuple(a.corruptions), tuple(a.world_seeds), tuple(a.corruption_seeds), poses=a.poses
-        )
+    out = open(a.jsonl, "w") if a.jsonl else None  # noqa: SIM115 - closed below
+
+    def log(task: GridTask, figures: dict[str, float]) -> None:
+        if out is not None:
+            out.write(json.dumps({**asdict(task), **figures}) + "\n")
+            out.flush()
+
+    cells = run_robustness_grid(
+        tuple(a.worlds),
+        tuple(a.corruptions),
+        tuple(a.world_seeds),
+        tuple(a.corruption_seeds),
+        poses=a.poses,
+        peer=not a.no_peer,
+        workers=a.workers,
+        log=log,
     )
+    if out is not None:
+        out.close()
+    print_grid(cells)
