@@ -7,6 +7,7 @@ from online_slam.models.observation import (
     RANGE_BEARING,
     landmark_from_sighting,
     landmark_from_sighting_with_jacobians,
+    predict,
     predict_with_jacobians,
     wrap_bearings,
 )
@@ -38,6 +39,7 @@ __all__ = [
     "odometry_residual_with_jacobians",
     "position",
     "position_with_jacobians",
+    "predict",
     "predict_with_jacobians",
     "range_bearing",
     "range_bearing_from_position",

@@ -13,10 +13,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from online_slam.geometry.angles import wrap
-from online_slam.models.position import landmark_from_position_with_jacobians, position_with_jacobians
+from online_slam.models.position import landmark_from_position_with_jacobians, position, position_with_jacobians
 from online_slam.models.range_bearing import (
     landmark_from_observation,
     landmark_from_observation_with_jacobians,
+    range_bearing,
     range_bearing_with_jacobians,
 )
 
@@ -45,6 +46,16 @@ def _which(model: ArrayLike) -> tuple[NDArray[np.bool_], bool, bool]:
 def _merge(xy: NDArray[np.bool_], rb: tuple[Array, ...], pos: tuple[Array, ...]) -> tuple[Array, ...]:
     """Per sighting the position model's values where ``xy``, else the range-bearing ones."""
     return tuple(np.where(xy.reshape(xy.shape + (1,) * (b.ndim - xy.ndim)), b, a) for a, b in zip(rb, pos))
+
+
+def predict(pose: ArrayLike, landmark: ArrayLike, model: ArrayLike) -> Array:
+    """Predicted sightings, each with its own model, shape (..., 2) (see :func:`predict_with_jacobians`)."""
+    xy, has_rb, has_xy = _which(model)
+    if not has_xy:
+        return range_bearing(pose, landmark)
+    if not has_rb:
+        return position(pose, landmark)
+    return _merge(xy, (range_bearing(pose, landmark),), (position(pose, landmark),))[0]
 
 
 def predict_with_jacobians(pose: ArrayLike, landmark: ArrayLike, model: ArrayLike) -> tuple[Array, Array, Array]:
@@ -91,8 +102,7 @@ def landmark_from_sighting(pose: ArrayLike, z: ArrayLike, model: ArrayLike) -> A
         z: Sightings, shape (..., 2).
         model: Tags, broadcastable to (...).
     """
-    xy, has_rb, has_xy = _which(model)
-    if not has_xy:
+    if not _which(model)[2]:
         return landmark_from_observation(pose, z)
     return landmark_from_sighting_with_jacobians(pose, z, model)[0]
 
