@@ -213,4 +213,22 @@ def test_a_recording_of_position_sightings_reads_back(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     series = online_slam.read_recording(rrd)
     assert series.results["poses"] == 40
-    assert series.results == json.loads(out.read_text())
+    results = json.loads(out.read_text())
+    assert series.results["estimators"] == results["estimators"]
+
+
+@pytest.mark.slow
+def test_batch_equals_gtsam_on_position_sightings() -> None:
+    pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
+    from benchmarks import gtsam_peer
+
+    fe, batch = FrontEnd(), BatchEstimator()
+    for step in fe.steps(mixed(grid_world(dataclasses.replace(XY_GRID, poses=120, model="range-bearing")))):
+        batch.step(step)
+    ours = batch.finish()
+    graph = batch.log.graph()
+    assert (graph.obs_model == POSITION).any()
+    peer = gtsam_peer.levenberg_marquardt(graph, np.array(batch.log.poses), batch.log.landmarks, exact=True, tight=True)
+    assert np.max(np.linalg.norm(ours.poses[:, :2] - peer.poses[:, :2], axis=1)) <= 1e-6
+    assert np.max(np.linalg.norm(ours.landmarks - peer.landmarks, axis=1)) <= 1e-6
+    assert ours.info["final_cost"] == pytest.approx(peer.final_cost, rel=1e-9)
