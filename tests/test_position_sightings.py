@@ -232,3 +232,19 @@ def test_batch_equals_gtsam_on_position_sightings() -> None:
     assert np.max(np.linalg.norm(ours.poses[:, :2] - peer.poses[:, :2], axis=1)) <= 1e-6
     assert np.max(np.linalg.norm(ours.landmarks - peer.landmarks, axis=1)) <= 1e-6
     assert ours.info["final_cost"] == pytest.approx(peer.final_cost, rel=1e-9)
+
+
+@pytest.mark.parametrize("estimator", ["ekf", "smoother"])
+def test_save_load_continue_on_position_sightings(tmp_path: Path, estimator: str) -> None:
+    events = list(mixed(grid_world(dataclasses.replace(XY_GRID, poses=60, model="range-bearing"))))
+    cut = next(k for k, e in enumerate(events) if isinstance(e, Observation) and e.t == 30.0 and e.xy is not None)
+    whole, first = Slam(estimator), Slam(estimator)
+    for event in events:
+        whole.add(event)
+    for event in events[:cut]:
+        first.add(event)
+    first.save(tmp_path / "slam.ckpt")  # mid-step: the newest pose holds sightings of both models
+    second = Slam.load(tmp_path / "slam.ckpt")
+    for event in events[cut:]:
+        second.add(event)
+    np.testing.assert_array_equal(second.estimate().trajectory, whole.estimate().trajectory)
