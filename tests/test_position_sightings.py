@@ -248,3 +248,16 @@ def test_save_load_continue_on_position_sightings(tmp_path: Path, estimator: str
     for event in events[cut:]:
         second.add(event)
     np.testing.assert_array_equal(second.estimate().trajectory, whole.estimate().trajectory)
+
+
+def test_position_sightings_convert_to_g2o_point_edges(tmp_path: Path) -> None:
+    from online_slam.importers.g2o import read_g2o, write_g2o
+
+    events = [Start(0.0, (1.0, 2.0, 0.5)), Observation(0.0, "a", sigma=(0.1, 0.2), xy=(3.0, -1.0))]
+    write_g2o(tmp_path / "xy.g2o", events)
+    text = (tmp_path / "xy.g2o").read_text()
+    edge = next(line for line in text.splitlines() if line.startswith("EDGE_SE2_XY")).split()
+    assert edge[1:5] == ["0", "1", "3.0", "-1.0"]
+    assert np.allclose([float(v) for v in edge[5:]], [100.0, 0.0, 25.0])
+    back = [e for e in read_g2o(tmp_path / "xy.g2o") if isinstance(e, Observation)]
+    assert np.allclose([back[0].range * np.cos(back[0].bearing), back[0].range * np.sin(back[0].bearing)], [3, -1])
