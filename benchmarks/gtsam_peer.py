@@ -8,6 +8,9 @@ Two modes:
 - ``exact=True`` models odometry and priors with ``CustomFactor`` computing our residual (Jacobians mapped to
   GTSAM's tangent space), and keeps the native bearing-range factor (its error equals ours), so both solvers
   minimise the same cost: used to cross-check solutions.
+
+Position sightings (the landmark in the robot frame) have no native 2D factor in GTSAM's Python wrapper: both
+modes model them with a ``CustomFactor`` computing our residual.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from numpy.typing import NDArray
 from online_slam.factors.graph import FactorGraph
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
+from online_slam.models.observation import POSITION, landmark_from_sighting
+from online_slam.models.position import position_with_jacobians
 
 try:  # pragma: no cover - depends on the optional extra
     import gtsam
@@ -89,6 +94,35 @@ def _prior_factor(key: int, mean: Array, cov: Array) -> gtsam.CustomFactor:
     return gtsam.CustomFactor(gtsam.noiseModel.Gaussian.Covariance(cov), [key], error)
 
 
+def _position_factor(key_p: int, key_l: int, z: Array, noise: object) -> gtsam.CustomFactor:
+    """A position sighting ``z`` (the landmark in the robot frame) with its noise model, as our residual."""
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list | None) -> Array:
+        p, point = values.atPose2(this.keys()[0]), values.atPoint2(this.keys()[1])
+        z_hat, J_p, J_l = position_with_jacobians(_vec(p), np.asarray(point, dtype=float))
+        if H is not None:
+            H[0] = J_p @ _tangent(p.theta())
+            H[1] = J_l
+        return z_hat - z
+
+    return gtsam.CustomFactor(noise, [key_p, key_l], error)
+
+
+def _sighting_noise(cov: Array, model: int) -> object:
+    """The Gaussian noise model of a sighting's covariance, in the order its GTSAM factor takes (a bearing-range
+    factor orders (bearing, range))."""
+    cov = np.asarray(cov) if model == POSITION else np.asarray(cov)[::-1, ::-1]
+    return gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
+
+
+def _sighting_factor(key_p: int, key_l: int, z: Array, model: int, noise: object) -> object:
+    """Our sighting as a GTSAM factor: native bearing-range, or a position factor (noise from :func:`_sighting_noise`,
+    possibly made robust)."""
+    if model == POSITION:
+        return _position_factor(key_p, key_l, z, noise)
+    return gtsam.BearingRangeFactor2D(key_p, key_l, gtsam.Rot2(z[1]), z[0], noise)
+
+
 def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = False) -> tuple:
     """Build GTSAM's factor graph and initial values from ours.
 
@@ -120,10 +154,9 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
         else:
             noise = gtsam.noiseModel.Gaussian.Covariance(between_covariance(delta, cov))
             fg.add(gtsam.BetweenFactorPose2(X(int(a)), X(int(b)), gtsam.Pose2(*delta), noise))
-    obs_cov = _covariances(graph.obs_sqrt_info)[:, ::-1, ::-1]  # GTSAM orders (bearing, range)
-    for p, l, z, cov in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov):
-        noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
-        fg.add(gtsam.BearingRangeFactor2D(X(int(p)), L(int(l)), gtsam.Rot2(z[1]), z[0], noise))
+    obs_cov = _covariances(graph.obs_sqrt_info)
+    for p, l, z, cov, model in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov, graph.obs_model):
+        fg.add(_sighting_factor(X(int(p)), L(int(l)), z, int(model), _sighting_noise(cov, int(model))))
     values = gtsam.Values()
     for i, pose in enumerate(poses):
         values.insert(X(i), gtsam.Pose2(*pose))
@@ -244,20 +277,19 @@ def isam2_online(
             d = step.odometry
             latest = np.array([latest[0] + c * d[0] - s * d[1], latest[1] + s * d[0] + c * d[1], latest[2] + d[2]])
         values.insert(X(i), gtsam.Pose2(*latest))
-        for lid, z, cov in zip(step.landmarks, step.z, step.z_cov):
+        for lid, z, cov, model in zip(step.landmarks, step.z, step.z_cov, step.z_model):
             if lid not in index:
                 index[lid] = len(index)
             key = L(index[lid])
             if lid not in seen:
                 seen.add(lid)
-                a = latest[2] + z[1]
-                values.insert(key, gtsam.Point2(latest[0] + z[0] * np.cos(a), latest[1] + z[0] * np.sin(a)))
-            noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(np.asarray(cov)[::-1, ::-1]))
+                values.insert(key, gtsam.Point2(*landmark_from_sighting(latest, z, model)))
+            noise = _sighting_noise(cov, int(model))
             if cauchy is not None:
                 noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy), noise)
             elif huber is not None:
                 noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(huber), noise)
-            graph.add(gtsam.BearingRangeFactor2D(X(i), key, gtsam.Rot2(z[1]), z[0], noise))
+            graph.add(_sighting_factor(X(i), key, z, int(model), noise))
         isam.update(graph, values)
         latest = _vec(isam.calculateEstimatePose2(X(i)))
         times.append(time.perf_counter() - started)

@@ -1,11 +1,12 @@
 """``online_slam.Slam``: the engine as a library — push odometry and sightings, read the estimate at once.
 
 Each ``add_*`` call (and :meth:`Slam.add`, which takes stream-v1 event objects or their ``dict`` records) is
-validated by the same rules as a stream-v1 line (one of sigma/cov, finite numbers, range > 0, bearings in
-radians, non-decreasing time, ``start`` first); bad input raises :class:`~online_slam.errors.InputError` naming
-the field and changes nothing. A sighting at time ``t`` belongs to the newest pose with time <= ``t``.
-:meth:`Slam.estimate` reflects every event added so far: sightings of the newest pose are used before its
-successor's odometry arrives (see :mod:`online_slam.engine` for how, and why a replay gives the same numbers).
+validated by the same rules as a stream-v1 line (one of sigma/cov, range and bearing or a position ``xy``, finite
+numbers, range > 0, bearings in radians, non-decreasing time, ``start`` first); bad input raises
+:class:`~online_slam.errors.InputError` naming the field and changes nothing. A sighting at time ``t`` belongs
+to the newest pose with time <= ``t``. :meth:`Slam.estimate` reflects every event added so far: sightings of
+the newest pose are used before its successor's odometry arrives (see :mod:`online_slam.engine` for how, and why
+a replay gives the same numbers).
 """
 
 from __future__ import annotations
@@ -201,31 +202,44 @@ class Slam:
         self._engine.push(self._validator.parse_odometry(plain(t), plain(delta), plain(sigma), plain(cov)))
 
     def add_observation(
-        self, t: float, landmark: LandmarkId | None, range: float, bearing: float, sigma: Any = None, cov: Any = None
+        self,
+        t: float,
+        landmark: LandmarkId | None,
+        range: float | None = None,
+        bearing: float | None = None,
+        sigma: Any = None,
+        cov: Any = None,
+        xy: Any = None,
     ) -> None:
-        """A range-bearing sighting of a landmark; it attaches to the newest pose with time <= ``t``.
+        """A sighting of a landmark, range and bearing or its position ``xy`` in the robot frame; it attaches to the
+        newest pose with time <= ``t``.
 
         Args:
             t: Time, seconds (never before the previous event).
             landmark: Landmark id (int or non-empty string; ``3`` and ``"3"`` differ), or None when unknown (the
                 estimator associates it; with ``association="nn"``/``"jcbb"`` every id is ignored).
-            range: Distance, metres (> 0).
+            range: Distance, metres (> 0); None with ``xy``.
             bearing: Angle from the heading, radians, within [-2 pi, 2 pi] (a larger one is refused as likely
-                degrees).
-            sigma: ``[s_range, s_bearing]``, or None when ``cov`` is given.
+                degrees); None with ``xy``.
+            sigma: ``[s_range, s_bearing]`` (with ``xy``: ``[s_dx, s_dy]``), or None when ``cov`` is given.
             cov: Full 2x2 covariance, or None when ``sigma`` is given.
+            xy: ``[dx, dy]``, the landmark in the robot frame (x ahead, y to the left), metres, instead of range and
+                bearing.
         """
-        record = {"type": "observation", "t": t, "landmark": landmark, "range": range, "bearing": bearing}
+        record = {"type": "observation", "t": t, "landmark": landmark}
+        measured = {"range": range, "bearing": bearing, "xy": xy}
+        record.update((key, value) for key, value in measured.items() if value is not None)
         self._push("add_observation", record, sigma, cov)
 
     def add_observations(
         self,
         t: float,
         landmarks: Any,
-        ranges: Any,
-        bearings: Any,
+        ranges: Any = None,
+        bearings: Any = None,
         sigma: Any = None,
         cov: Any = None,
+        xy: Any = None,
     ) -> None:
         """A scan: k sightings taken at one time, checked as a whole (all are added, or none); they attach to the
         newest pose with time <= ``t``.
@@ -233,19 +247,21 @@ class Slam:
         Args:
             t: Time, seconds (never before the previous event).
             landmarks: k landmark ids (None for an unknown one), or None: all unknown.
-            ranges: k distances, metres (> 0).
-            bearings: k angles from the heading, radians, within [-2 pi, 2 pi].
-            sigma: ``[s_range, s_bearing]`` shared by all, or one per sighting (k, 2).
+            ranges: k distances, metres (> 0); None with ``xy``.
+            bearings: k angles from the heading, radians, within [-2 pi, 2 pi]; None with ``xy``.
+            sigma: Standard deviations of z shared by all (2,), or one per sighting (k, 2).
             cov: A 2x2 covariance shared by all, or one per sighting (k, 2, 2).
+            xy: k positions ``[dx, dy]`` in the robot frame, shape (k, 2), instead of ranges and bearings.
 
         Raises:
             InputError: Naming the first bad sighting's field, e.g. ``range[3]``; nothing is added.
         """
         self._validator.name = "Slam.add_observations"
-        if landmarks is None and isinstance(ranges, (list, tuple, np.ndarray)):
-            landmarks = [None] * len(ranges)
+        measured = ranges if xy is None else xy
+        if landmarks is None and isinstance(measured, (list, tuple, np.ndarray)):
+            landmarks = [None] * len(measured)
         scan = self._validator.parse_scan(
-            plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov)
+            plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov), plain(xy)
         )
         self._engine.push(scan)
 

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from online_slam.errors import OnlineSlamError
+from online_slam.models.observation import MODEL_NAMES
 from online_slam.options import add_options, readable
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import (
@@ -48,8 +49,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     both("--sensor-range", "sensor_range", "range limit m", type=float)
     both("--odometry-sigma", "odometry_sigma", "odometry noise", ("m", "m", "rad"), type=float, nargs=3,
          metavar=("SX", "SY", "STH"))  # fmt: skip
-    both("--sensor-sigma", "sensor_sigma", "range and bearing noise", ("m", "rad"), type=float, nargs=2,
-         metavar=("SR", "SB"))  # fmt: skip
+    both("--sensor-sigma", "sensor_sigma", "range and bearing noise (--model xy: dx and dy noise, m, default "
+         f"{g.xy_sigma[0]:g} each)", ("m", "rad"), type=float, nargs=2, metavar=("SR", "SB"))  # fmt: skip
+    p.add_argument("--model", choices=MODEL_NAMES, default=g.model,
+                   help=f"grid, waypoint: what a sighting measures: range and bearing, or xy, the landmark's position "
+                   f"in the robot frame (default {g.model})")  # fmt: skip
     p.add_argument("--blocks", type=int, default=g.blocks, help=f"grid: blocks per side (default {g.blocks})")
     p.add_argument(
         "--block-size", type=float, default=g.block_size, help=f"grid: block edge m (default {g.block_size})"
@@ -86,8 +90,8 @@ def run(args: argparse.Namespace) -> int:
     """Simulate and write; prints a one-line summary on stderr."""
     output = args.output or "-"
     if args.world not in ("grid", "waypoint"):
-        shaped = ("poses", "landmarks", "step", "sensor_range", "odometry_sigma", "sensor_sigma")
-        given = [name for name in shaped if getattr(args, name) is not None]
+        shaped = ("poses", "landmarks", "step", "sensor_range", "odometry_sigma", "sensor_sigma", "model")
+        given = [name for name in shaped if getattr(args, name) not in (None, GridConfig.model)]
         if given:
             flag = "--" + given[0].replace("_", "-")
             fixed = "the article's fixed world" if args.world == "square" else "a fixed world"
@@ -103,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
                 "step": args.step,
                 "sensor_range": args.sensor_range,
                 "odometry_sigma": args.odometry_sigma,
-                "sensor_sigma": args.sensor_sigma,
+                "xy_sigma" if args.model == "xy" else "sensor_sigma": args.sensor_sigma,
+                "model": args.model,
                 "seed": args.seed,
             }.items()
             if v is not None
@@ -112,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
             config: GridConfig | WaypointConfig = replace(base, blocks=args.blocks, block_size=args.block_size, **given)
         else:
             config = replace(base, size=args.size, max_turn=args.max_turn, min_range=args.min_range, **given)
-        values = [*config.odometry_sigma, *config.sensor_sigma]
+        values = [*config.odometry_sigma, *config.sensor_sigma, *config.xy_sigma]
         if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
             raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")
         try:

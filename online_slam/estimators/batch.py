@@ -12,7 +12,7 @@ from online_slam.estimators.problem import LoggedEstimator, ProblemLog
 from online_slam.estimators.protocol import Estimate
 from online_slam.factors.graph import FactorGraph, observation_chi2, without_observations
 from online_slam.factors.robust import RobustLoss, outlier_threshold
-from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import SolverConfig, solve
 
 
@@ -49,7 +49,7 @@ class BatchConfig:
 
 def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
     """Each landmark at the coordinate-wise median of where its sightings put it from the given poses."""
-    points = landmark_from_observation(poses[graph.obs_pose], graph.obs_z)
+    points = landmark_from_sighting(poses[graph.obs_pose], graph.obs_z, graph.obs_model)
     out = landmarks.copy()
     order = np.argsort(graph.obs_landmark, kind="stable")
     ids, starts = np.unique(graph.obs_landmark[order], return_index=True)

@@ -9,7 +9,8 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
   cross-covariances: O(n) instead of filterpy's dense ``F P F^T`` (O(n^3)).
 - landmarks are added from the inverse observation model with their full cross-covariance with the robot and
   the map (``P_lx = G_r P_rx``), not an arbitrary large diagonal.
-- the range-bearing update gathers only the robot and observed-landmark columns of ``P``
+- the update (each sighting with its own model: range-bearing, or a position in the robot frame) gathers only
+  the robot and observed-landmark columns of ``P``
   (``P H^T = P[:, cols] H_s^T``) and applies ``P -= W W^T`` with ``W = P H^T L^-T`` (``S = L L^T``): O(n^2 k)
   per step instead of the dense Joseph form's O(n^3), equal to it for the optimal gain, and exactly symmetric.
   A step's observations are combined into one update (``joint``), or applied one at a time (``sequential``).
@@ -56,7 +57,12 @@ from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import compose_with_jacobians
-from online_slam.models.range_bearing import landmark_from_observation_with_jacobians, range_bearing_with_jacobians
+from online_slam.models.observation import (
+    RANGE_BEARING,
+    landmark_from_sighting_with_jacobians,
+    predict_with_jacobians,
+    wrap_bearings,
+)
 from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
@@ -240,12 +246,12 @@ class EkfSlam(ExtendedKalmanFilter):
         self.Q[:3, :3] = Q
 
     # -- landmarks -------------------------------------------------------------------------------
-    def add_landmark(self, landmark: LandmarkId, z: Array, R: Array) -> None:
-        """Initialise a landmark from one observation z (2,) with covariance R (2, 2).
+    def add_landmark(self, landmark: LandmarkId, z: Array, R: Array, model: int = RANGE_BEARING) -> None:
+        """Initialise a landmark from one observation z (2,) with covariance R (2, 2) and model tag ``model``.
 
         ``l = g(x_r, z)``; ``P_ll = G_r P_rr G_r^T + G_z R G_z^T``; ``P_lx = G_r P_rx`` (robot and map).
         """
-        position, G_r, G_z = self._placed(z)
+        position, G_r, G_z = self._placed(z, model)
         cross = G_r @ self.P[:3, :]
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
         self.state.index[landmark] = len(self.landmark_ids)
@@ -255,10 +261,10 @@ class EkfSlam(ExtendedKalmanFilter):
         self.state.first = np.vstack([self.state.first, position[None]])
         self._grow(position, cross, 0.5 * (block + block.T))
 
-    def _placed(self, z: Array) -> tuple[Array, Array, Array]:
+    def _placed(self, z: Array, model: int) -> tuple[Array, Array, Array]:
         """A landmark placed from sighting z (2,) at the robot's estimate: (position (2,), d/drobot (2, 3),
         d/dz (2, 2)); fej and oc take d/drobot at the newest pose as predicted (``[I, J (l - p_k|k-1)]``)."""
-        position, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        position, G_r, G_z = landmark_from_sighting_with_jacobians(self.x[:3, 0], z, model)
         if self.config.linearization != "standard":
             G_r[:, 2] = heading_column(position, self.state.predicted[:2])
         return position, G_r, G_z
@@ -287,33 +293,38 @@ class EkfSlam(ExtendedKalmanFilter):
         return np.array([not self.book.is_tentative(lid) for lid in self.landmark_ids], dtype=bool)
 
     # -- update ----------------------------------------------------------------------------------
-    def _innovation(self, indices: NDArray[np.int64], z: Array) -> tuple[Array, Array, NDArray[np.int64]]:
+    def _innovation(
+        self, indices: NDArray[np.int64], z: Array, model: NDArray[np.int8]
+    ) -> tuple[Array, Array, NDArray[np.int64]]:
         """Innovations y (k, 2), compact Jacobian H_s (2k, 3 + 2k) and its state columns (3 + 2k,)."""
         landmarks = self.x[3:, 0].reshape(-1, 2)[indices]
-        z_hat, J_p, J_l = range_bearing_with_jacobians(self.x[:3, 0], landmarks)
+        z_hat, J_p, J_l = predict_with_jacobians(self.x[:3, 0], landmarks, model)
         if self.config.linearization == "fej":  # Jacobians at the first estimates, innovation at the current one
-            _, J_p, J_l = range_bearing_with_jacobians(self.state.predicted, self.state.first[indices])
+            _, J_p, J_l = predict_with_jacobians(self.state.predicted, self.state.first[indices], model)
         elif self.config.linearization == "oc":
             J_p, J_l = observable(J_p, J_l, self.state.predicted[:2], self.state.first[indices])
-        y = z - z_hat
-        y[:, 1] = wrap(y[:, 1])
+        y = wrap_bearings(z - z_hat, model)
         H_s = stacked_jacobian(J_p, J_l)
         columns = np.r_[np.arange(3), _landmark_columns(indices)]
         return y, H_s, columns
 
-    def update_structured(self, indices: NDArray[np.int64], z: Array, R: Array) -> tuple[Array, NDArray[np.bool_]]:
+    def update_structured(
+        self, indices: NDArray[np.int64], z: Array, R: Array, model: Any = RANGE_BEARING
+    ) -> tuple[Array, NDArray[np.bool_]]:
         """Joint update with k observations of known landmarks; O(n^2 k).
 
         Args:
             indices: Landmark indices, shape (k,) (repeats allowed).
-            z: Observations ``[range, bearing]``, shape (k, 2).
+            z: Observations, shape (k, 2).
             R: Their covariances, shape (k, 2, 2).
+            model: Their model tags (k,), or one tag for all (default range-bearing).
 
         Returns:
             (NIS of each observation at the predicted state, shape (k,); which were accepted, shape (k,)).
         """
         k = len(indices)
-        y, H_s, columns = self._innovation(indices, z)
+        model = np.broadcast_to(np.asarray(model, dtype=np.int8), (k,))
+        y, H_s, columns = self._innovation(indices, z, model)
         PHt = self.P[:, columns] @ H_s.T  # (n, 2k): only 3 + 2k columns of P are read
         S = H_s @ PHt[columns]
         diagonal = np.arange(k)
@@ -339,7 +350,7 @@ class EkfSlam(ExtendedKalmanFilter):
             drifted = failing > 0 and recent_agree < max(2.0, 0.25 * (recent_fail + recent_agree))
             if drifted and failing >= 2:  # several: drift moves them all by one robot correction
                 f = confirmed & ~passed
-                drifted = self._one_robot_correction_explains(indices[f], z[f], R[f])
+                drifted = self._one_robot_correction_explains(indices[f], z[f], R[f], model[f])
             if drifted:  # the filter drifted: let the persistent sightings of confirmed landmarks in
                 accepted |= ~passed & confirmed & (streak >= self.config.gate_persistence - 1)
             elif self.config.reanchor:  # the scan agrees with the filter: the landmark, not the robot, is off
@@ -350,7 +361,7 @@ class EkfSlam(ExtendedKalmanFilter):
         del self.state.agreement[:-AGREEMENT_UPDATES]
         self.state.confirmed[indices[passed]] = True
         if not passed.all():
-            self._remember(indices[~passed], z[~passed], R[~passed])
+            self._remember(indices[~passed], z[~passed], R[~passed], model[~passed])
         self.state.streak[indices] = np.where(accepted | reanchor, 0, self.state.streak[indices] + 1)
         if not accepted.all():
             keep = np.repeat(accepted, 2)
@@ -361,10 +372,12 @@ class EkfSlam(ExtendedKalmanFilter):
             except np.linalg.LinAlgError:  # S not positive definite in floating point: the update is not made
                 accepted[:] = False
         for i in np.flatnonzero(reanchor):
-            self.reanchor_landmark(int(indices[i]), z[i], R[i])
+            self.reanchor_landmark(int(indices[i]), z[i], R[i], model[i])
         return nis, accepted | reanchor
 
-    def _one_robot_correction_explains(self, indices: NDArray[np.int64], z: Array, R: Array) -> bool:
+    def _one_robot_correction_explains(
+        self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]
+    ) -> bool:
         """Can one robot pose, the landmarks held where they are, explain these sightings (chi-square)?
 
         Gauss-Newton on the robot pose alone, each sighting weighted by its noise plus its landmark's
@@ -376,9 +389,8 @@ class EkfSlam(ExtendedKalmanFilter):
         P_ll = self.P[cols[:, :, None], cols[:, None, :]]
         chi2_value = np.inf
         for _ in range(6):
-            z_hat, J_p, J_l = range_bearing_with_jacobians(pose, landmarks)
-            y = z - z_hat
-            y[:, 1] = wrap(y[:, 1])
+            z_hat, J_p, J_l = predict_with_jacobians(pose, landmarks, model)
+            y = wrap_bearings(z - z_hat, model)
             C_inv = np.linalg.inv(R + J_l @ P_ll @ J_l.transpose(0, 2, 1))
             chi2_value = float(np.einsum("ki,kij,kj->", y, C_inv, y))
             A = np.einsum("kai,kab,kbj->ij", J_p, C_inv, J_p)
@@ -392,9 +404,9 @@ class EkfSlam(ExtendedKalmanFilter):
         dof = 2 * len(indices) - 3
         return chi2_value <= outlier_threshold(1e-3, dof) if dof > 0 else True
 
-    def _remember(self, indices: NDArray[np.int64], z: Array, R: Array) -> None:
+    def _remember(self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]) -> None:
         """Keep where each gated sighting puts its landmark (with that position's covariance)."""
-        points, G_r, G_z = landmark_from_observation_with_jacobians(self.x[:3, 0], z)
+        points, G_r, G_z = landmark_from_sighting_with_jacobians(self.x[:3, 0], z, model)
         covs = G_r @ self.P[:3, :3] @ G_r.transpose(0, 2, 1) + G_z @ R @ G_z.transpose(0, 2, 1)
         for j, point, cov in zip(indices.tolist(), points, covs):
             recent = self.state.recent.setdefault(j, [])
@@ -418,12 +430,13 @@ class EkfSlam(ExtendedKalmanFilter):
             out[i] = agree >= max(1.0, 2.0 * len(chi2_values) / 3.0)
         return out
 
-    def reanchor_landmark(self, index: int, z: Array, R: Array) -> None:
-        """Restart a landmark from one sighting, as if it were new (its old estimate and correlations dropped).
+    def reanchor_landmark(self, index: int, z: Array, R: Array, model: int = RANGE_BEARING) -> None:
+        """Restart a landmark from one sighting (model tag ``model``), as if it were new (its old estimate and
+        correlations dropped).
 
         ``l = g(x_r, z)``; ``P_ll = G_r P_rr G_r^T + G_z R G_z^T``; ``P_lx = G_r P_rx`` for every other entry.
         """
-        position, G_r, G_z = self._placed(z)
+        position, G_r, G_z = self._placed(z, model)
         cols = 3 + 2 * index + np.arange(2)
         cross = G_r @ self.P[:3, :]
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
@@ -473,10 +486,10 @@ class EkfSlam(ExtendedKalmanFilter):
 
     def _observe(self, step: Step, start: int) -> None:
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
-        ids, z_all, R_all = step.landmarks[start:], step.z[start:], step.z_cov[start:]
+        ids, z_all, R_all, m_all = step.landmarks[start:], step.z[start:], step.z_cov[start:], step.z_model[start:]
         k = len(ids)
         if self.book.needs(ids):
-            ids = self._associate(step.index, ids, z_all, R_all)
+            ids = self._associate(step.index, ids, z_all, R_all, m_all)
         self.state.step_ids += ids
         nis = np.full(k, np.nan)
         held = np.array([lid is None for lid in ids], dtype=bool)
@@ -487,12 +500,12 @@ class EkfSlam(ExtendedKalmanFilter):
             where = np.flatnonzero(known)
             indices = np.array([self.state.index[ids[i]] for i in where], dtype=np.int64)
             if self.config.update == "joint":
-                nis[where], accepted = self.update_structured(indices, z_all[where], R_all[where])
+                nis[where], accepted = self.update_structured(indices, z_all[where], R_all[where], m_all[where])
             else:
                 accepted = np.ones(len(where), dtype=bool)
                 for j, i in enumerate(where):
                     nis[i : i + 1], accepted[j : j + 1] = self.update_structured(
-                        indices[j : j + 1], z_all[i : i + 1], R_all[i : i + 1]
+                        indices[j : j + 1], z_all[i : i + 1], R_all[i : i + 1], m_all[i : i + 1]
                     )
             gated = [ids[i] for i in where[~accepted]]
             rejected[where[~accepted]] = True
@@ -501,13 +514,13 @@ class EkfSlam(ExtendedKalmanFilter):
             lid = ids[i]
             if lid in self.state.index:  # seen twice in this step: the first sighting initialised it
                 nis[i : i + 1], ok = self.update_structured(
-                    np.array([self.state.index[lid]]), z_all[i : i + 1], R_all[i : i + 1]
+                    np.array([self.state.index[lid]]), z_all[i : i + 1], R_all[i : i + 1], m_all[i : i + 1]
                 )
                 if not ok[0]:
                     gated.append(lid)
                     rejected[i] = True
                 continue
-            self.add_landmark(lid, z_all[i], R_all[i])
+            self.add_landmark(lid, z_all[i], R_all[i], m_all[i])
             new.append(lid)
         self.state.gated_total += len(gated)
         self.state.rejected.append(rejected)
@@ -516,7 +529,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self.state.step_new += new
 
     def _associate(
-        self, step_index: int, ids: tuple[LandmarkId | None, ...], z: Array, R: Array
+        self, step_index: int, ids: tuple[LandmarkId | None, ...], z: Array, R: Array, model: NDArray[np.int8]
     ) -> list[LandmarkId | None]:
         """Ids for the sightings to associate (all of them, or those without one) against the filter's belief."""
         dropped = self.book.expire(step_index)
@@ -531,7 +544,7 @@ class EkfSlam(ExtendedKalmanFilter):
         positions = self.x[3:, 0].reshape(-1, 2)
         pose = self.x[:3, 0].copy()
         return self.book.assign_ids(
-            step_index, ids, z, R, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, known=self.state.index
+            step_index, ids, z, R, model, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, self.state.index
         )
 
     def trajectory_parts(self) -> tuple[Array, Array]:

@@ -38,7 +38,13 @@ from scipy.stats import chi2
 
 from online_slam.checkpoint import Checkpointed
 from online_slam.frontend.association import Association, Belief, associate, individual_log_likelihoods
-from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.models.observation import (
+    POSITION,
+    RANGE_BEARING,
+    distance,
+    landmark_from_sighting,
+    landmark_from_sighting_with_jacobians,
+)
 from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
@@ -68,8 +74,9 @@ class AssociationConfig:
     new_density: float = 0.0
     """Density of landmarks not yet mapped (per m^2): a pairing is kept only if the sighting is likelier a
     sighting of its landmark (the innovation's Gaussian density, per unit of range x bearing) than of an unmapped
-    landmark (this density times the range); otherwise the sighting starts a new tentative landmark, however near
-    a mapped one it lies. 0 (default): no such test (JCBB's pairing stands)."""
+    landmark (this density times the range; a position sighting's density is per unit area: this one); otherwise
+    the sighting starts a new tentative landmark, however near a mapped one it lies. 0 (default): no such test
+    (JCBB's pairing stands)."""
     reach: float = 2.0
     """Candidates: landmarks within the scan's longest range plus this margin (m) plus three sigmas of the
     pose's position and heading from the predicted pose."""
@@ -99,13 +106,9 @@ CovarianceOf = Callable[[Index], Array]
 """Joint covariance of ``[pose, landmarks idx...]``, shape (3 + 2c, 3 + 2c), for landmark indices (c,)."""
 
 
-def _point_covariance(pose: Array, z: Array, R: Array) -> Array:
+def _point_covariance(pose: Array, z: Array, R: Array, model: NDArray[np.int8]) -> Array:
     """Covariance of each sighting's world point from its measurement noise alone, shape (k, 2, 2)."""
-    angle = pose[2] + z[:, 1]
-    c, s = np.cos(angle), np.sin(angle)
-    J = np.empty((len(z), 2, 2))
-    J[:, 0, 0], J[:, 0, 1] = c, -z[:, 0] * s
-    J[:, 1, 0], J[:, 1, 1] = s, z[:, 0] * c
+    J = landmark_from_sighting_with_jacobians(pose[None, :], z, model)[2]
     return J @ R @ np.swapaxes(J, 1, 2)
 
 
@@ -150,14 +153,15 @@ class LandmarkBook(Checkpointed):
     """Step of each one's last sighting, shape (T,)."""
     _pose_covs: Array = _rows(3, 3)
     """The pose's covariance when each was last seen, shape (T, 3, 3)."""
-    _sightings: dict[int, list[tuple[int, Array, Array]]] = field(default_factory=dict)
-    """Outside: the sightings ``(step, z, R)`` of each tentative landmark, by key."""
+    _sightings: dict[int, list[tuple[int, Array, Array, int]]] = field(default_factory=dict)
+    """Outside: the sightings ``(step, z, R, model tag)`` of each tentative landmark, by key."""
     _confirmed_keys: dict[int, LandmarkId] = field(default_factory=dict)
     """Outside: the id each confirmed tentative landmark was given, by key."""
     _labels: list[LandmarkId | None] = field(default_factory=list)
     """Per sighting: a landmark id, -(key + 1) for a book-tentative one, or None."""
-    retro: list[tuple[LandmarkId, int, Array, Array]] = field(default_factory=list)
-    """Outside: earlier sightings ``(id, step, z, R)`` of the landmarks the last :meth:`assign` confirmed."""
+    retro: list[tuple[LandmarkId, int, Array, Array, int]] = field(default_factory=list)
+    """Outside: earlier sightings ``(id, step, z, R, model tag)`` of the landmarks the last :meth:`assign`
+    confirmed."""
     dropped: int = 0
     """Tentative landmarks dropped unconfirmed."""
     ambiguous: int = 0
@@ -211,6 +215,7 @@ class LandmarkBook(Checkpointed):
         ids: Sequence[LandmarkId | None],
         z: Array,
         R: Array,
+        model: NDArray[np.int8],
         pose: Array,
         pose_cov: Array,
         positions: Array,
@@ -222,7 +227,7 @@ class LandmarkBook(Checkpointed):
         everything = self.config.ignores_ids
         ask = np.array([i for i, lid in enumerate(ids) if everything or lid is None], dtype=np.int64)
         assigned = self.assign(
-            step_index, pose, pose_cov, z[ask], R[ask], positions, landmark_ids, covariance_of, known
+            step_index, pose, pose_cov, z[ask], R[ask], positions, landmark_ids, covariance_of, known, model[ask]
         )
         out = list(ids)
         for i, lid in zip(ask, assigned):
@@ -240,16 +245,18 @@ class LandmarkBook(Checkpointed):
         ids: Sequence[LandmarkId],
         covariance_of: CovarianceOf,
         known: set | dict | None = None,
+        model: Any = RANGE_BEARING,
     ) -> list[LandmarkId | None]:
         """Pair one scan's sightings with landmarks (call :meth:`expire` for the step first).
 
         Args:
             step_index: Index of the pose that took the scan.
             pose: Its predicted pose, shape (3,); ``pose_cov`` its covariance (3, 3).
-            z: Sightings ``[range, bearing]``, shape (k, 2); ``R`` their noise, (k, 2, 2).
+            z: Sightings, shape (k, 2); ``R`` their noise, (k, 2, 2).
             positions: Current estimates of the estimator's landmarks, shape (M, 2); ``ids`` their ids (M,).
             covariance_of: The estimator's joint covariance of the pose and some landmarks.
             known: Ids the estimator knows (new ids avoid them); defaults to ``ids``.
+            model: The sightings' model tags (k,), or one tag for all (default range-bearing).
 
         Returns:
             Per sighting: the id to use (an existing landmark, or a new one to create from this sighting), or
@@ -261,14 +268,15 @@ class LandmarkBook(Checkpointed):
         self.retro = []
         if k == 0:
             return out
+        model = np.broadcast_to(np.asarray(model, dtype=np.int8), (k,))
         free = np.ones(k, dtype=bool)
         if len(positions):
-            candidates = self._candidates(pose, pose_cov, z, positions)
+            candidates = self._candidates(pose, pose_cov, distance(z, model), positions)
             if len(candidates):
                 belief = Belief(pose, positions[candidates], covariance_of(candidates))
-                pairing = associate(self.config.scan_method, belief, z, R, self.config.gate_probability)
+                pairing = associate(self.config.scan_method, belief, z, R, self.config.gate_probability, model)
                 if self.config.new_density > 0.0:
-                    pairing = self._likely(pairing, belief, z, R)
+                    pairing = self._likely(pairing, belief, z, R, model)
                 for i in np.flatnonzero(pairing.landmark >= 0):
                     lid = ids[int(candidates[pairing.landmark[i]])]
                     out[i] = labels[i] = lid
@@ -288,18 +296,19 @@ class LandmarkBook(Checkpointed):
                     if self.config.confirm > 1:
                         self._pending[lid] = [1, step_index, step_index]
             else:
-                self._tentative(step_index, pose, pose_cov, z, R, free, out, labels, known)
+                self._tentative(step_index, pose, pose_cov, (z, R, model), free, out, labels, known)
         self._labels.extend(labels)
         return out
 
-    def _likely(self, pairing: Association, belief: Belief, z: Array, R: Array) -> Association:
+    def _likely(self, pairing: Association, belief: Belief, z: Array, R: Array, model: NDArray[np.int8]) -> Association:
         """The pairing without pairs less likely than a sighting of an unmapped landmark (``new_density``)."""
         paired = np.flatnonzero(pairing.landmark >= 0)
         if len(paired) == 0:
             return pairing
-        _, log_l = individual_log_likelihoods(belief, z[paired], R[paired])
+        _, log_l = individual_log_likelihoods(belief, z[paired], R[paired], model[paired])
         own = log_l[np.arange(len(paired)), pairing.landmark[paired]]
-        unlikely = own < np.log(self.config.new_density * z[paired, 0])
+        per_unit = np.where(model[paired] == POSITION, 1.0, z[paired, 0])  # polar: dA = r dr db
+        unlikely = own < np.log(self.config.new_density * per_unit)
         if not unlikely.any():
             return pairing
         landmark = pairing.landmark.copy()
@@ -317,9 +326,10 @@ class LandmarkBook(Checkpointed):
         if entry[0] >= self.config.confirm:
             del self._pending[lid]
 
-    def _candidates(self, pose: Array, pose_cov: Array, z: Array, positions: Array) -> Index:
-        """Landmarks within reach of the predicted pose (a generous Euclidean prefilter of the gate)."""
-        longest = float(z[:, 0].max())
+    def _candidates(self, pose: Array, pose_cov: Array, distances: Array, positions: Array) -> Index:
+        """Landmarks within reach of the predicted pose (a generous Euclidean prefilter of the gate), given how
+        far the scan's sightings put their landmarks."""
+        longest = float(distances.max())
         position_sigma = float(np.sqrt(max(np.linalg.eigvalsh(pose_cov[:2, :2])[-1], 0.0)))
         heading_sigma = float(np.sqrt(max(pose_cov[2, 2], 0.0)))
         reach = longest + self.config.reach + 3.0 * (position_sigma + longest * heading_sigma)
@@ -331,8 +341,7 @@ class LandmarkBook(Checkpointed):
         step_index: int,
         pose: Array,
         pose_cov: Array,
-        z: Array,
-        R: Array,
+        sightings: tuple[Array, Array, NDArray[np.int8]],
         free: NDArray[np.bool_],
         out: list,
         labels: list,
@@ -344,9 +353,10 @@ class LandmarkBook(Checkpointed):
         drifted since the tentative landmark was last seen (the growth of the pose's covariance since then,
         through the sighting's point Jacobian).
         """
+        z, R, model = sightings
         rows = np.flatnonzero(free)
-        points = landmark_from_observation(pose[None, :], z[rows])
-        covs = _point_covariance(pose, z[rows], R[rows])
+        points = landmark_from_sighting(pose[None, :], z[rows], model[rows])
+        covs = _point_covariance(pose, z[rows], R[rows], model[rows])
         taken = np.full(len(rows), -1, dtype=np.int64)
         if len(self._keys):
             diff = points[:, None, :] - self._points[None, :, :]  # (f, T, 2)
@@ -382,12 +392,12 @@ class LandmarkBook(Checkpointed):
                 key = int(self._keys[t])
                 labels[i] = -(key + 1)
                 if self._counts[t] < self.config.confirm:
-                    self._sightings[key].append((step_index, z[i].copy(), R[i].copy()))
+                    self._sightings[key].append((step_index, z[i].copy(), R[i].copy(), int(model[i])))
                     continue
                 confirmed.append(t)
                 lid = out[i] = labels[i] = self._new_id(known)
                 self._confirmed_keys[key] = lid
-                self.retro += [(lid, g, zz, RR) for g, zz, RR in self._sightings.pop(key)]
+                self.retro += [(lid, g, zz, RR, m) for g, zz, RR, m in self._sightings.pop(key)]
                 continue
             key = self._next_key
             self._next_key += 1
@@ -395,7 +405,7 @@ class LandmarkBook(Checkpointed):
                 out[i] = labels[i] = self._confirmed_keys[key] = self._new_id(known)
                 continue
             labels[i] = -(key + 1)
-            self._sightings[key] = [(step_index, z[i].copy(), R[i].copy())]
+            self._sightings[key] = [(step_index, z[i].copy(), R[i].copy(), int(model[i]))]
             self._keys = np.r_[self._keys, key]
             self._points = np.vstack([self._points, points[f]])
             self._covs = np.concatenate([self._covs, covs[f][None]])

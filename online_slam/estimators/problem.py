@@ -13,7 +13,7 @@ from online_slam.estimators.protocol import Snapshot
 from online_slam.factors.graph import FactorGraph, sqrt_information
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
-from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
@@ -57,9 +57,11 @@ class ProblemLog(Checkpointed):
     _obs_landmark: list[Array] = field(default_factory=list)
     """The landmark index of each (-1: without id), shape (k,)."""
     _obs_z: list[Array] = field(default_factory=list)
-    """The measurements ``[range, bearing]``, shape (k, 2)."""
+    """The measurements ``[range, bearing]`` or ``[dx, dy]``, shape (k, 2)."""
     _obs_cov: list[Array] = field(default_factory=list)
     """Their covariances, shape (k, 2, 2)."""
+    _obs_model: list[NDArray[np.int8]] = field(default_factory=list)
+    """Their model tags, shape (k,)."""
     _landmark_index: dict[LandmarkId, int] = field(init=False)
     """Index of each landmark id in ``landmark_ids``."""
     _cached_obs: int = field(init=False)
@@ -83,7 +85,7 @@ class ProblemLog(Checkpointed):
         self._cached_odo, self._cat_odo = 0, ()
 
     def _observation_arrays(self) -> tuple[Array, ...]:
-        """Every sighting's pose, landmark index, z, covariance and square-root information, concatenated."""
+        """Every sighting's pose, landmark index, z, covariance, square-root information and model tag, concatenated."""
         n = len(self._obs_pose)
         if not self._cat_obs or self._cached_obs < n:
             new = slice(self._cached_obs, n)
@@ -94,6 +96,7 @@ class ProblemLog(Checkpointed):
                 _concat(self._obs_z[new], (2,), float),
                 cov,
                 sqrt_information(cov) if len(cov) else np.zeros((0, 2, 2)),
+                _concat(self._obs_model[new], (), np.int8),
             )
             self._cat_obs, self._cached_obs = _extended(self._cat_obs, parts), n
         return self._cat_obs
@@ -148,11 +151,11 @@ class ProblemLog(Checkpointed):
         ids = list(self.landmark_ids)
         if not self.use_ids:
             ids_now = (None,) * len(ids_now)
-        for lid, z in zip(ids_now, step.z[start:]):
+        for lid, z, model in zip(ids_now, step.z[start:], step.z_model[start:]):
             if lid is not None and lid not in self._landmark_index:
                 self._landmark_index[lid] = len(ids)
                 ids.append(lid)
-                self._landmarks.append(landmark_from_observation(pose, z))
+                self._landmarks.append(landmark_from_sighting(pose, z, model))
         if len(ids) != len(self.landmark_ids):
             self.landmark_ids = tuple(ids)
         if not self.keep_factors:
@@ -161,15 +164,18 @@ class ProblemLog(Checkpointed):
         self._obs_landmark.append(self.landmark_indices(ids_now))
         self._obs_z.append(step.z[start:])
         self._obs_cov.append(step.z_cov[start:])
+        self._obs_model.append(step.z_model[start:])
 
-    def add_sightings(self, pose: int, ids: tuple[LandmarkId, ...], z: Array, cov: Array) -> None:
-        """Record sightings of known landmarks taken at an earlier pose (graphs order sightings by pose)."""
+    def add_sightings(self, pose: int, ids: tuple[LandmarkId, ...], z: Array, cov: Array, model: Any) -> None:
+        """Record sightings of known landmarks taken at an earlier pose (graphs order sightings by pose); ``model``
+        tags them all, or each (k,)."""
         if not self.keep_factors:
             return
         self._obs_pose.append(np.full(len(ids), pose))
         self._obs_landmark.append(self.landmark_indices(ids))
         self._obs_z.append(np.asarray(z, dtype=float))
         self._obs_cov.append(np.asarray(cov, dtype=float))
+        self._obs_model.append(tags(model, len(ids)))
 
     def frozen(self) -> ProblemLog:
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
@@ -179,9 +185,11 @@ class ProblemLog(Checkpointed):
         copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
         return copy
 
-    def sightings(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array]:
-        """Every sighting recorded, in order: (pose, landmark index or -1 without id, z (k, 2), cov (k, 2, 2))."""
-        return self._observation_arrays()[:4]
+    def sightings(self) -> tuple[NDArray[np.int64], NDArray[np.int64], Array, Array, NDArray[np.int8]]:
+        """Every sighting recorded, in order: (pose, landmark index or -1 without id, z (k, 2), cov (k, 2, 2),
+        model tag (k,))."""
+        pose, landmark, z, cov, _, model = self._observation_arrays()
+        return pose, landmark, z, cov, model
 
     def graph(self, labels: NDArray[np.int64] | None = None, n_landmarks: int | None = None) -> FactorGraph:
         """All factors recorded so far as one graph (start pose fixed, or a prior on it).
@@ -201,7 +209,7 @@ class ProblemLog(Checkpointed):
                 fixed = [0]
             else:
                 prior_args = {"prior_pose": [0], "prior_mean": mean[None], "prior_cov": cov[None]}
-        obs_pose, obs_landmark, obs_z, _, obs_sqrt = self._observation_arrays()
+        obs_pose, obs_landmark, obs_z, _, obs_sqrt, obs_model = self._observation_arrays()
         odo_delta, odo_sqrt = self._odometry_arrays()
         if labels is not None:
             obs_landmark = np.asarray(labels, dtype=np.int64)
@@ -222,6 +230,7 @@ class ProblemLog(Checkpointed):
             obs_landmark=obs_landmark[used],
             obs_z=obs_z[used],
             obs_sqrt_info=obs_sqrt[used],
+            obs_model=obs_model[used],
         )
 
 

@@ -4,7 +4,9 @@ Three factor kinds, all whitened by the square-root information ``W`` (``W^T W =
 
 - prior on a pose: ``W (p - mean)`` (angle wrapped);
 - odometry between poses a and b: ``W (between(a, b) - delta)`` (angle wrapped) — the article's model;
-- range-bearing observation of landmark l from pose p: ``W (h(p, l) - z)`` (bearing wrapped).
+- observation of landmark l from pose p: ``W (h(p, l) - z)``, with ``h`` the sighting's own model
+  (:mod:`online_slam.models.observation`: range-bearing, bearing wrapped, or the landmark's position in the
+  robot frame), tagged per observation in ``obs_model``.
 
 The state vector holds the free poses then the landmarks; fixed poses have no columns.
 """
@@ -21,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
+from online_slam.models.observation import RANGE_BEARING, predict, predict_with_jacobians, wrap_bearings
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -73,9 +75,11 @@ class FactorGraph:
     obs_landmark: Index
     """Observed landmark of each observation, shape (L,)."""
     obs_z: Array
-    """Measured ``[range, bearing]``, shape (L, 2)."""
+    """Measured ``[range, bearing]`` or ``[dx, dy]`` (see ``obs_model``), shape (L, 2)."""
     obs_sqrt_info: Array
     """Square-root information of the observations, shape (L, 2, 2)."""
+    obs_model: NDArray[np.int8]
+    """Model tag of each observation (:mod:`online_slam.models.observation`), shape (L,)."""
 
     @staticmethod
     def build(
@@ -94,11 +98,14 @@ class FactorGraph:
         obs_landmark: ArrayLike = (),
         obs_z: ArrayLike = (),
         obs_cov: ArrayLike = (),
+        obs_model: ArrayLike = RANGE_BEARING,
     ) -> FactorGraph:
-        """Build a graph from covariances (computes the square-root information once)."""
+        """Build a graph from covariances (computes the square-root information once); ``obs_model`` tags every
+        observation with one model, or each with its own (L,)."""
         prior_cov = np.asarray(prior_cov, dtype=float).reshape(-1, 3, 3)
         odo_cov = np.asarray(odo_cov, dtype=float).reshape(-1, 3, 3)
         obs_cov = np.asarray(obs_cov, dtype=float).reshape(-1, 2, 2)
+        obs_pose = _index(obs_pose)
         return FactorGraph(
             n_poses=int(n_poses),
             n_landmarks=int(n_landmarks),
@@ -110,10 +117,11 @@ class FactorGraph:
             odo_to=_index(odo_to),
             odo_delta=np.asarray(odo_delta, dtype=float).reshape(-1, 3),
             odo_sqrt_info=sqrt_information(odo_cov) if len(odo_cov) else odo_cov,
-            obs_pose=_index(obs_pose),
+            obs_pose=obs_pose,
             obs_landmark=_index(obs_landmark),
             obs_z=np.asarray(obs_z, dtype=float).reshape(-1, 2),
             obs_sqrt_info=sqrt_information(obs_cov) if len(obs_cov) else obs_cov,
+            obs_model=np.broadcast_to(np.asarray(obs_model, dtype=np.int8), obs_pose.shape).copy(),
         )
 
     @property
@@ -206,9 +214,8 @@ def _errors(
     e_prior = poses[graph.prior_pose] - graph.prior_mean
     e_prior[:, 2] = wrap(e_prior[:, 2])
     e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
-    z, J_p, J_l = range_bearing_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark])
-    e_obs = z - graph.obs_z
-    e_obs[:, 1] = wrap(e_obs[:, 1])
+    z, J_p, J_l = predict_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
+    e_obs = wrap_bearings(z - graph.obs_z, graph.obs_model)
     return e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
 
 
@@ -233,25 +240,27 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     )
 
 
-def range_bearing_chi2(poses: Array, landmarks: Array, z: Array, sqrt_info: Array) -> Array:
-    """Squared whitened norm of k range-bearing residuals (chi-square, 2 dof, when the model is right).
+def sighting_chi2(poses: Array, landmarks: Array, z: Array, sqrt_info: Array, model: ArrayLike) -> Array:
+    """Squared whitened norm of k sightings' residuals (chi-square, 2 dof, when the model is right).
 
     Args:
         poses: Observing poses, shape (k, 3). landmarks: Observed landmarks, shape (k, 2).
-        z: Observations ``[range, bearing]``, shape (k, 2). sqrt_info: Their square-root information, (k, 2, 2).
+        z: Observations, shape (k, 2). sqrt_info: Their square-root information, (k, 2, 2).
+        model: Their model tags, shape (k,) (or one tag for all).
 
     Returns:
         Shape (k,).
     """
-    e = range_bearing(poses, landmarks) - z
-    e[:, 1] = wrap(e[:, 1])
+    e = wrap_bearings(predict(poses, landmarks, model) - z, model)
     w = _whiten(sqrt_info, e)
     return np.sum(w * w, axis=1)
 
 
 def observation_chi2(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     """Squared whitened norm of each observation's residual in a graph, shape (n_obs,)."""
-    return range_bearing_chi2(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_z, graph.obs_sqrt_info)
+    return sighting_chi2(
+        poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_z, graph.obs_sqrt_info, graph.obs_model
+    )
 
 
 def without_observations(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:

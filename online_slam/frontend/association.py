@@ -2,8 +2,9 @@
 
 Pure math over a Gaussian belief of the robot pose and the landmarks: state ``s = [pose (3), l_1 .. l_M (2 each)]``
 with covariance ``P`` (the EKF's own; a smoother can give pose and landmark marginals, cross terms zero). A
-sighting ``z_i`` (range, bearing; noise ``R_i``) and a landmark ``j`` give the innovation
-``nu_ij = wrap(z_i - h(pose, l_j))`` with Jacobian ``H_ij`` (``dh/dpose`` at the pose's columns, ``dh/dl`` at
+sighting ``z_i`` (range-bearing, or a position in the robot frame: each with its own model ``h``, tagged per
+sighting; noise ``R_i``) and a landmark ``j`` give the innovation ``nu_ij = z_i - h(pose, l_j)`` (a bearing
+wrapped) with Jacobian ``H_ij`` (``dh/dpose`` at the pose's columns, ``dh/dl`` at
 ``l_j``'s) and covariance ``S_ij = H_ij P H_ij^T + R_i`` — the measurement noise is part of it (PythonRobotics'
 EKF-SLAM builds it from the state block alone, with a fixed threshold of 2.0).
 
@@ -21,11 +22,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-from online_slam.geometry.angles import wrap
-from online_slam.models.range_bearing import range_bearing_with_jacobians
+from online_slam.models.observation import RANGE_BEARING, predict_with_jacobians, wrap_bearings
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -58,56 +58,89 @@ class Association:
     """Individual squared Mahalanobis distance of every (sighting, landmark) pair, shape (k, M)."""
 
 
-def _innovations(belief: Belief, z: Array) -> tuple[Array, Array, Array]:
-    """nu (k, M, 2), and the Jacobians dh/dpose (M, 2, 3), dh/dl (M, 2, 2) at the belief."""
-    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks)
-    nu = z[:, None, :] - z_hat[None, :, :]
-    nu[..., 1] = wrap(nu[..., 1])
-    return nu, J_p, J_l
+@dataclass(frozen=True)
+class Predictions:
+    """Every landmark's predicted sighting under each model a scan uses (T models), and each sighting's model."""
+
+    row: Index
+    """Each sighting's model: its row in the tables, shape (k,)."""
+    z_hat: Array
+    """Predicted sightings, shape (T, M, 2)."""
+    J_p: Array
+    """Their Jacobians with respect to the pose, shape (T, M, 2, 3)."""
+    J_l: Array
+    """Their Jacobians with respect to the landmark, shape (T, M, 2, 2)."""
 
 
-def individual_distances(belief: Belief, z: Array, R: Array) -> Array:
+def predictions(belief: Belief, model: ArrayLike, k: int) -> Predictions:
+    """The belief's predictions for k sightings with model tags ``model`` ((k,), or one for all)."""
+    tags = np.broadcast_to(np.asarray(model, dtype=np.int8), (k,))
+    present, row = np.unique(tags, return_inverse=True)
+    tables = [predict_with_jacobians(belief.pose[None, :], belief.landmarks, m) for m in present]
+    z_hat, J_p, J_l = (np.stack(parts) for parts in zip(*tables))
+    return Predictions(row.reshape(k).astype(np.int64), z_hat, J_p, J_l)
+
+
+def _innovations(belief: Belief, z: Array, model: ArrayLike) -> tuple[Array, Predictions]:
+    """nu (k, M, 2), and the predictions (with Jacobians) at the belief."""
+    p = predictions(belief, model, len(z))
+    nu = wrap_bearings(z[:, None, :] - p.z_hat[p.row], np.asarray(model)[..., None])
+    return nu, p
+
+
+def individual_distances(belief: Belief, z: Array, R: Array, model: ArrayLike = RANGE_BEARING) -> Array:
     """Squared Mahalanobis distance of every (sighting, landmark) pair, shape (k, M).
 
     Args:
         belief: Pose, landmarks and their joint covariance.
-        z: Sightings ``[range, bearing]``, shape (k, 2).
+        z: Sightings, shape (k, 2).
         R: Their noise covariances, shape (k, 2, 2).
+        model: Their model tags (k,), or one tag for all (default range-bearing).
     """
-    return individual_log_likelihoods(belief, z, R)[0]
+    return individual_log_likelihoods(belief, z, R, model)[0]
 
 
-def individual_log_likelihoods(belief: Belief, z: Array, R: Array) -> tuple[Array, Array]:
-    """Squared Mahalanobis distances ``d2`` and log densities ``-d2 / 2 - log(2 pi sqrt(det S))`` of every
-    (sighting, landmark) pair, shapes (k, M) each (densities per unit of range x bearing)."""
-    k, M = len(z), len(belief.landmarks)
-    if k == 0 or M == 0:
-        return np.full((k, M), np.inf), np.full((k, M), -np.inf)
-    nu, J_p, J_l = _innovations(belief, z)
-    P = belief.covariance
+def _projected(P: Array, J_p: Array, J_l: Array) -> Array:
+    """``H P H^T`` of every landmark's sighting (M, 2, 2), H its Jacobians (M, 2, 3) and (M, 2, 2)."""
+    M = len(J_p)
     cols = 3 + 2 * np.arange(M)
     P_pp = P[:3, :3]
     P_pl = np.stack([P[:3, c : c + 2] for c in cols])  # (M, 3, 2)
     P_ll = np.stack([P[c : c + 2, c : c + 2] for c in cols])  # (M, 2, 2)
-    HPH = (
+    return (
         J_p @ P_pp @ np.swapaxes(J_p, 1, 2)
         + J_p @ P_pl @ np.swapaxes(J_l, 1, 2)
         + J_l @ np.swapaxes(P_pl, 1, 2) @ np.swapaxes(J_p, 1, 2)
         + J_l @ P_ll @ np.swapaxes(J_l, 1, 2)
-    )  # (M, 2, 2)
-    S = HPH[None, :, :, :] + R[:, None, :, :]  # (k, M, 2, 2)
+    )
+
+
+def individual_log_likelihoods(
+    belief: Belief, z: Array, R: Array, model: ArrayLike = RANGE_BEARING
+) -> tuple[Array, Array]:
+    """Squared Mahalanobis distances ``d2`` and log densities ``-d2 / 2 - log(2 pi sqrt(det S))`` of every
+    (sighting, landmark) pair, shapes (k, M) each (densities per unit of the sighting's z: range x bearing, or
+    area)."""
+    k, M = len(z), len(belief.landmarks)
+    if k == 0 or M == 0:
+        return np.full((k, M), np.inf), np.full((k, M), -np.inf)
+    nu, p = _innovations(belief, z, model)
+    HPH = np.stack([_projected(belief.covariance, J_p, J_l) for J_p, J_l in zip(p.J_p, p.J_l)])  # (T, M, 2, 2)
+    S = HPH[p.row] + R[:, None, :, :]  # (k, M, 2, 2)
     d2 = np.einsum("kmi,kmi->km", nu, np.linalg.solve(S, nu[..., None])[..., 0])
     log_det = np.log(S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] * S[..., 1, 0])
     return d2, -0.5 * d2 - 0.5 * log_det - np.log(2.0 * np.pi)
 
 
-def nearest_neighbour(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
+def nearest_neighbour(
+    belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, model: ArrayLike = RANGE_BEARING
+) -> Association:
     """Pair each sighting with its nearest individually compatible landmark, each landmark at most once.
 
     Pairs are taken by increasing distance (the globally nearest first), so a landmark goes to the sighting
-    closest to it.
+    closest to it. ``model``: the sightings' model tags (k,), or one for all.
     """
-    d2 = individual_distances(belief, z, R)
+    d2 = individual_distances(belief, z, R, model)
     gate = chi2.isf(1.0 - gate_probability, 2)
     out = np.full(len(z), -1, dtype=np.int64)
     used: set[int] = set()
@@ -126,7 +159,14 @@ MAX_NODES = 20000
 """JCBB explores at most this many hypotheses per scan, then keeps the best found (bounds the worst case)."""
 
 
-def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, max_nodes: int = MAX_NODES) -> Association:
+def jcbb(
+    belief: Belief,
+    z: Array,
+    R: Array,
+    gate_probability: float = 0.99,
+    max_nodes: int = MAX_NODES,
+    model: ArrayLike = RANGE_BEARING,
+) -> Association:
     """Joint compatibility branch and bound: the largest jointly compatible pairing of one scan.
 
     The joint distance grows by one Schur complement per pairing added (``S_H^-1`` kept along the search), so
@@ -138,31 +178,31 @@ def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, max
         R: Their noise covariances, shape (k, 2, 2).
         gate_probability: Probability that a true pairing passes the (individual and joint) chi-square tests.
         max_nodes: Hypotheses explored at most (the best found so far is kept when the budget runs out).
+        model: The sightings' model tags (k,), or one for all (default range-bearing).
 
     Returns:
         The pairing (most pairings; among those, the smallest joint distance).
     """
     k = len(z)
-    d2 = individual_distances(belief, z, R)
+    d2 = individual_distances(belief, z, R, model)
     limits = chi2.isf(1.0 - gate_probability, 2 * np.arange(1, k + 1))
     candidates = [[int(j) for j in np.argsort(row, kind="stable") if row[j] <= limits[0]] for row in d2]
     best: list = [[], np.inf]  # pairs, joint distance
     if not any(candidates):
         return Association(np.full(k, -1, dtype=np.int64), 0.0, d2)
     P = belief.covariance
-    z_hat, J_p, J_l = range_bearing_with_jacobians(belief.pose[None, :], belief.landmarks)
-    used_landmarks = sorted({j for row in candidates for j in row})
-    PG = {  # P G_j^T, shape (n, 2), for every landmark a candidate pair may use
-        j: P[:, :3] @ J_p[j].T + P[:, 3 + 2 * j : 5 + 2 * j] @ J_l[j].T for j in used_landmarks
+    innovations, p = _innovations(belief, z, model)  # (k, M, 2)
+    J_p, J_l = p.J_p, p.J_l  # by model (row) and landmark
+    used = sorted({(int(p.row[i]), j) for i, row in enumerate(candidates) for j in row})
+    PG = {  # P G^T, shape (n, 2), for every (model, landmark) a candidate pair may use
+        (t, j): P[:, :3] @ J_p[t, j].T + P[:, 3 + 2 * j : 5 + 2 * j] @ J_l[t, j].T for t, j in used
     }
 
-    innovations = z[:, None, :] - z_hat[None, :, :]  # (k, M, 2)
-    innovations[..., 1] = wrap(innovations[..., 1])
-
-    def gpg(a: tuple[int, int], j: int) -> Array:
-        """G_a P G_j^T (2, 2)."""
-        ja = a[1]
-        return J_p[ja] @ PG[j][:3] + J_l[ja] @ PG[j][3 + 2 * ja : 5 + 2 * ja]
+    def gpg(a: tuple[int, int], b: tuple[int, int]) -> Array:
+        """G_a P G_b^T (2, 2) of the pairs (sighting, landmark) a and b."""
+        ta, ja = int(p.row[a[0]]), a[1]
+        PG_b = PG[(int(p.row[b[0]]), b[1])]
+        return J_p[ta, ja] @ PG_b[:3] + J_l[ta, ja] @ PG_b[3 + 2 * ja : 5 + 2 * ja]
 
     nodes = [0]
 
@@ -177,10 +217,10 @@ def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, max
         for j in candidates[i]:
             if j in used or nodes[0] >= max_nodes:
                 continue
-            S_bb = gpg((i, j), j) + R[i]
+            S_bb = gpg((i, j), (i, j)) + R[i]
             nu_b = innovations[i, j]
             if m:
-                C = np.vstack([gpg(a, j) for a in pairs])  # (2m, 2): cov of the hypothesis' and the new innovation
+                C = np.vstack([gpg(a, (i, j)) for a in pairs])  # (2m, 2): cov of the hypothesis' and the new innovation
                 K = S_inv @ C
                 s = S_bb - C.T @ K
                 e = nu_b - K.T @ nu
@@ -214,10 +254,12 @@ def jcbb(belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, max
     return Association(out, float(best[1]) if best[0] else 0.0, d2)
 
 
-def associate(method: str, belief: Belief, z: Array, R: Array, gate_probability: float = 0.99) -> Association:
-    """``nn`` or ``jcbb`` on one scan."""
+def associate(
+    method: str, belief: Belief, z: Array, R: Array, gate_probability: float = 0.99, model: ArrayLike = RANGE_BEARING
+) -> Association:
+    """``nn`` or ``jcbb`` on one scan (``model``: the sightings' model tags (k,), or one for all)."""
     if method == "nn":
-        return nearest_neighbour(belief, z, R, gate_probability)
+        return nearest_neighbour(belief, z, R, gate_probability, model)
     if method == "jcbb":
-        return jcbb(belief, z, R, gate_probability)
+        return jcbb(belief, z, R, gate_probability, model=model)
     raise ValueError(f"association method must be one of {', '.join(METHODS)}, not {method!r}")

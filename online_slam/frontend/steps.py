@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from online_slam.errors import OnlineSlamError
 from online_slam.models.motion import compose_increments
+from online_slam.models.observation import POSITION, RANGE_BEARING
 from online_slam.sources.events import (
     Event,
     Header,
@@ -94,7 +95,7 @@ class Step:
     landmarks: tuple[LandmarkId, ...]
     """Ids of the observed landmarks, length k."""
     z: Array
-    """Observations ``[range, bearing]``, shape (k, 2)."""
+    """Observations, shape (k, 2): ``[range, bearing]``, or ``[dx, dy]`` in the robot frame (see ``z_model``)."""
     z_cov: Array
     """Observation covariances, shape (k, 2, 2)."""
     prior: Array | None = None
@@ -112,6 +113,13 @@ class Step:
     """Range and bearing to each seen robot's position, shape (m, 2)."""
     z_robots_cov: Array = field(default_factory=lambda: _NO_ROBOT_Z_COV)
     """Their covariances, shape (m, 2, 2)."""
+    z_model: NDArray[np.int8] | None = None
+    """Model tag of each observation (:mod:`online_slam.models.observation`), shape (k,); None given: every
+    observation is range-bearing (the step then holds zeros)."""
+
+    def __post_init__(self) -> None:
+        if self.z_model is None:
+            object.__setattr__(self, "z_model", np.zeros(len(self.landmarks), dtype=np.int8))
 
 
 @dataclass
@@ -143,6 +151,7 @@ class PendingStep:
     landmarks: list[LandmarkId | None] = field(default_factory=list)
     z: list[tuple[float, float]] = field(default_factory=list)
     z_noise: list[Any] = field(default_factory=list)  # per sighting: its sigma (2,) or its covariance (2, 2)
+    z_model: list[int] = field(default_factory=list)  # per sighting: its model's tag
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
     full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
     robot: RobotId | None = None
@@ -190,6 +199,7 @@ class PendingStep:
             prior_cov=self.prior_cov,
             merged=self.merged,
             **self._robot_fields(),
+            z_model=np.array(self.z_model, dtype=np.int8),
         )
 
     def _robot_fields(self) -> dict[str, Any]:
@@ -298,7 +308,8 @@ class FrontEnd:
                 self.truth.sighting_landmarks[self.sightings] = event.truth_landmark
             self.sightings += 1
             pending.landmarks.append(event.landmark)
-            pending.z.append((event.range, event.bearing))
+            pending.z.append(event.z)
+            pending.z_model.append(event.model)
             pending.z_noise.append(event.sigma if event.cov is None else event.cov)
             if event.cov is not None:
                 pending.full_covariance = True
@@ -311,13 +322,16 @@ class FrontEnd:
                 dropped = len(event.landmarks) - len(keep)
                 self.counts["dropped_repeat_observation"] = self.counts.get("dropped_repeat_observation", 0) + dropped
             self.sightings += len(keep)
+            z = zip(event.ranges, event.bearings) if event.xy is None else event.xy
+            pending.z_model.extend([RANGE_BEARING if event.xy is None else POSITION] * len(keep))
             if len(keep) == len(event.landmarks):
                 pending.landmarks.extend(event.landmarks)
-                pending.z.extend(zip(event.ranges, event.bearings))
+                pending.z.extend(z)
                 pending.z_noise.extend(event.noise)
             else:
+                z = list(z)
                 pending.landmarks.extend(event.landmarks[i] for i in keep)
-                pending.z.extend((event.ranges[i], event.bearings[i]) for i in keep)
+                pending.z.extend(z[i] for i in keep)
                 pending.z_noise.extend(event.noise[i] for i in keep)
             if event.noise and isinstance(event.noise[0][0], tuple):
                 pending.full_covariance = True

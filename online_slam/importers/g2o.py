@@ -23,7 +23,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.geometry.se2 import compose
 from online_slam.importers._lines import covariance_from, numbered_lines, numbers
 from online_slam.importers.gtsam_text import cartesian_to_range_bearing
-from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.models.observation import landmark_from_sighting
 from online_slam.sources.events import Event, Header, Observation, Odometry, Start
 
 EDGE_SE2 = ("i", "j", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33")
@@ -129,13 +129,16 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
                 raise OnlineSlamError(f"g2o needs a landmark id on every sighting; the one at t={event.t} has none")
             if not poses:
                 poses = [np.zeros(3)]
-            r, b = event.range, event.bearing
-            point = np.array([r * np.cos(b), r * np.sin(b)])
-            J = np.array([[np.cos(b), -r * np.sin(b)], [np.sin(b), r * np.cos(b)]])  # d(x, y)/d(range, bearing)
-            info = np.linalg.inv(J @ event.covariance @ J.T)
+            if event.xy is None:
+                r, b = event.range, event.bearing
+                point = np.array([r * np.cos(b), r * np.sin(b)])
+                J = np.array([[np.cos(b), -r * np.sin(b)], [np.sin(b), r * np.cos(b)]])  # d(x, y)/d(range, bearing)
+                info = np.linalg.inv(J @ event.covariance @ J.T)
+            else:  # a position sighting is g2o's own measurement
+                point, info = np.array(event.xy), np.linalg.inv(event.covariance)
             if event.landmark not in landmark_ids:
                 landmark_ids[event.landmark] = len(landmark_ids)
-                landmark_xy.append(landmark_from_observation(poses[-1], (r, b)))
+                landmark_xy.append(landmark_from_sighting(poses[-1], event.z, event.model))
             sightings.append((len(poses) - 1, event.landmark, point, info))
     n = len(poses)
     lines = [f"VERTEX_SE2 {i} {' '.join(map(repr, map(float, pose)))}" for i, pose in enumerate(poses)]

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.models.observation import POSITION, RANGE_BEARING
+
 OUTLIER_KINDS = ("wrong_id", "spike", "clutter")
 """Marks a simulator may put on a corrupted sighting (``Observation.truth_outlier``), for evaluation only."""
 
@@ -134,21 +136,23 @@ class Odometry:
 
 @dataclass(frozen=True)
 class Observation:
-    """Range and bearing (from the robot's heading) to a landmark, or to another robot, taken at time ``t``."""
+    """A sighting taken at time ``t``: the range and bearing (from the robot's heading) to a landmark or to another
+    robot, or a landmark's position ``xy`` in the robot frame (then ``range`` and ``bearing`` are None)."""
 
     t: float
     """Time of the observation; it belongs to the newest pose with time <= t (of its ``robot``)."""
     landmark: LandmarkId | None
     """Identifier of the observed landmark (known data association), or None: unknown (absent from the line),
     for the estimators to associate; always None for a sighting of a robot (``robot_seen``)."""
-    range: float
-    """Distance to the landmark (or to the seen robot's position), metres (> 0)."""
-    bearing: float
-    """Angle to the landmark (or to the seen robot's position) from the robot's heading, radians."""
+    range: float | None = None
+    """Distance to the landmark (or to the seen robot's position), metres (> 0); None for a position sighting."""
+    bearing: float | None = None
+    """Angle to the landmark (or to the seen robot's position) from the robot's heading, radians; None for a
+    position sighting."""
     sigma: Vector | None = None
-    """Standard deviations ``[s_range, s_bearing]``, or None when ``cov`` is given."""
+    """Standard deviations of z (``[s_range, s_bearing]`` or ``[s_dx, s_dy]``), or None when ``cov`` is given."""
     cov: Matrix | None = None
-    """Full 2x2 covariance of ``[range, bearing]``, or None when ``sigma`` is given."""
+    """Full 2x2 covariance of z, or None when ``sigma`` is given."""
     truth_outlier: str | None = None
     """Evaluation only: how a simulator corrupted this sighting (``wrong_id``, ``spike``, ``clutter``), or None.
     The front-end keeps it with the truth; no estimator sees it."""
@@ -161,20 +165,33 @@ class Observation:
     robot_seen: RobotId | None = None
     """The robot sighted (another started robot; then ``landmark`` is None), or None: a landmark sighting. It
     relates the sighting robot's newest pose with time <= t to the seen robot's newest pose with time <= t."""
+    xy: Vector | None = None
+    """Position ``[dx, dy]`` of the landmark in the robot frame (x ahead, y to the left), metres, instead of
+    range and bearing; None for a range-bearing sighting."""
+
+    @property
+    def z(self) -> tuple[float, float]:
+        """The measurement: ``(range, bearing)``, or ``(dx, dy)`` for a position sighting."""
+        return (self.range, self.bearing) if self.xy is None else self.xy  # type: ignore[return-value]
+
+    @property
+    def model(self) -> int:
+        """Tag of the sighting's model: ``RANGE_BEARING`` or ``POSITION`` (:mod:`online_slam.models.observation`)."""
+        return RANGE_BEARING if self.xy is None else POSITION
 
     @property
     def covariance(self) -> NDArray[np.float64]:
-        """Covariance of ``[range, bearing]``, shape (2, 2)."""
+        """Covariance of z, shape (2, 2)."""
         return _covariance(self.sigma, self.cov, 2)
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""
+        measured = {"range": self.range, "bearing": self.bearing} if self.xy is None else {"xy": list(self.xy)}
         record = {
             "type": "observation",
             "t": self.t,
             "landmark": self.landmark,
-            "range": self.range,
-            "bearing": self.bearing,
+            **measured,
             **_noise_record(self.sigma, self.cov),
         }
         if self.landmark is None:
@@ -235,7 +252,10 @@ class Scan:
     bearings: tuple[float, ...]
     """Angles from the heading, radians, length k."""
     noise: tuple
-    """Per observation, its sigma ``(s_range, s_bearing)`` or its 2x2 covariance (nested tuples), length k."""
+    """Per observation, its sigma (2 values) or its 2x2 covariance (nested tuples), length k."""
+    xy: tuple[tuple[float, float], ...] | None = None
+    """Positions ``(dx, dy)`` in the robot frame, length k, for a scan of position sightings (then ``ranges``
+    and ``bearings`` are empty); None for range-bearing sightings."""
 
     def to_record(self) -> dict[str, Any]:
         """Not a stream-v1 line: a scan exists only between the engine API and the front-end."""

@@ -30,6 +30,7 @@ from online_slam.sources.events import (
     Scan,
     Start,
     Truth,
+    Vector,
 )
 from online_slam.sources.robot_rules import ROBOT_FIELDS, RobotRules
 
@@ -68,7 +69,18 @@ FIELDS: dict[str, set[str]] = {
     "header": {"type"},  # free-form: every other field is metadata
     "start": {"type", "t", "pose", "sigma", "cov"} | ROBOT_FIELDS["start"],
     "odometry": {"type", "t", "delta", "sigma", "cov"} | ROBOT_FIELDS["odometry"],
-    "observation": {"type", "t", "landmark", "range", "bearing", "sigma", "cov", "truth_outlier", "truth_landmark"}
+    "observation": {
+        "type",
+        "t",
+        "landmark",
+        "range",
+        "bearing",
+        "xy",
+        "sigma",
+        "cov",
+        "truth_outlier",
+        "truth_landmark",
+    }
     | ROBOT_FIELDS["observation"],
     "truth": {"type", "t", "pose", "position"} | ROBOT_FIELDS["truth"],
     "landmark_truth": {"type", "landmark", "position"},
@@ -173,12 +185,13 @@ class EventValidator(RobotRules):
         return event
 
     def parse_scan(
-        self, t: Any, landmarks: Any, ranges: Any, bearings: Any, sigma: Any = None, cov: Any = None
+        self, t: Any, landmarks: Any, ranges: Any, bearings: Any, sigma: Any = None, cov: Any = None, xy: Any = None
     ) -> Scan:
         """Validate k sightings taken at one time as a whole: all are accepted, or none (state unchanged).
 
-        Each sighting obeys the rules of an ``observation`` line. ``sigma`` (2,) or ``cov`` (2, 2) is shared by
-        all sightings, or given per sighting as (k, 2) / (k, 2, 2). Errors name the sighting: ``range[3]``.
+        Each sighting obeys the rules of an ``observation`` line: k ranges and k bearings, or k positions ``xy``
+        (k, 2) in the robot frame (then ranges and bearings are None). ``sigma`` (2,) or ``cov`` (2, 2) is shared
+        by all sightings, or given per sighting as (k, 2) / (k, 2, 2). Errors name the sighting: ``range[3]``.
 
         Raises:
             InputError: The first rule a sighting breaks.
@@ -186,9 +199,7 @@ class EventValidator(RobotRules):
         if not isinstance(landmarks, (list, tuple)):
             raise self.fail(0, "landmarks", f"expected a list of ids, got {_show(landmarks)}")
         k = len(landmarks)
-        for key, values in (("ranges", ranges), ("bearings", bearings)):
-            if not isinstance(values, (list, tuple)) or len(values) != k:
-                raise self.fail(0, key, f"expected a list of {k} numbers (one per landmark), got {_show(values)}")
+        self._scan_shape(k, ranges, bearings, xy)
         noise_key, noise = ("cov", cov) if cov is not None else ("sigma", sigma)
         if sigma is not None and cov is not None:
             raise self.fail(0, "cov", "give either sigma or cov, not both")
@@ -202,7 +213,7 @@ class EventValidator(RobotRules):
         if saved.robots:
             raise self.fail(0, "robot", "a scan names no robot, and this stream's robots are named: add each sighting "
                             "as an observation record with its robot")  # fmt: skip
-        fast = None if per_sighting else self._scan_fast(landmarks, ranges, bearings)
+        fast = None if per_sighting else self._scan_fast(landmarks, ranges, bearings, xy)
         if (  # the commonest case: float time moving on, one plain sigma for all
             fast is not None
             and type(t) is float
@@ -219,22 +230,22 @@ class EventValidator(RobotRules):
         ):
             self.state = ValidatorState(t, saved.first_pose_t, True)
             one = tuple(noise)
-            return Scan(t, tuple(landmarks), fast[0], fast[1], (one,) * k)
+            return Scan(t, tuple(landmarks), fast[0], fast[1], (one,) * k, fast[2])
         if fast is not None:  # the common case, checked at once
             self._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
             t_value = self.time({"t": t}, 0)
             shared = self.noise({noise_key: noise}, 2, 0)
             one = shared[0] if shared[0] is not None else shared[1]
             self.state = self._pending
-            return Scan(t_value, tuple(landmarks), fast[0], fast[1], (one,) * k)
+            return Scan(t_value, tuple(landmarks), fast[0], fast[1], (one,) * k, fast[2])
         # one sighting at a time on a trial validator: the exact error of the first bad one, or all of them
         trial = EventValidator(self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content))
         trial._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
         t_value = trial.time({"t": t}, 0)
         events = []
         for i in range(k):
-            record = {"type": "observation", "t": t, "landmark": landmarks[i], "range": ranges[i]}
-            record["bearing"] = bearings[i]
+            record = {"type": "observation", "t": t, "landmark": landmarks[i]}
+            record.update({"xy": xy[i]} if xy is not None else {"range": ranges[i], "bearing": bearings[i]})
             record[noise_key] = noise[i] if per_sighting else noise
             try:
                 events.append(trial.parse_record(record))
@@ -242,19 +253,16 @@ class EventValidator(RobotRules):
                 head, bracket, rest = exc.field.partition("[")
                 field = (
                     f"{head}[{i}]{bracket}{rest}"
-                    if head in ("landmark", "range", "bearing") or per_sighting
+                    if head in ("landmark", "range", "bearing", "xy") or per_sighting
                     else exc.field
                 )
                 raise self.fail(0, field, exc.message) from None
         self.state = trial.state if events else trial._pending  # no sighting: the time check alone
         self.state.seen_content = True
-        return Scan(
-            t_value,
-            tuple(landmarks),
-            tuple(e.range for e in events),
-            tuple(e.bearing for e in events),
-            tuple(e.sigma if e.cov is None else e.cov for e in events),
-        )
+        noises = tuple(e.sigma if e.cov is None else e.cov for e in events)
+        if xy is not None:
+            return Scan(t_value, tuple(landmarks), (), (), noises, tuple(e.xy for e in events))  # type: ignore[misc]
+        return Scan(t_value, tuple(landmarks), tuple(e.range for e in events), tuple(e.bearing for e in events), noises)
 
     def parse_odometry(self, t: Any, delta: Any, sigma: Any = None, cov: Any = None) -> Odometry:
         """Validate one odometry reading given as arguments (the library API's path; same rules as a line).
@@ -276,12 +284,35 @@ class EventValidator(RobotRules):
             record["cov"] = cov
         return self.parse_record(record)
 
+    def _scan_shape(self, k: int, ranges: Any, bearings: Any, xy: Any) -> None:
+        """Check that a scan gives k ranges and k bearings, or k positions (and not both)."""
+        if xy is not None:
+            if ranges is not None or bearings is not None:
+                raise self.fail(0, "xy", "give either ranges and bearings or xy, not both")
+            if not isinstance(xy, (list, tuple)) or len(xy) != k:
+                raise self.fail(0, "xy", f"expected a list of {k} [dx, dy] pairs (one per landmark), got {_show(xy)}")
+            return
+        for key, values in (("ranges", ranges), ("bearings", bearings)):
+            if not isinstance(values, (list, tuple)) or len(values) != k:
+                message = f"expected a list of {k} numbers (one per landmark), or xy instead, got {_show(values)}"
+                raise self.fail(0, key, message)
+
     @staticmethod
-    def _scan_fast(landmarks: Any, ranges: Any, bearings: Any) -> tuple[tuple, tuple] | None:
-        """Ranges and bearings as float tuples when every sighting plainly passes, else None (check one by one)."""
+    def _scan_fast(landmarks: Any, ranges: Any, bearings: Any, xy: Any) -> tuple[tuple, tuple, tuple | None] | None:
+        """Ranges, bearings and positions (None for range-bearing sightings) as float tuples when every sighting
+        plainly passes, else None (check one by one)."""
         for lid in landmarks:
             if lid is not None and type(lid) is not int and (type(lid) is not str or lid == ""):
                 return None
+        if xy is not None:
+            big = MAX_MAGNITUDE
+            for pair in xy:  # NaN fails the comparisons
+                if type(pair) not in (list, tuple) or len(pair) != 2:
+                    return None
+                a, b = pair
+                if type(a) is not float or type(b) is not float or not (-big <= a <= big and -big <= b <= big):
+                    return None
+            return (), (), tuple(map(tuple, xy))
         low, high = MIN_RANGE, MAX_MAGNITUDE
         for r in ranges:  # NaN fails the comparisons
             if type(r) is not float or not low <= r <= high:
@@ -289,7 +320,7 @@ class EventValidator(RobotRules):
         for b in bearings:
             if type(b) is not float or not -MAX_BEARING <= b <= MAX_BEARING:
                 return None
-        return tuple(ranges), tuple(bearings)
+        return tuple(ranges), tuple(bearings), None
 
     # -- field helpers -------------------------------------------------------------------------
     def radians(self, value: float, field: str, line: int) -> float:
@@ -440,10 +471,9 @@ class EventValidator(RobotRules):
         robot = self.robot(record, line)
         seen = self.sighted_robot(record, line, robot)
         landmark = self.landmark(record, line, optional=True)
-        rng = self.number(record, "range", line)
-        if rng < MIN_RANGE:
-            raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")
-        bearing = self.radians(self.number(record, "bearing", line), "bearing", line)
+        rng, bearing, xy = self._sighting(record, line)
+        if seen is not None and xy is not None:
+            raise self.fail(line, "xy", "a sighting of a robot gives range and bearing, not xy")
         sigma, cov = self.noise(record, 2, line)
         mark = record.get("truth_outlier")
         if mark is not None and mark not in OUTLIER_KINDS:
@@ -460,7 +490,22 @@ class EventValidator(RobotRules):
             truth_landmark=true_id,
             robot=robot,
             robot_seen=seen,
+            xy=xy,
         )
+
+    def _sighting(self, record: dict[str, Any], line: int) -> tuple[float | None, float | None, Vector | None]:
+        """An observation's measurement: (range, bearing, None), or (None, None, xy) for a position sighting."""
+        if "xy" in record:
+            if "range" in record or "bearing" in record:
+                given = "range" if "range" in record else "bearing"
+                raise self.fail(line, "xy", f"give either range and bearing or xy, not both (got xy and {given})")
+            return None, None, self.vector(record, "xy", 2, line)
+        if "range" not in record and "bearing" not in record:
+            raise self.fail(line, "range", "missing measurement: give range and bearing, or xy (robot frame)")
+        rng = self.number(record, "range", line)
+        if rng < MIN_RANGE:
+            raise self.fail(line, "range", f"expected a range > 0 (at least {MIN_RANGE:g} m), got {rng}")
+        return rng, self.radians(self.number(record, "bearing", line), "bearing", line), None
 
     def _truth(self, record: dict[str, Any], line: int) -> Truth:
         t = self.time(record, line)

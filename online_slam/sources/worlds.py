@@ -3,7 +3,9 @@
 ``square`` reproduces the article's worked example exactly: the same generator (``default_rng(1616)``), the
 same draws in the same order, the same landmark selection, so its numbers match the article's table.
 ``grid`` is a configurable Manhattan-street world for scale tests; ``waypoint`` a robot wandering towards random
-goals over a field of scattered landmarks (slower, with random revisits). ``circle`` the Monte Carlo protocol of
+goals over a field of scattered landmarks (slower, with random revisits). Both sense range and bearing by
+default, or (``model="xy"``) each landmark's position in the robot frame with independent noise per axis.
+``circle`` the Monte Carlo protocol of
 Brossard, Barrau & Bonnabel (IEEE Sensors J. 2019, code ``CAOR-MINES-ParisTech/esde``), on which the standard
 EKF's inconsistency is textbook. ``meet`` has three robots whose loops
 cross, so that they sight each other and the same landmarks; ``meet-apart`` two robots that share no landmark.
@@ -14,12 +16,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, compose
+from online_slam.models.observation import MODEL_NAMES
+from online_slam.models.position import position
 from online_slam.models.range_bearing import range_bearing
 from online_slam.sources.events import (
     Event,
@@ -48,15 +53,17 @@ def _events(
     z: Array,
     sensor_sigma: Array,
     dt: float,
+    xy: bool = False,
 ) -> Iterator[Event]:
-    """Lay out simulated arrays as a time-ordered event stream (pose i at t = i * dt).
+    """Lay out simulated arrays as a time-ordered event stream (pose i at t = i * dt); z holds ranges and
+    bearings, or positions in the robot frame (``xy``).
 
     ``sensor_sigma`` is one (2,) for every sighting, or one row per sighting (k, 2).
     """
     yield Header(name=name, meta=meta)
     yield Start(t=0.0, pose=tuple(map(float, truth[0])))
-    for j, position in enumerate(landmarks):
-        yield LandmarkTruth(landmark=j, position=tuple(map(float, position)))
+    for j, point in enumerate(landmarks):
+        yield LandmarkTruth(landmark=j, position=tuple(map(float, point)))
     odo_sigma = tuple(map(float, odometry_sigma))
     per_sighting = np.ndim(sensor_sigma) == 2
     obs_sigma = tuple(map(float, sensor_sigma)) if not per_sighting else ()
@@ -67,6 +74,11 @@ def _events(
             yield Odometry(t=t, delta=tuple(map(float, odometry[i - 1])), sigma=odo_sigma)
         yield Truth(t=t, pose=tuple(map(float, truth[i])))
         for k in range(bounds[i], bounds[i + 1]):
+            if xy:
+                yield Observation(
+                    t=t, landmark=int(observed_landmark[k]), sigma=obs_sigma, xy=(float(z[k, 0]), float(z[k, 1]))
+                )
+                continue
             yield Observation(
                 t=t,
                 landmark=int(observed_landmark[k]),
@@ -137,7 +149,12 @@ class GridConfig:
     odometry_sigma: tuple[float, float, float] = (0.05, 0.05, 0.01)
     """Standard deviations of each odometry increment (dx m, dy m, dtheta rad)."""
     sensor_sigma: tuple[float, float] = (0.05, float(np.deg2rad(0.5)))
-    """Standard deviations of range (m) and bearing (rad)."""
+    """Standard deviations of range (m) and bearing (rad) (model ``range-bearing``)."""
+    model: str = "range-bearing"
+    """Sighting model: ``range-bearing``, or ``xy`` (the landmark's position in the robot frame)."""
+    xy_sigma: tuple[float, float] = (0.05, 0.05)
+    """Standard deviations of dx and dy (m), independent (model ``xy``): the range noise, and about the lateral
+    noise of the default bearing noise at 6 m."""
     seed: int = 7
     """Seed of ``numpy.random.default_rng``."""
     dt: float = 1.0
@@ -207,7 +224,12 @@ class WaypointConfig:
     odometry_sigma: tuple[float, float, float] = (0.05, 0.05, 0.01)
     """Standard deviations of each odometry increment (dx m, dy m, dtheta rad)."""
     sensor_sigma: tuple[float, float] = (0.05, float(np.deg2rad(0.5)))
-    """Standard deviations of range (m) and bearing (rad)."""
+    """Standard deviations of range (m) and bearing (rad) (model ``range-bearing``)."""
+    model: str = "range-bearing"
+    """Sighting model: ``range-bearing``, or ``xy`` (the landmark's position in the robot frame)."""
+    xy_sigma: tuple[float, float] = (0.05, 0.05)
+    """Standard deviations of dx and dy (m), independent (model ``xy``): the range noise, and about the lateral
+    noise of the default bearing noise at 6 m."""
     seed: int = 7
     """Seed of ``numpy.random.default_rng``."""
     dt: float = 1.0
@@ -255,22 +277,28 @@ def _sensed(
 ) -> Iterator[Event]:
     """Noisy odometry, then a noisy sighting of every landmark within range (and not closer than ``min_range``)
     of every pose, as events (the draws in this order, after the world's own)."""
+    if c.model not in MODEL_NAMES:
+        raise ValueError(f"the sighting model must be one of {', '.join(MODEL_NAMES)}, not {c.model!r}")
+    xy = c.model == "xy"
     odometry_sigma = np.array(c.odometry_sigma, dtype=float)
-    sensor_sigma = np.array(c.sensor_sigma, dtype=float)
+    sensor_sigma = np.array(c.xy_sigma if xy else c.sensor_sigma, dtype=float)
     odometry = between(truth[:-1], truth[1:])
     odometry = odometry + rng.normal(size=odometry.shape) * odometry_sigma
     distances = np.linalg.norm(landmarks[None, :, :] - truth[:, None, :2], axis=2)
     observed_pose, observed_landmark = np.nonzero((distances <= c.sensor_range) & (distances >= min_range))
-    z = range_bearing(truth[observed_pose], landmarks[observed_landmark])
+    z = (position if xy else range_bearing)(truth[observed_pose], landmarks[observed_landmark])
     z = z + rng.normal(size=z.shape) * sensor_sigma
-    z[:, 0] = np.abs(z[:, 0])
-    z[:, 1] = wrap(z[:, 1])
-    meta = {"generator": f"online-slam simulate {name}", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
+    if not xy:
+        z[:, 0] = np.abs(z[:, 0])
+        z[:, 1] = wrap(z[:, 1])
+    sensor = ("xy_sigma", "model") if xy else ("sensor_sigma",)
+    fields = [k for k in c.__dataclass_fields__ if k in sensor or k not in ("sensor_sigma", "model", "xy_sigma")]
+    meta = {"generator": f"online-slam simulate {name}", **{k: getattr(c, k) for k in fields}}
     meta["odometry_sigma"] = list(c.odometry_sigma)
-    meta["sensor_sigma"] = list(c.sensor_sigma)
+    meta[sensor[0]] = list(getattr(c, sensor[0]))
     yield from _events(
         name, meta, truth, landmarks, odometry, odometry_sigma,
-        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
+        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt, xy=xy,
     )  # fmt: skip
 
 
@@ -472,8 +500,8 @@ def meet_world(config: MeetConfig | None = None) -> Iterator[Event]:
     yield Header(name="meet" if c.share_landmarks else "meet-apart", meta=meta)
     for k in range(c.robots):
         yield Start(t=0.0, pose=tuple(map(float, truth[k, 0])), robot=k + 1)
-    for j, position in enumerate(landmarks):
-        yield LandmarkTruth(landmark=j, position=tuple(map(float, position)))
+    for j, place in enumerate(landmarks):
+        yield LandmarkTruth(landmark=j, position=tuple(map(float, place)))
     yield from _meet_events(c, truth, odometry, seen, robot_z)
 
 
@@ -504,11 +532,12 @@ class Contamination:
     wrong_ids: float = 0.0
     """Fraction of sightings given a random other existing landmark's id (a data-association mistake)."""
     range_spikes: float = 0.0
-    """Fraction of sightings whose range is scaled by a random factor in [1.5, 3] or [1/3, 1/1.5]."""
+    """Fraction of sightings whose range (a position sighting: its vector) is scaled by a random factor in [1.5, 3]
+    or [1/3, 1/1.5]."""
     clutter: float = 0.0
-    """Extra sightings of landmarks that do not exist, as a fraction of the real ones; random range within the
-    observed ranges, random bearing; their ids come from a pool of phantom ids (``clutter-k``) a quarter the
-    size of the map, so the same phantom is "seen" in unrelated places."""
+    """Extra sightings of landmarks that do not exist, as a fraction of the real ones (of the same model); random
+    range within the observed ranges, random bearing; their ids come from a pool of phantom ids (``clutter-k``) a
+    quarter the size of the map, so the same phantom is "seen" in unrelated places."""
     seed: int = 0
     """Seed of the contamination draws (separate from the world's: the clean part stays the same)."""
 
@@ -544,23 +573,27 @@ def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
         if not isinstance(event, Observation) or event.robot_seen is not None:  # robot sightings stay clean
             yield event
             continue
-        ranges.append(event.range)
+        ranges.append(event.range if event.xy is None else float(np.hypot(*event.xy)))
         u = rng.uniform()
         if u < c.wrong_ids and len(ids) > 1:
             others = [lid for lid in ids if lid != event.landmark]
             event = replace(event, landmark=others[int(rng.integers(len(others)))], truth_outlier="wrong_id")
         elif u < c.wrong_ids + c.range_spikes:
-            factor = rng.uniform(1.5, 3.0) ** rng.choice([-1.0, 1.0])
-            event = replace(event, range=event.range * float(factor), truth_outlier="spike")
+            factor = float(rng.uniform(1.5, 3.0) ** rng.choice([-1.0, 1.0]))
+            event = replace(event, **_scaled(event, factor), truth_outlier="spike")
         yield event
         for _ in range(rng.poisson(c.clutter) if c.clutter else 0):
-            yield replace(
-                event,
-                landmark=f"clutter-{int(rng.integers(phantoms))}",
-                range=float(rng.uniform(0.5, max(ranges))),
-                bearing=float(rng.uniform(-np.pi, np.pi)),
-                truth_outlier="clutter",
-            )
+            phantom = f"clutter-{int(rng.integers(phantoms))}"  # the draws in this order: id, range, bearing
+            r, b = float(rng.uniform(0.5, max(ranges))), float(rng.uniform(-np.pi, np.pi))
+            measured = {"range": r, "bearing": b} if event.xy is None else {"xy": (r * np.cos(b), r * np.sin(b))}
+            yield replace(event, landmark=phantom, **measured, truth_outlier="clutter")
+
+
+def _scaled(event: Observation, factor: float) -> dict[str, Any]:
+    """The fields of a sighting moved ``factor`` times as far along its ray (a range spike)."""
+    if event.xy is None:
+        return {"range": event.range * factor}
+    return {"xy": (event.xy[0] * factor, event.xy[1] * factor)}
 
 
 @dataclass(frozen=True)

@@ -271,6 +271,7 @@ class SlidingWindowSmoother:
                 ids,
                 step.z[start:],
                 step.z_cov[start:],
+                step.z_model[start:],
                 w.poses[w.indices[-1]].copy(),
                 w.pose_cov,
                 w.landmarks,
@@ -284,6 +285,7 @@ class SlidingWindowSmoother:
             landmarks=base.landmarks[:cut] + tuple(lid for lid, ok in zip(ids, keep) if ok),
             z=np.concatenate([base.z[:cut], step.z[start:][keep]]),
             z_cov=np.concatenate([base.z_cov[:cut], step.z_cov[start:][keep]]),
+            z_model=np.concatenate([base.z_model[:cut], step.z_model[start:][keep]]),
         )
         a.resolved = resolved
         return resolved, cut
@@ -291,9 +293,9 @@ class SlidingWindowSmoother:
     def _add_retro(self) -> None:
         """Earlier sightings of the landmarks association confirmed just now, at poses still in the window."""
         book = self.association.book
-        for lid, g, z, R in book.retro:
-            if self.window.add_earlier_sighting(lid, g, z, R):
-                self.relinearization.log.add_sightings(g, (lid,), z[None], R[None])
+        for lid, g, z, R, model in book.retro:
+            if self.window.add_earlier_sighting(lid, g, z, R, model):
+                self.relinearization.log.add_sightings(g, (lid,), z[None], R[None], model)
         book.retro = []
 
     # -- solving ---------------------------------------------------------------------------------

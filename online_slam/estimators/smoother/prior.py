@@ -29,13 +29,15 @@ from online_slam.factors.graph import FactorGraph, sqrt_information
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.range_bearing import range_bearing_with_jacobians
+from online_slam.models.observation import POSITION, RANGE_BEARING, predict_with_jacobians, wrap_bearings
+from online_slam.models.position import range_bearing_from_position
 from online_slam.solvers.least_squares import QuadraticPrior
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
-Sightings = tuple[Index, Array, Array, Array]
-"""A pose's sightings: landmark indices (k,), z (k, 2), covariances (k, 2, 2), square-root information (k, 2, 2)."""
+Sightings = tuple[Index, Array, Array, Array, NDArray[np.int8]]
+"""A pose's sightings: landmark indices (k,), z (k, 2), covariances (k, 2, 2), square-root information (k, 2, 2),
+model tags (k,)."""
 Appended = tuple[Array, Array, Array, Array]
 """A whitened factor that appends a variable: (residual r0, Jacobian on the old pose, on the new variable, the
 new variable's linearization point)."""
@@ -102,27 +104,35 @@ def resized(Sigma: Array, size: int, keep: int) -> Array:
     return grown
 
 
-def fuse_repeats(indices: Index, z: Array, z_cov: Array) -> tuple[Index, Array, Array]:
+def fuse_repeats(
+    indices: Index, z: Array, z_cov: Array, model: NDArray[np.int8]
+) -> tuple[Index, Array, Array, NDArray[np.int8]]:
     """Merge repeated observations of one landmark from one pose into a single equivalent observation.
 
     Both measure the same ``h(pose, landmark)``, so their two quadratics sum to one with information
     ``R1^-1 + R2^-1`` centred on the information-weighted mean (bearings averaged relative to the first).
+    Repeats of both models are first all expressed as range-bearing (position sightings converted to first
+    order, :func:`~online_slam.models.position.range_bearing_from_position`).
     """
     if len(np.unique(indices)) == len(indices):
-        return indices, z, z_cov
-    keep_i, keep_z, keep_c = [], [], []
+        return indices, z, z_cov, model
+    keep_i, keep_z, keep_c, keep_m = [], [], [], []
     for j in dict.fromkeys(indices.tolist()):
         rows = np.flatnonzero(indices == j)
-        info = np.linalg.inv(z_cov[rows])
-        offsets = z[rows] - z[rows[0]]
-        offsets[:, 1] = wrap(offsets[:, 1])
+        zs, covs, tag = z[rows], z_cov[rows], model[rows]
+        if len(np.unique(tag)) > 1:
+            xy = tag == POSITION
+            zs, covs, tag = zs.copy(), covs.copy(), np.full(len(rows), RANGE_BEARING, dtype=np.int8)
+            zs[xy], covs[xy] = range_bearing_from_position(zs[xy], covs[xy])
+        info = np.linalg.inv(covs)
+        offsets = wrap_bearings(zs - zs[0], tag)
         cov = np.linalg.inv(info.sum(axis=0))
-        mean = z[rows[0]] + cov @ np.einsum("kij,kj->i", info, offsets)
-        mean[1] = wrap(mean[1])
+        mean = wrap_bearings((zs[0] + cov @ np.einsum("kij,kj->i", info, offsets))[None], tag[:1])[0]
         keep_i.append(j)
         keep_z.append(mean)
         keep_c.append(0.5 * (cov + cov.T))
-    return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c)
+        keep_m.append(tag[0])
+    return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c), np.array(keep_m, dtype=np.int8)
 
 
 def split(prior: Prior, active: Index) -> PriorSplit:
@@ -245,7 +255,7 @@ def _fold_sightings(
     lin_o = x_lin[n - 3 :]
     held = list(held)
     slot = {int(j): k for k, j in enumerate(held)}
-    indices, z, z_cov = fuse_repeats(*sightings[:3])
+    indices, z, z_cov, model = fuse_repeats(*sightings[:3], sightings[4])
     is_held = np.array([int(j) in slot for j in indices], dtype=bool)
     first = ~is_held  # first sight (repeats are fused): appends the landmark
     for j in indices[first]:
@@ -254,9 +264,8 @@ def _fold_sightings(
     lin_l = np.array(
         [landmarks[j] if first[k] else x_lin[2 * slot[int(j)] : 2 * slot[int(j)] + 2] for k, j in enumerate(indices)]
     )
-    z_hat, J_p, J_l = range_bearing_with_jacobians(lin_o, lin_l)
-    e = z_hat - z
-    e[:, 1] = wrap(e[:, 1])
+    z_hat, J_p, J_l = predict_with_jacobians(lin_o, lin_l, model)
+    e = wrap_bearings(z_hat - z, model)
     W = sightings[3] if z_cov is sightings[2] else sqrt_information(z_cov)  # stored unless repeats were fused
     r0 = np.einsum("kij,kj->ki", W, e)
     if loss is not None:

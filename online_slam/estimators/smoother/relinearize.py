@@ -66,6 +66,7 @@ def history_graph(graph: FactorGraph, oldest: int) -> FactorGraph:
         obs_landmark=graph.obs_landmark[obs],
         obs_z=graph.obs_z[obs],
         obs_sqrt_info=graph.obs_sqrt_info[obs],
+        obs_model=graph.obs_model[obs],
     )
 
 
@@ -167,6 +168,7 @@ def refine_recent(
         obs_landmark=local[history.obs_landmark[obs]],
         obs_z=history.obs_z[obs],
         obs_sqrt_info=history.obs_sqrt_info[obs],
+        obs_model=history.obs_model[obs],
     )
     result = solve(graph, poses, landmarks[seen], solver, loss=loss)
     poses[first:] = result.poses[first:]

@@ -24,13 +24,13 @@ from online_slam.factors.graph import (
     SparseLayout,
     layout,
     observation_chi2,
-    range_bearing_chi2,
+    sighting_chi2,
     sqrt_information,
 )
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians
-from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
 from online_slam.sources.events import LandmarkId
 
@@ -55,7 +55,7 @@ class Window:
     odometry: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
     """Window odometry factors (delta, covariance, square-root information), keyed by the later pose."""
     observations: dict[int, Sightings] = field(default_factory=dict)
-    """Window pose sightings (landmark rows, z, covariances, square-root information), keyed by pose."""
+    """Window pose sightings (landmark rows, z, covariances, square-root information, model tags), keyed by pose."""
     start: tuple[int, Array, Array | None] | None = None
     """(start pose, its prior mean, its prior covariance or None when fixed)."""
     pose_cov: Array = field(default_factory=lambda: np.zeros((3, 3)))
@@ -101,21 +101,22 @@ class Window:
         i = step.index
         pose = self.poses[i]
         indices = []
-        for lid, z in zip(step.landmarks[start:], step.z[start:]):
+        for lid, z, model in zip(step.landmarks[start:], step.z[start:], step.z_model[start:]):
             if lid not in self.index:
                 self.index[lid] = len(self.landmark_ids)
                 self.landmark_ids.append(lid)
-                self.landmarks = np.vstack([self.landmarks, landmark_from_observation(pose, z)])
+                self.landmarks = np.vstack([self.landmarks, landmark_from_sighting(pose, z, model)])
             indices.append(self.index[lid])
         z, z_cov = step.z[start:], step.z_cov[start:]
-        self._merge(i, (np.array(indices, dtype=np.int64), z, z_cov, sqrt_information(z_cov)))
+        self._merge(i, (np.array(indices, dtype=np.int64), z, z_cov, sqrt_information(z_cov), step.z_model[start:]))
 
-    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array) -> bool:
-        """Add a sighting ``z`` (2,) with covariance ``R`` (2, 2) of a known landmark from an earlier window pose;
-        False (nothing added) when the pose left the window or the landmark is unknown."""
+    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array, model: int) -> bool:
+        """Add a sighting ``z`` (2,) with covariance ``R`` (2, 2) and model tag ``model`` of a known landmark from
+        an earlier window pose; False (nothing added) when the pose left the window or the landmark is unknown."""
         if pose not in self.poses or lid not in self.index:
             return False
-        self._merge(pose, (np.array([self.index[lid]], dtype=np.int64), z[None], R[None], sqrt_information(R[None])))
+        row, tag = np.array([self.index[lid]], dtype=np.int64), np.array([model], dtype=np.int8)
+        self._merge(pose, (row, z[None], R[None], sqrt_information(R[None]), tag))
         self.unsolved.add(pose)
         return True
 
@@ -216,6 +217,7 @@ def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, 
         obs_landmark=to_local[np.concatenate([o[1] for o in obs])] if obs else np.zeros(0, dtype=np.int64),
         obs_z=np.concatenate([o[2] for o in obs]) if obs else np.zeros((0, 2)),
         obs_sqrt_info=np.concatenate([o[4] for o in obs]) if obs else np.zeros((0, 2, 2)),
+        obs_model=np.concatenate([o[5] for o in obs]) if obs else np.zeros(0, dtype=np.int8),
     )
     return graph, local
 
@@ -271,10 +273,10 @@ def linearize(window: Window, prior: Prior | None, loss: RobustLoss | None) -> L
 def judge(window: Window, pose: int, bound: float) -> NDArray[np.bool_]:
     """Which sightings of a window pose are outliers at the current estimate (chi-square ``bound``; none when
     it is infinite)."""
-    indices, z, _, W = window.observations[pose]
+    indices, z, _, W, model = window.observations[pose]
     if not np.isfinite(bound):
         return np.zeros(len(indices), dtype=bool)
-    return range_bearing_chi2(window.poses[pose][None, :], window.landmarks[indices], z, W) > bound
+    return sighting_chi2(window.poses[pose][None, :], window.landmarks[indices], z, W, model) > bound
 
 
 def consensus(
@@ -310,7 +312,7 @@ def consensus(
         in_prior = bool(np.isin(j, held))
         if mine.sum() < 3 or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
             continue
-        points = landmark_from_observation(poses[graph.obs_pose[mine]], graph.obs_z[mine])
+        points = landmark_from_sighting(poses[graph.obs_pose[mine]], graph.obs_z[mine], graph.obs_model[mine])
         median = np.median(points, axis=0)
         spread = np.median(np.linalg.norm(points - median, axis=1))
         if np.linalg.norm(landmarks[j] - median) > 3.0 * spread + 1e-9:

@@ -42,7 +42,7 @@ from online_slam.errors import OnlineSlamError
 from online_slam.estimators.protocol import Snapshot
 from online_slam.evaluation.results import Results
 from online_slam.frontend.steps import GroundTruth, Step
-from online_slam.models.range_bearing import landmark_from_observation
+from online_slam.models.observation import landmark_from_sighting
 from online_slam.reports.palette import COLORS
 from online_slam.sinks.geometry import ellipses
 from online_slam.sinks.recording.blueprint import blueprint
@@ -352,7 +352,7 @@ class RerunSink:
         current = snapshots.get(self._rays_from) or snapshots.get("odometry")
         rays: list[Array] = []
         if current is not None and len(step.landmarks):
-            ends = landmark_from_observation(current.pose[None, :], step.z)
+            ends = landmark_from_sighting(current.pose[None, :], step.z, step.z_model)
             rays = list(np.stack([np.broadcast_to(current.pose[:2], ends.shape), ends], axis=1))
         add("world/observations", "strips", step, rays)
         if events:

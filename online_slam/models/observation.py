@@ -1,0 +1,133 @@
+"""The two sighting models side by side, chosen per sighting by a tag: range-bearing or position.
+
+Every sighting carries a model tag (:data:`RANGE_BEARING` or :data:`POSITION`); arrays of sightings carry an
+``int8`` array of tags beside their z. The functions here evaluate each sighting with its own model, vectorised:
+one call per model present, merged by mask, so a batch of one model costs what that model alone costs (and a
+range-bearing batch gives exactly the numbers of :mod:`~online_slam.models.range_bearing`). Only range-bearing
+rows have an angle (the bearing) to wrap.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from online_slam.geometry.angles import wrap
+from online_slam.models.position import landmark_from_position_with_jacobians, position, position_with_jacobians
+from online_slam.models.range_bearing import (
+    landmark_from_observation,
+    landmark_from_observation_with_jacobians,
+    range_bearing,
+    range_bearing_with_jacobians,
+)
+
+Array = NDArray[np.float64]
+
+RANGE_BEARING = 0
+"""Tag of a range-bearing sighting ``[range, bearing]``."""
+POSITION = 1
+"""Tag of a position sighting ``[dx, dy]`` (the landmark in the robot frame)."""
+MODEL_NAMES = ("range-bearing", "xy")
+"""Names of the models by tag (``--model`` of ``simulate``)."""
+
+
+def tags(model: ArrayLike, k: int) -> NDArray[np.int8]:
+    """Model tags of k sightings: one tag for all of them, or one each."""
+    return np.broadcast_to(np.asarray(model, dtype=np.int8), (k,)).copy()
+
+
+def _which(model: ArrayLike) -> tuple[NDArray[np.bool_], bool, bool]:
+    """(mask of position sightings, whether some sighting is range-bearing, whether some is a position)."""
+    xy = np.asarray(model) == POSITION
+    some = bool(xy.any())
+    return xy, not some or not bool(xy.all()), some
+
+
+def _merge(xy: NDArray[np.bool_], rb: tuple[Array, ...], pos: tuple[Array, ...]) -> tuple[Array, ...]:
+    """Per sighting the position model's values where ``xy``, else the range-bearing ones."""
+    return tuple(np.where(xy.reshape(xy.shape + (1,) * (b.ndim - xy.ndim)), b, a) for a, b in zip(rb, pos))
+
+
+def predict(pose: ArrayLike, landmark: ArrayLike, model: ArrayLike) -> Array:
+    """Predicted sightings, each with its own model, shape (..., 2) (see :func:`predict_with_jacobians`)."""
+    xy, has_rb, has_xy = _which(model)
+    if not has_xy:
+        return range_bearing(pose, landmark)
+    if not has_rb:
+        return position(pose, landmark)
+    return _merge(xy, (range_bearing(pose, landmark),), (position(pose, landmark),))[0]
+
+
+def predict_with_jacobians(pose: ArrayLike, landmark: ArrayLike, model: ArrayLike) -> tuple[Array, Array, Array]:
+    """Predicted sightings with their Jacobians, each with its own model.
+
+    Args:
+        pose: Robot poses, shape (..., 3).
+        landmark: Landmark positions, shape (..., 2).
+        model: Tags, broadcastable to the sightings' shape (...) (a single tag for all).
+
+    Returns:
+        (z (..., 2), dz/dpose (..., 2, 3), dz/dlandmark (..., 2, 2)); bearings wrapped.
+    """
+    xy, has_rb, has_xy = _which(model)
+    if not has_xy:
+        return range_bearing_with_jacobians(pose, landmark)
+    if not has_rb:
+        return position_with_jacobians(pose, landmark)
+    with np.errstate(divide="ignore", invalid="ignore"):  # range-bearing at a position sighting's landmark
+        rb = range_bearing_with_jacobians(pose, landmark)
+    return _merge(xy, rb, position_with_jacobians(pose, landmark))  # type: ignore[return-value]
+
+
+def wrap_bearings(e: Array, model: ArrayLike) -> Array:
+    """Differences of sightings (..., 2) with the bearing wrapped on range-bearing rows (in place; returned).
+
+    Args:
+        e: Differences ``z_a - z_b``, shape (..., 2).
+        model: Tags, broadcastable to (...).
+    """
+    xy, has_rb, has_xy = _which(model)
+    if not has_xy:
+        e[..., 1] = wrap(e[..., 1])
+    elif has_rb:
+        e[..., 1] = np.where(xy, e[..., 1], wrap(e[..., 1]))
+    return e
+
+
+def landmark_from_sighting(pose: ArrayLike, z: ArrayLike, model: ArrayLike) -> Array:
+    """Inverse observation model: where each sighting puts its landmark, shape (..., 2).
+
+    Args:
+        pose: Robot poses, shape (..., 3).
+        z: Sightings, shape (..., 2).
+        model: Tags, broadcastable to (...).
+    """
+    if not _which(model)[2]:
+        return landmark_from_observation(pose, z)
+    return landmark_from_sighting_with_jacobians(pose, z, model)[0]
+
+
+def landmark_from_sighting_with_jacobians(
+    pose: ArrayLike, z: ArrayLike, model: ArrayLike
+) -> tuple[Array, Array, Array]:
+    """``landmark_from_sighting`` with its Jacobians.
+
+    Returns:
+        (landmark (..., 2), d/dpose (..., 2, 3), d/dz (..., 2, 2)).
+    """
+    xy, has_rb, has_xy = _which(model)
+    if not has_xy:
+        return landmark_from_observation_with_jacobians(pose, z)
+    if not has_rb:
+        return landmark_from_position_with_jacobians(pose, z)
+    rb = landmark_from_observation_with_jacobians(pose, z)
+    return _merge(xy, rb, landmark_from_position_with_jacobians(pose, z))  # type: ignore[return-value]
+
+
+def distance(z: ArrayLike, model: ArrayLike) -> Array:
+    """How far each sighting's landmark is from the sensor, metres, shape (...)."""
+    z = np.asarray(z, dtype=float)
+    xy, _, has_xy = _which(model)
+    if not has_xy:
+        return z[..., 0]
+    return np.where(xy, np.hypot(z[..., 0], z[..., 1]), z[..., 0])
