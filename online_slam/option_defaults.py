@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 
 DEFAULTS: dict[str, object] = {
+    "odometry_noise_scale": 1.0,
+    "sensor_noise_scale": 1.0,
     "estimators": ("ekf", "smoother", "batch"),
     "align": "anchor",
     "first_observation_only": False,

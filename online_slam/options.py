@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from online_slam.errors import ConfigError
-from online_slam.importers.detect import DATASET_FORMATS, NOISE_HELP
+from online_slam.importers.detect import DATASET_FORMATS
 from online_slam.option_defaults import CHOICES, DEFAULTS
 from online_slam.sources.worlds import WORLDS
 
@@ -194,8 +194,18 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("robot", "MRCLAM: robot number 1..5, or all: the five robots in one stream (sweep: a list)", "input",
            ("dataset",), kind=int, metavar="N", parse=robot_choice, lands=("dataset.robot",),
            commands=(*_DATASET, "sweep")),
-    Option("noise", NOISE_HELP, "input", ("dataset",), choices=("builtin", "fit"),
-           lands=("dataset.noise",), commands=_DATASET),
+    Option("noise", "the noise the source declares (builtin), or fit it to the source's truth (replay: print "
+           "the figures, then replay with the fitted --odometry-noise-scale and --sensor-noise-scale, an MRCLAM "
+           "folder's model refitted against Vicon first; compare: the same in every run, unprinted; convert: "
+           "MRCLAM only, its model refitted against Vicon, all five robots)", "input", ("dataset",),
+           choices=("builtin", "fit"), unset="builtin", lands=("dataset.noise",), commands=_DATASET),
+    _estimator("odometry_noise_scale", "multiply every odometry covariance of the source by S (a sigma by "
+               "sqrt(S)), e.g. as --noise fit prints it", "input", "front-end",
+               ("FrontEndConfig", "odometry_noise_scale"), metavar="S", positive=True,
+               lands=("frontend.odometry_noise_scale",)),
+    _estimator("sensor_noise_scale", "multiply every sighting's covariance of the source by S", "input",
+               "front-end", ("FrontEndConfig", "sensor_noise_scale"), metavar="S", positive=True,
+               lands=("frontend.sensor_noise_scale",)),
     Option("truth", "GTSAM/iSAM text: the noise-free twin file (truth)", "input", ("dataset",), metavar="PATH",
            lands=("dataset.truth",), commands=_DATASET),
     Option("dt", "seconds per pose for files without timestamps", "input", ("dataset",), kind=float, unit="s",
@@ -376,6 +386,7 @@ def replay_config(values: Mapping[str, Any], naming: Callable[[str], str] = str)
         except ValueError as exc:
             raise ConfigError(f"{naming(name)}: {exc}") from None
     _check_estimators(config.estimators, given, naming)
+    _check_noise(given, naming)
     robust, scale = given.get("robust", OPTIONS["robust"].value), given.get("robust_scale", RobustLoss.scale)
     smoother, batch = robust_settings(robust, scale, config.smoother, config.batch)
     return dataclasses.replace(config, smoother=smoother, batch=batch)
@@ -394,6 +405,15 @@ def _check_estimators(running: tuple[str, ...], given: Mapping[str, Any], naming
             raise ConfigError(
                 f"{naming(name)}: a setting of the {whose}, which does not run (estimators: {', '.join(running)})"
             )
+
+
+def _check_noise(given: Mapping[str, Any], naming: Callable[[str], str]) -> None:
+    """Refuse a noise scale given with ``--noise fit``, which fits the scales."""
+    if given.get("noise") != "fit":
+        return
+    for name in ("odometry_noise_scale", "sensor_noise_scale"):
+        if given.get(name, 1.0) != 1.0:
+            raise ConfigError(f"{naming(name)}: --noise fit fits the scale; give one or the other")
 
 
 def on_error_of(given: str | None, source: object) -> str:

@@ -13,6 +13,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.options import add_options, flag, replay_config
 
 if TYPE_CHECKING:
+    from online_slam.evaluation.noise_fit import NoiseFit
     from online_slam.pipeline import ReplayConfig
 
 
@@ -107,6 +108,13 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
     return sinks
 
 
+def print_noise_fit(fit: NoiseFit, stderr: bool) -> None:
+    """Print what ``--noise fit`` fitted, before the replay that uses it (on stderr when stdout is the JSON's)."""
+    from online_slam.evaluation.noise_fit import describe
+
+    print(describe(fit), file=sys.stderr if stderr else sys.stdout, flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
     """Replay, print the table, write JSON; exit 2 if the input turned bad part-way."""
     from online_slam.pipeline import Checkpointing, replay
@@ -122,7 +130,10 @@ def run(args: argparse.Namespace) -> int:
         check_folder("--checkpoint", args.checkpoint)
     checkpoint = Checkpointing(Path(args.checkpoint), args.checkpoint_every) if args.checkpoint else None
     sinks = sinks_from(args, config)
-    results = replay(args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume)
+    results = replay(
+        args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume,
+        on_noise_fit=None if args.quiet else lambda fit: print_noise_fit(fit, args.json == "-"),
+    )  # fmt: skip
     if not args.quiet:  # with --json - stdout is the JSON's: the table goes to stderr
         print(format_results(results), file=sys.stderr if args.json == "-" else sys.stdout)
     if args.json:

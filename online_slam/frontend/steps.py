@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.errors import OnlineSlamError
+from online_slam.frontend.noise import check_scale, scaled_event
 from online_slam.models.motion import compose_increments
 from online_slam.models.observation import POSITION, RANGE_BEARING
 from online_slam.sources.events import (
@@ -74,6 +75,14 @@ class FrontEndConfig:
     """Merge observation-free odometry steps within these limits; None (default) keeps every pose."""
     first_observation_only: bool = False
     """Keep only the first observation of each landmark (the article's ablation)."""
+    odometry_noise_scale: float = 1.0
+    """Multiply every odometry covariance by this (see :mod:`online_slam.frontend.noise`); 1 leaves it."""
+    sensor_noise_scale: float = 1.0
+    """Multiply every sighting's covariance by this; 1 leaves it."""
+
+    def __post_init__(self) -> None:
+        check_scale("odometry_noise_scale", self.odometry_noise_scale)
+        check_scale("sensor_noise_scale", self.sensor_noise_scale)
 
 
 @dataclass(frozen=True)
@@ -275,6 +284,9 @@ class FrontEnd:
             The step this event completed (the previous pose, when an odometry event starts a new one), or None.
         """
         completed: Step | None = None
+        config = self.config
+        if config.odometry_noise_scale != 1.0 or config.sensor_noise_scale != 1.0:
+            event = scaled_event(event, config.odometry_noise_scale, config.sensor_noise_scale)
         if isinstance(event, Odometry):
             self._count("odometry")
             pending = self.pending if self.pending is not None else self._start_pose(None, event.t)

@@ -13,13 +13,6 @@ DATASET_FORMATS = ("mrclam", "gtsam", "g2o", "acfr")
 """Formats ``convert`` reads (besides stream v1)."""
 
 
-NOISE_HELP = (
-    "MRCLAM noise model: the built-in coefficients (default) or 'fit' them by maximum likelihood against the "
-    "folder's Vicon ground truth (all five robots)"
-)
-"""Help text of the ``--noise`` option of ``replay``, ``compare`` and ``convert``."""
-
-
 def detect_format(path: str | Path) -> str | None:
     """``mrclam`` for a folder with Barcodes.dat, ``acfr`` for one with inputs.dat, measurements.dat and gps.dat
     (Victoria Park's raw log), ``g2o`` for .g2o, ``gtsam`` for a text file of ODOMETRY/EDGE2

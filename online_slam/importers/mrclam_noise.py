@@ -10,7 +10,9 @@ Range and bearing sigmas are the robust standard deviations (1.4826 x median abs
 measurement residuals against the Vicon pose and the surveyed landmark positions: robust, because a few rows
 carry another landmark's barcode and would dominate a plain standard deviation.
 
-Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data.
+Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data. This fit
+builds the conversion's model from the raw commands (elapsed time, path, turn); :mod:`online_slam.evaluation.noise_fit`
+then checks any stream, this one included, against its truth and scales its covariances (``--noise fit`` does both).
 """
 
 from __future__ import annotations
@@ -22,18 +24,16 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
+from online_slam.evaluation.noise_fit import MAD_TO_SIGMA
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
 from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning, _interpolate_truth, _table, load_robot
 
 Array = NDArray[np.float64]
 
-MAD_TO_SIGMA = 1.4826
-"""Ratio of a Gaussian's standard deviation to its median absolute deviation."""
-
 
 @dataclass(frozen=True)
-class NoiseFit:
+class MrclamNoiseFit:
     """A fitted MRCLAM noise model and the evidence behind it."""
 
     noise: MrclamNoise
@@ -107,7 +107,7 @@ def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array]):
     return odo, rows[:, 2] - true_range, wrap(rows[:, 3] - true_bearing)
 
 
-def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> NoiseFit:
+def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> MrclamNoiseFit:
     """Fit the MRCLAM noise model against Vicon over the given robots of a dataset folder.
 
     Args:
@@ -146,4 +146,4 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
         bearing_sigma=MAD_TO_SIGMA * float(np.median(np.abs(bearing_residuals - bearing_bias))),
         start_sigma=defaults.start_sigma,
     )
-    return NoiseFit(noise, len(errors), len(range_residuals), range_bias, bearing_bias)
+    return MrclamNoiseFit(noise, len(errors), len(range_residuals), range_bias, bearing_bias)

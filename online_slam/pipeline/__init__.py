@@ -13,8 +13,10 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from online_slam.errors import InputError
+from online_slam.evaluation.noise_fit import NoiseFit
 from online_slam.evaluation.results import Results
 from online_slam.pipeline.config import ESTIMATORS, ReplayConfig, estimator_names
+from online_slam.pipeline.noise import fit_source_noise, fits_noise, with_noise_fit
 from online_slam.pipeline.run import Checkpointing, ReplayRun
 from online_slam.pipeline.score import score_run
 from online_slam.pipeline.source import open_events
@@ -34,6 +36,7 @@ def replay(
     checkpoint: Checkpointing | None = None,
     resume: str | Path | None = None,
     validate: bool = True,
+    on_noise_fit: Callable[[NoiseFit], None] | None = None,
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -52,6 +55,8 @@ def replay(
         validate: Check events given as an iterable (objects or ``dict`` records) by the stream's rules, as a
             file's lines are (an item's position stands for its line). False trusts them: for events this package
             generates (its worlds), whose checks would only cost time.
+        on_noise_fit: With ``--noise fit`` (``config.dataset["noise"] == "fit"``), told of the fit before the
+            replay, which runs with its scales (see :mod:`online_slam.pipeline.noise`).
 
     Returns:
         The results. When the input turns bad part-way, or a checkpoint cannot be written, the results cover
@@ -60,8 +65,14 @@ def replay(
     Raises:
         InputError: When the input is bad before the first step is complete (nothing to report); a damaged
             checkpoint, one of another source, of other settings or of another format version.
+        OnlineSlamError: ``--noise fit`` on standard input, or on a source without truth.
     """
     cfg = config or ReplayConfig()
+    if fits_noise(cfg):
+        fit, source = fit_source_noise(source, cfg)
+        cfg = with_noise_fit(cfg, fit)
+        if on_noise_fit is not None:
+            on_noise_fit(fit)
     watched = any(isinstance(sink, ProgressSink) for sink in sinks)
     opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate, count=watched)
     run = ReplayRun(opened, cfg, sinks, checkpoint)

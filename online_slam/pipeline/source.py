@@ -74,7 +74,7 @@ def open_events(
     skipped = SkippedLines(on_skip)
     on_error = skipped if config.on_error == "skip" else None
     if isinstance(source, (str, Path)):
-        label, events = open_source(source, on_error, **dict(config.dataset))
+        label, events = open_source(source, on_error, **importer_options(source, config.dataset))
     else:
         label, events = "<events>", validate_events(source, on_error) if validate else iter(source)
     total = None
@@ -85,6 +85,14 @@ def open_events(
         has_id, events = first_sighting_has_id(events)
         method = "known" if has_id else "jcbb"
     return OpenedSource(name or label, iter(events), method, skipped, total)
+
+
+def importer_options(source: str | Path, dataset: dict) -> dict:
+    """The dataset options the source's reader takes: ``noise`` reaches only an MRCLAM folder's importer (which
+    refits its model for ``fit``); for other sources ``--noise`` is the replay's (:mod:`online_slam.pipeline.noise`)."""
+    if "noise" not in dataset or (dataset.get("format") or detect_format(source)) == "mrclam":
+        return dict(dataset)
+    return {name: value for name, value in dataset.items() if name != "noise"}
 
 
 def count_items(source: str | Path | Iterable[Event], events: Iterable[Event]) -> tuple[int | None, Iterable[Event]]:
