@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from online_slam.compare import CompareConfig, compare
-from online_slam.estimators.ekf import EkfConfig
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.linearization import LINEARIZATIONS
 from online_slam.pipeline import ReplayConfig
 

@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 
 from benchmarks import gtsam_peer
 from online_slam.engine import Engine
-from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.ekf import EkfSlam
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.geometry.angles import wrap
 from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
 from online_slam.sources.worlds import GridConfig, grid_world

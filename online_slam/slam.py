@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, EngineCheckpoint
 from online_slam.errors import ConfigError, InputError
-from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.ekf import EkfSlam
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.frontend.steps import FrontEndConfig

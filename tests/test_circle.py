@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from online_slam.compare import run_errors, summarise
-from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.ekf import EkfSlam
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.linearization import heading_column, null_space, observable
 from online_slam.frontend.steps import FrontEnd
 from online_slam.geometry.se2 import compose
@@ -102,7 +103,7 @@ def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -
     assert ekf.state.first == pytest.approx(np.array([placed[lid] for lid in ekf.landmark_ids]), abs=0)
     assert not np.allclose(ekf.state.first, ekf.x[3:, 0].reshape(-1, 2))  # estimates moved, first ones did not
     z = np.array([2.0, 0.3])
-    position, G_r, _ = ekf._placed(z)
+    position, G_r, _ = ekf._placed(z, 0)
     N_r = null_space(ekf.state.predicted[:2], position[None])[0]
     assert G_r @ N_r[:3] == pytest.approx(N_r[3:], abs=1e-12)  # the robot's directions onto the landmark's
 

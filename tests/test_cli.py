@@ -93,7 +93,7 @@ def test_help_is_grouped_with_readable_defaults() -> None:
         assert f"\n{group}\n" in done.stdout
     text = " ".join(done.stdout.split())
     assert "(default: 20)" in text and "(default: 18 m)" in text and "0.35 rad (20.1 deg)" in text
-    assert "world (square, grid, waypoint)" in text
+    assert "world (square, grid, waypoint, circle" in text
     assert not re.search(r"\d\.\d{8,}", cli("simulate", "--help").stdout)  # no 0.008726646259971648
 
 

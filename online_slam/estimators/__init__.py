@@ -2,7 +2,8 @@
 
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
-from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.ekf import EkfSlam
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 

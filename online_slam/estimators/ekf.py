@@ -38,7 +38,6 @@ benchmarks/RESULTS.md ("EKF").
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -48,10 +47,11 @@ from scipy.stats import chi2
 from threadpoolctl import ThreadpoolController
 
 from online_slam.checkpoint import from_tree, to_tree
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
-from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
-from online_slam.estimators.linearization import LINEARIZATIONS, heading_column, observable
+from online_slam.estimators.landmark_book import LandmarkBook
+from online_slam.estimators.linearization import heading_column, observable
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
@@ -66,45 +66,6 @@ from online_slam.models.observation import (
 from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class EkfConfig:
-    """Settings of the EKF-SLAM estimator."""
-
-    gate_probability: float = 0.9999
-    """Chi-square gate (2 dof) on each observation's NIS: an observation whose NIS exceeds this quantile
-    (18.4 for 0.9999) is rejected and reported. 1.0 disables gating."""
-    gate_persistence: int = 8
-    """A landmark whose sightings fail the gate this many times in a row is used anyway: a one-off misreading
-    fails once, but repeated failures of one landmark mean the filter has drifted, and rejecting them would
-    starve it. 0 turns this off (every gated sighting rejected)."""
-    reanchor: bool = True
-    """When a landmark has failed the gate ``gate_persistence`` times in a row while the rest of each scan
-    agreed with the filter, and those gated sightings agree with each other, the landmark's estimate is the
-    stale one (e.g. it was placed by a wrong association): restart it from the newest sighting instead of
-    letting that sighting pull the robot. When most of a scan fails the gate, the filter itself has drifted
-    and persistent sightings are used (False: always the latter)."""
-    update: str = "joint"
-    """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
-    relinearized after each."""
-    linearization: str = "standard"
-    """Where the Jacobians are evaluated: ``standard`` at the current estimate; ``fej`` at each variable's first
-    estimate; ``oc``: the standard ones constrained to see nothing of the unobservable directions (both
-    consistent: :mod:`~online_slam.estimators.linearization`)."""
-    association: AssociationConfig = field(default_factory=AssociationConfig)
-    """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
-    filter's own mean and covariance (with tentative landmarks)."""
-
-    def __post_init__(self) -> None:
-        if not 0.0 < self.gate_probability <= 1.0:
-            raise ValueError("gate_probability must be in (0, 1]")
-        if self.gate_persistence < 0:
-            raise ValueError("gate_persistence must be >= 0")
-        if self.update not in ("joint", "sequential"):
-            raise ValueError("update must be 'joint' or 'sequential'")
-        if self.linearization not in LINEARIZATIONS:
-            raise ValueError(f"linearization must be one of {', '.join(LINEARIZATIONS)}")
 
 
 AGREEMENT_UPDATES = 5

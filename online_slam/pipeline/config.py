@@ -8,7 +8,8 @@ from typing import Any
 
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
-from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.ekf import EkfSlam
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
 from online_slam.estimators.presets import smoother_label
 from online_slam.estimators.protocol import Estimator

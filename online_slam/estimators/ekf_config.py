@@ -1,0 +1,47 @@
+"""Settings of the EKF-SLAM estimator (:mod:`~online_slam.estimators.ekf`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from online_slam.estimators.landmark_book import AssociationConfig
+from online_slam.estimators.linearization import LINEARIZATIONS
+
+
+@dataclass(frozen=True)
+class EkfConfig:
+    """Settings of the EKF-SLAM estimator."""
+
+    gate_probability: float = 0.9999
+    """Chi-square gate (2 dof) on each observation's NIS: an observation whose NIS exceeds this quantile
+    (18.4 for 0.9999) is rejected and reported. 1.0 disables gating."""
+    gate_persistence: int = 8
+    """A landmark whose sightings fail the gate this many times in a row is used anyway: a one-off misreading
+    fails once, but repeated failures of one landmark mean the filter has drifted, and rejecting them would
+    starve it. 0 turns this off (every gated sighting rejected)."""
+    reanchor: bool = True
+    """When a landmark has failed the gate ``gate_persistence`` times in a row while the rest of each scan
+    agreed with the filter, and those gated sightings agree with each other, the landmark's estimate is the
+    stale one (e.g. it was placed by a wrong association): restart it from the newest sighting instead of
+    letting that sighting pull the robot. When most of a scan fails the gate, the filter itself has drifted
+    and persistent sightings are used (False: always the latter)."""
+    update: str = "joint"
+    """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
+    relinearized after each."""
+    linearization: str = "standard"
+    """Where the Jacobians are evaluated: ``standard`` at the current estimate; ``fej`` at each variable's first
+    estimate; ``oc``: the standard ones constrained to see nothing of the unobservable directions (both
+    consistent: :mod:`~online_slam.estimators.linearization`)."""
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+    """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
+    filter's own mean and covariance (with tentative landmarks)."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.gate_probability <= 1.0:
+            raise ValueError("gate_probability must be in (0, 1]")
+        if self.gate_persistence < 0:
+            raise ValueError("gate_persistence must be >= 0")
+        if self.update not in ("joint", "sequential"):
+            raise ValueError("update must be 'joint' or 'sequential'")
+        if self.linearization not in LINEARIZATIONS:
+            raise ValueError(f"linearization must be one of {', '.join(LINEARIZATIONS)}")
