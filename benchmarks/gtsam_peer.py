@@ -8,6 +8,9 @@ Two modes:
 - ``exact=True`` models odometry and priors with ``CustomFactor`` computing our residual (Jacobians mapped to
   GTSAM's tangent space), and keeps the native bearing-range factor (its error equals ours), so both solvers
   minimise the same cost: used to cross-check solutions.
+
+A sighting of one robot by another (several robots) is GTSAM's ``BearingRangeFactorPose2`` between the two
+poses in both modes: bearing and range to the seen pose's position, as ours.
 """
 
 from __future__ import annotations
@@ -124,6 +127,10 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
     for p, l, z, cov in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov):
         noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
         fg.add(gtsam.BearingRangeFactor2D(X(int(p)), L(int(l)), gtsam.Rot2(z[1]), z[0], noise))
+    rob_cov = _covariances(graph.rob_sqrt_info)[:, ::-1, ::-1] if len(graph.rob_from) else []
+    for a, b, z, cov in zip(graph.rob_from, graph.rob_to, graph.rob_z, rob_cov):
+        noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
+        fg.add(gtsam.BearingRangeFactorPose2(X(int(a)), X(int(b)), gtsam.Rot2(z[1]), z[0], noise))
     values = gtsam.Values()
     for i, pose in enumerate(poses):
         values.insert(X(i), gtsam.Pose2(*pose))

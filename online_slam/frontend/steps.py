@@ -254,8 +254,7 @@ class FrontEnd:
             step = self.push(event)
             if step is not None:
                 yield step
-        last = self.close()
-        if last is not None:
+        while (last := self.close()) is not None:
             yield last
 
     def push(self, event: Event) -> Step | None:
