@@ -264,6 +264,10 @@ class ReplayRun:
         if len(self.tracks) > len(record.snapshots) - 1:  # estimators left (one robot at a time): dead reckoning aside
             self.estimators = [e for e in self.estimators if e.name in record.snapshots]
             self.tracks = {name: track for name, track in self.tracks.items() if name in record.snapshots}
+            if not self.tracks:
+                raise OnlineSlamError(
+                    f"several robots: the {', '.join(self.engine.state.left)} takes one robot at a time"
+                )
         self.step_times.append(record.step.t)
         if self.association != "known":
             self.sighting_ids.extend(record.step.landmarks)
