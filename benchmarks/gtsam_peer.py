@@ -11,6 +11,8 @@ Two modes:
 
 Position sightings (the landmark in the robot frame) have no native 2D factor in GTSAM's Python wrapper: both
 modes model them with a ``CustomFactor`` computing our residual.
+A sighting of one robot by another (several robots) is GTSAM's ``BearingRangeFactorPose2`` between the two
+poses in both modes: bearing and range to the seen pose's position, as ours.
 """
 
 from __future__ import annotations
@@ -157,6 +159,10 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
     obs_cov = _covariances(graph.obs_sqrt_info)
     for p, l, z, cov, model in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov, graph.obs_model):
         fg.add(_sighting_factor(X(int(p)), L(int(l)), z, int(model), _sighting_noise(cov, int(model))))
+    rob_cov = _covariances(graph.rob_sqrt_info)[:, ::-1, ::-1] if len(graph.rob_from) else []
+    for a, b, z, cov in zip(graph.rob_from, graph.rob_to, graph.rob_z, rob_cov):
+        noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
+        fg.add(gtsam.BearingRangeFactorPose2(X(int(a)), X(int(b)), gtsam.Rot2(z[1]), z[0], noise))
     values = gtsam.Values()
     for i, pose in enumerate(poses):
         values.insert(X(i), gtsam.Pose2(*pose))

@@ -8,6 +8,10 @@ When a step is complete (the next odometry arrives, or the stream ends) every es
 pose is shown to the estimators at once with the sightings it has so far, and later sightings of that pose
 reach them through ``extend``. So an estimate never lags the sensors; and a replay, which queries only at
 complete steps, gives the same numbers whether or not anyone queries it that way.
+
+When a second robot begins (a step with a start pose after step 0), the estimators that take one robot at a
+time (no ``several_robots`` attribute set) leave the engine, named in ``state.left``; if no estimator would be
+left, that is one :class:`~online_slam.errors.OnlineSlamError`.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from online_slam.errors import OnlineSlamError
 from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.frontend.steps import FrontEnd, FrontEndConfig, Step
 from online_slam.sources.events import Event
@@ -46,6 +51,8 @@ class EngineState:
     """Observations of the pending step the estimators have (-1: not even its pose)."""
     seconds: dict[str, float] = field(default_factory=dict)
     """Wall time each estimator spent on the pending step so far, by name."""
+    left: list[str] = field(default_factory=list)
+    """Estimators that left when a second robot began (they take one robot at a time)."""
 
 
 @dataclass(eq=False)
@@ -141,7 +148,19 @@ class Engine:
             self.state.seconds[estimator.name] = self.state.seconds.get(estimator.name, 0.0) + elapsed
         self.state.given = k
 
+    def _another_robot(self) -> None:
+        """A second robot begins: the estimators that take one robot at a time leave."""
+        single = [e.name for e in self.estimators if not getattr(e, "several_robots", False)]
+        if not single:
+            return
+        if len(single) == len(self.estimators) or not self.records:
+            raise OnlineSlamError(f"several robots: the {', '.join(single)} takes one robot at a time")
+        self.estimators = [e for e in self.estimators if e.name not in single]
+        self.state.left += single
+
     def _complete(self, step: Step) -> StepRecord | None:
+        if step.prior is not None and step.index > 0:
+            self._another_robot()
         self._deliver(step)
         self.state.steps += 1
         self.state.observations += len(step.landmarks)
@@ -163,6 +182,7 @@ class Engine:
 
     def restore(self, saved: EngineCheckpoint) -> None:
         """Continue from a :meth:`checkpoint` of an engine built with the same estimators and configuration."""
+        self.estimators = [e for e in self.estimators if e.name not in saved.state.left]
         if sorted(saved.estimators) != sorted(e.name for e in self.estimators):
             raise ValueError("the checkpoint holds other estimators")
         self.state, self.frontend, self._latest = saved.state, saved.frontend, {}

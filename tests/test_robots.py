@@ -1,4 +1,4 @@
-"""Several robots in one stream: the robot fields, their validation, the front-end's stop, MRCLAM's five robots
+"""Several robots in one stream: the robot fields, their validation, the smoother's refusal, MRCLAM's five robots
 in one stream and the simulated worlds of several robots."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.frontend import FrontEnd
 from online_slam.importers import open_dataset
 from online_slam.importers.mrclam import _interpolate_truth, _table
-from online_slam.pipeline import replay
+from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources import (
     WORLDS,
     MeetConfig,
@@ -162,24 +162,24 @@ def test_the_library_calls_refuse_events_without_a_robot_once_robots_are_named()
     assert slam.estimate().index == 1  # one named robot is one robot
 
 
-def test_several_robots_stop_the_estimators_with_one_error() -> None:
-    with pytest.raises(OnlineSlamError, match=r"^several robots: .*\(robot 'b' starts after robot 1\)"):
-        list(FrontEnd().steps(validate_events(two_robots())))
+def test_the_smoother_alone_refuses_several_robots_with_one_error() -> None:
+    steps = list(FrontEnd().steps(validate_events(two_robots())))
+    assert [(s.index, s.robot) for s in steps] == [(0, 1), (1, "b"), (2, 1), (3, "b")]
     slam = Slam("smoother")
-    slam.add(two_robots()[0])
-    with pytest.raises(OnlineSlamError, match="several robots"):
-        slam.add(two_robots()[1])
+    for record in two_robots()[:3]:
+        slam.add(record)
+    with pytest.raises(OnlineSlamError, match="^several robots: the smoother takes one robot at a time$"):
+        slam.add(two_robots()[3])  # completes robot b's first pose
     with pytest.raises(OnlineSlamError, match="several robots") as info:
-        replay("meet")
-    assert not isinstance(info.value, InputError)  # no bad line: nothing of the stream is estimated
+        replay("meet", ReplayConfig(estimators=("smoother",)))
+    assert not isinstance(info.value, InputError)  # no bad line
 
 
-def test_replay_of_several_robots_is_one_line_exit_2() -> None:
-    done = subprocess.run([*EXE, "replay", "meet-apart"], capture_output=True, text=True)
+def test_replay_of_several_robots_with_the_smoother_alone_is_one_line_exit_2() -> None:
+    done = subprocess.run([*EXE, "replay", "meet-apart", "--estimators", "smoother"], capture_output=True, text=True)
     assert done.returncode == 2 and "Traceback" not in done.stderr and done.stdout == ""
     assert done.stderr.strip().splitlines() == [
-        "online-slam: error: several robots: the estimators take one robot at a time (robot 2 starts after "
-        "robot 1); replay one robot (an MRCLAM folder: --robot N)"
+        "online-slam: error: several robots: the smoother takes one robot at a time"
     ]
 
 
@@ -291,5 +291,7 @@ def test_convert_all_mrclam_robots_writes_a_stream_that_reads_back(tmp_path: Pat
                           capture_output=True, text=True)  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert list(read_stream(out)) == list(open_dataset(MRCLAM, robot="all"))
-    done = subprocess.run([*EXE, "replay", str(MRCLAM), "--robot", "all"], capture_output=True, text=True)
+    done = subprocess.run(
+        [*EXE, "replay", str(MRCLAM), "--robot", "all", "--estimators", "smoother"], capture_output=True, text=True
+    )
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1 and "several robots" in done.stderr

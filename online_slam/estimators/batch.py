@@ -1,4 +1,8 @@
-"""The batch solver: every pose and landmark at once — the reference every online estimator is compared with."""
+"""The batch solver: every pose and landmark at once — the reference every online estimator is compared with.
+
+With several robots it solves every robot's poses together: each robot's odometry chain and start, landmark
+sightings from any robot, and a range-bearing factor between two poses for each sighting of a robot. Robot
+sightings are tested for outliers with the landmark sightings (one false-alarm rate over both)."""
 
 from __future__ import annotations
 
@@ -10,7 +14,13 @@ from numpy.typing import NDArray
 
 from online_slam.estimators.problem import LoggedEstimator, ProblemLog
 from online_slam.estimators.protocol import Estimate
-from online_slam.factors.graph import FactorGraph, observation_chi2, without_observations
+from online_slam.factors.graph import (
+    FactorGraph,
+    observation_chi2,
+    robot_sighting_chi2,
+    without_observations,
+    without_robot_sightings,
+)
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import SolverConfig, solve
@@ -121,18 +131,21 @@ class BatchEstimator(LoggedEstimator):
         cfg = self.config
         result = solve(graph, poses, landmarks, cfg.solver, loss=cfg.loss)
         rejected = np.zeros(len(graph.obs_pose), dtype=bool)
+        rejected_robots = np.zeros(len(graph.rob_from), dtype=bool)
         robust_pass = False
-        if cfg.outliers == "auto" and cfg.loss is None and len(rejected):
-            chi2_values = observation_chi2(graph, result.poses, result.landmarks)
+        if cfg.outliers == "auto" and cfg.loss is None and len(rejected) + len(rejected_robots):
+            chi2_values = np.concatenate(
+                [observation_chi2(graph, result.poses, result.landmarks), robot_sighting_chi2(graph, result.poses)]
+            )
             bound = outlier_threshold(cfg.outlier_false_alarm / len(chi2_values))
             if chi2_values.max() > bound:  # contaminated: robust pass, drop the outliers, least squares on the rest
                 robust_pass = True
                 start = _median_landmarks(graph, poses, landmarks)  # a first sight may be a wrong one
                 robust = solve(graph, poses, start, cfg.solver, loss=cfg.outlier_loss)
-                rejected = observation_chi2(graph, robust.poses, robust.landmarks) > outlier_threshold(
-                    cfg.reject_false_alarm
-                )
-                kept = without_observations(graph, rejected)
+                reject_bound = outlier_threshold(cfg.reject_false_alarm)
+                rejected = observation_chi2(graph, robust.poses, robust.landmarks) > reject_bound
+                rejected_robots = robot_sighting_chi2(graph, robust.poses) > reject_bound
+                kept = without_robot_sightings(without_observations(graph, rejected), rejected_robots)
                 result = solve(kept, robust.poses, robust.landmarks, cfg.solver)
         info = {
             "iterations": result.iterations,
@@ -145,6 +158,9 @@ class BatchEstimator(LoggedEstimator):
             "robust_pass": robust_pass,
             "rejected": rejected,
         }
+        if len(rejected_robots):
+            info["robot_sightings"] = len(rejected_robots)
+            info["robot_sightings_rejected"] = int(rejected_robots.sum())
         ids, positions = landmark_ids, result.landmarks
         if rejected.any():  # a landmark whose every sighting is an outlier is no landmark: leave it out of the map
             supported = np.zeros(len(ids), dtype=bool)

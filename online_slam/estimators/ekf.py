@@ -47,15 +47,16 @@ from scipy.stats import chi2
 from threadpoolctl import ThreadpoolController
 
 from online_slam.checkpoint import from_tree, to_tree
+from online_slam.errors import OnlineSlamError
+from online_slam.estimators import ekf_gating
 from online_slam.estimators.ekf_config import EkfConfig
+from online_slam.estimators.ekf_robots import SeveralRobots, landmark_columns
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.linearization import heading_column, observable
 from online_slam.estimators.protocol import Estimate, Snapshot
-from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
-from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import compose_with_jacobians
 from online_slam.models.observation import (
     RANGE_BEARING,
@@ -74,12 +75,7 @@ REANCHOR_AFTER = 3
 """Gated sightings in a row (mutually consistent, while the scan agrees with the filter) that restart a landmark."""
 
 
-def _landmark_columns(indices: NDArray[np.int64]) -> NDArray[np.int64]:
-    """State columns of landmarks by index: (k,) -> (2k,)."""
-    return (3 + 2 * indices[:, None] + np.arange(2)).reshape(-1)
-
-
-class EkfSlam(ExtendedKalmanFilter):
+class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
     """EKF-SLAM with a growing state; follows the estimator protocol (``step`` / ``finish``)."""
 
     name = "ekf"
@@ -235,7 +231,7 @@ class EkfSlam(ExtendedKalmanFilter):
         gone = np.array(sorted(self.state.index[lid] for lid in ids), dtype=np.int64)
         m = len(self.landmark_ids)
         kept = np.setdiff1d(np.arange(m), gone)
-        rows = np.r_[0, 1, 2, _landmark_columns(kept)]
+        rows = np.r_[np.arange(self._offset), landmark_columns(kept, self._offset)]
         self.x = self.x[rows]
         self.P = self.P[np.ix_(rows, rows)]
         self._resized()
@@ -258,7 +254,7 @@ class EkfSlam(ExtendedKalmanFilter):
         self, indices: NDArray[np.int64], z: Array, model: NDArray[np.int8]
     ) -> tuple[Array, Array, NDArray[np.int64]]:
         """Innovations y (k, 2), compact Jacobian H_s (2k, 3 + 2k) and its state columns (3 + 2k,)."""
-        landmarks = self.x[3:, 0].reshape(-1, 2)[indices]
+        landmarks = self.x[self._offset :, 0].reshape(-1, 2)[indices]
         z_hat, J_p, J_l = predict_with_jacobians(self.x[:3, 0], landmarks, model)
         if self.config.linearization == "fej":  # Jacobians at the first estimates, innovation at the current one
             _, J_p, J_l = predict_with_jacobians(self.state.predicted, self.state.first[indices], model)
@@ -266,7 +262,7 @@ class EkfSlam(ExtendedKalmanFilter):
             J_p, J_l = observable(J_p, J_l, self.state.predicted[:2], self.state.first[indices])
         y = wrap_bearings(z - z_hat, model)
         H_s = stacked_jacobian(J_p, J_l)
-        columns = np.r_[np.arange(3), _landmark_columns(indices)]
+        columns = np.r_[np.arange(3), landmark_columns(indices, self._offset)]
         return y, H_s, columns
 
     def update_structured(
@@ -317,7 +313,7 @@ class EkfSlam(ExtendedKalmanFilter):
             elif self.config.reanchor:  # the scan agrees with the filter: the landmark, not the robot, is off
                 due = ~passed & (streak >= REANCHOR_AFTER - 1)
                 if due.any():
-                    reanchor = due & self._recent_agree(indices, z, R)
+                    reanchor = due & ekf_gating.recent_agree(self.state.recent, indices)
         self.state.agreement.append((int((confirmed & ~passed).sum()), int((confirmed & passed).sum())))
         del self.state.agreement[:-AGREEMENT_UPDATES]
         self.state.confirmed[indices[passed]] = True
@@ -339,31 +335,11 @@ class EkfSlam(ExtendedKalmanFilter):
     def _one_robot_correction_explains(
         self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]
     ) -> bool:
-        """Can one robot pose, the landmarks held where they are, explain these sightings (chi-square)?
-
-        Gauss-Newton on the robot pose alone, each sighting weighted by its noise plus its landmark's
-        uncertainty; the test is on the remaining residual (2k - 3 dof) at a 1e-3 false-alarm rate.
-        """
-        pose = self.x[:3, 0].copy()
-        landmarks = self.x[3:, 0].reshape(-1, 2)[indices]
-        cols = _landmark_columns(indices).reshape(-1, 2)
+        """Can one robot pose, the landmarks held where they are, explain these sightings?"""
+        cols = landmark_columns(indices, self._offset).reshape(-1, 2)
         P_ll = self.P[cols[:, :, None], cols[:, None, :]]
-        chi2_value = np.inf
-        for _ in range(6):
-            z_hat, J_p, J_l = predict_with_jacobians(pose, landmarks, model)
-            y = wrap_bearings(z - z_hat, model)
-            C_inv = np.linalg.inv(R + J_l @ P_ll @ J_l.transpose(0, 2, 1))
-            chi2_value = float(np.einsum("ki,kij,kj->", y, C_inv, y))
-            A = np.einsum("kai,kab,kbj->ij", J_p, C_inv, J_p)
-            b = np.einsum("kai,kab,kb->i", J_p, C_inv, y)
-            try:
-                step = np.linalg.solve(A, b)
-            except np.linalg.LinAlgError:
-                return False
-            pose = pose + step
-            pose[2] = wrap(pose[2])
-        dof = 2 * len(indices) - 3
-        return chi2_value <= outlier_threshold(1e-3, dof) if dof > 0 else True
+        landmarks = self.x[self._offset :, 0].reshape(-1, 2)[indices]
+        return ekf_gating.one_robot_correction_explains(self.x[:3, 0], landmarks, P_ll, z, R, model)
 
     def _remember(self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]) -> None:
         """Keep where each gated sighting puts its landmark (with that position's covariance)."""
@@ -374,23 +350,6 @@ class EkfSlam(ExtendedKalmanFilter):
             recent.append((point, cov))
             del recent[: -max(1, self.config.gate_persistence)]
 
-    def _recent_agree(self, indices: NDArray[np.int64], z: Array, R: Array) -> NDArray[np.bool_]:
-        """For each sighting: do two thirds of its landmark's recent gated sightings agree with it (chi-square)?"""
-        out = np.zeros(len(indices), dtype=bool)
-        bound = outlier_threshold(1e-3)
-        for i, j in enumerate(indices.tolist()):
-            recent = self.state.recent.get(j, [])
-            if len(recent) < 2:
-                continue
-            points = np.array([r[0] for r in recent])
-            covs = np.array([r[1] for r in recent])
-            d = points - points[-1]
-            total = covs + covs[-1]
-            chi2_values = np.einsum("ki,ki->k", d[:-1], np.linalg.solve(total[:-1], d[:-1, :, None])[..., 0])
-            agree = int(np.sum(chi2_values <= bound))
-            out[i] = agree >= max(1.0, 2.0 * len(chi2_values) / 3.0)
-        return out
-
     def reanchor_landmark(self, index: int, z: Array, R: Array, model: int = RANGE_BEARING) -> None:
         """Restart a landmark from one sighting (model tag ``model``), as if it were new (its old estimate and
         correlations dropped).
@@ -398,7 +357,7 @@ class EkfSlam(ExtendedKalmanFilter):
         ``l = g(x_r, z)``; ``P_ll = G_r P_rr G_r^T + G_z R G_z^T``; ``P_lx = G_r P_rx`` for every other entry.
         """
         position, G_r, G_z = self._placed(z, model)
-        cols = 3 + 2 * index + np.arange(2)
+        cols = self._offset + 2 * index + np.arange(2)
         cross = G_r @ self.P[:3, :]
         block = cross[:, :3] @ G_r.T + G_z @ R @ G_z.T
         self.P[cols, :] = cross
@@ -414,7 +373,7 @@ class EkfSlam(ExtendedKalmanFilter):
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
         dx, W, L_inv = apply_update(self.P, PHt, S, y)
         self.x[:, 0] += dx
-        self.x[2, 0] = wrap(self.x[2, 0])
+        self._wrap_headings()
         # filterpy's view of the last update
         self.S, self.y = S, y.reshape(-1, 1)
         self.K = W @ L_inv
@@ -434,15 +393,29 @@ class EkfSlam(ExtendedKalmanFilter):
             return self.snapshot(step)
 
     def _step(self, step: Step) -> Snapshot:
-        if step.odometry is None:
+        if self.state.waiting:
+            self._sightings_before(step.t)
+        if step.odometry is None and step.index > 0:  # another robot begins
+            if self.config.linearization != "standard":
+                raise OnlineSlamError(
+                    "several robots: the EKF's fej and oc linearizations take one robot; use standard"
+                )
+            self._add_robot(step)
+        elif step.odometry is None:
             self.x[:3, 0] = step.prior
             self.P[:3, :3] = 0.0 if step.prior_cov is None else step.prior_cov
             self.state.predicted = self.x[:3, 0].copy()
+            self.state.robots[0] = step.robot
         else:
+            self._activate(step.robot)
+            self._moved_on()
             self.state.history.append(self.x[:3, 0])  # the previous pose is complete
             self.predict(step.odometry, step.odometry_cov)
+        self.state.robot_steps[0], self.state.robot_times[0] = step.index, step.t
         self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
+        if step.robots_seen or self.state.waiting:
+            self._sight_robots(step)
         return self.snapshot(step)
 
     def _observe(self, step: Step, start: int) -> None:
@@ -496,20 +469,23 @@ class EkfSlam(ExtendedKalmanFilter):
         dropped = self.book.expire(step_index)
         if dropped:
             self.remove_landmarks(dropped)
-        P = self.P
+        P, offset = self.P, self._offset
 
         def covariance_of(indices: NDArray[np.int64]) -> Array:
-            cols = np.r_[0, 1, 2, _landmark_columns(indices)]
+            cols = np.r_[0, 1, 2, landmark_columns(indices, offset)]
             return P[np.ix_(cols, cols)]
 
-        positions = self.x[3:, 0].reshape(-1, 2)
+        positions = self.x[offset:, 0].reshape(-1, 2)
         pose = self.x[:3, 0].copy()
         return self.book.assign_ids(
             step_index, ids, z, R, model, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, self.state.index
         )
 
     def trajectory_parts(self) -> tuple[Array, Array]:
-        """(poses that no longer change, read-only (N - 1, 3) view; the newest pose, a copy (1, 3))."""
+        """(poses that no longer change, read-only (N - 1, 3) view; the newest pose, a copy (1, 3)); with several
+        robots (nothing; every pose in step order)."""
+        if len(self.state.robots) > 1:
+            return np.zeros((0, 3)), self._robots_trajectory()
         return self.state.history.view(), self.x[:3, 0].reshape(1, 3).copy()
 
     def trajectory(self) -> Array:
@@ -519,7 +495,7 @@ class EkfSlam(ExtendedKalmanFilter):
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
         m = len(self.landmark_ids)
-        first = 3 + 2 * np.arange(m)
+        first = self._offset + 2 * np.arange(m)
         rows = first[:, None, None] + np.arange(2)[None, :, None]
         cols = first[:, None, None] + np.arange(2)[None, None, :]
         return self.P[rows, cols]
@@ -546,7 +522,7 @@ class EkfSlam(ExtendedKalmanFilter):
 
     def _map(self) -> tuple[tuple[LandmarkId, ...], Array, Array]:
         """The reported map: ids, positions (M, 2), marginal covariances (M, 2, 2); tentative landmarks left out."""
-        landmarks, covs = self.x[3:, 0].reshape(-1, 2).copy(), self.landmark_marginals()
+        landmarks, covs = self.x[self._offset :, 0].reshape(-1, 2).copy(), self.landmark_marginals()
         mapped = self._mapped()
         if mapped is None:
             return tuple(self.landmark_ids), landmarks, covs
@@ -554,7 +530,10 @@ class EkfSlam(ExtendedKalmanFilter):
         return ids, landmarks[mapped], covs[mapped]
 
     def finish(self) -> Estimate:
-        """The filter has no smoothing: each pose keeps the estimate it had when it was the newest."""
+        """The filter has no smoothing: each pose keeps the estimate it had when it was the newest (with several
+        robots: when its robot moved on)."""
+        if self.state.waiting:
+            self._sightings_before(math.inf)
         ids, landmarks, covs = self._map()
         return Estimate(
             self.name,
@@ -567,6 +546,7 @@ class EkfSlam(ExtendedKalmanFilter):
                 "state_size": self.dim_x,
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),
                 **self.book.info(),
+                **self._robot_info(),
             },
             landmark_covs=covs,
         )

@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.landmark_book import LandmarkBook
-from online_slam.sources.events import LandmarkId
+from online_slam.sources.events import LandmarkId, RobotId
 
 Array = NDArray[np.float64]
 
@@ -21,13 +21,32 @@ def _zeros(*shape: int, dtype: type = float) -> Any:
 
 
 @dataclass(eq=False)
+class WaitingSighting:
+    """A sighting of a robot waiting for the seen robot's pose of its time (several robots)."""
+
+    pose: int
+    """The sighting pose's step index."""
+    robot: RobotId
+    """The sighting robot."""
+    seen: RobotId
+    """The seen robot."""
+    t: float
+    """The sighting step's time."""
+    z: Array
+    """Range and bearing, shape (2,)."""
+    cov: Array
+    """Its covariance, shape (2, 2)."""
+
+
+@dataclass(eq=False)
 class EkfState:
     """Everything the filter knows (a checkpoint holds exactly this; filterpy's view of the last update aside)."""
 
     book: LandmarkBook
     """Association state (tentative landmarks, ids given out, each sighting's label)."""
     x: Array = _zeros(3, 1)
-    """Mean ``[x, y, theta, l1x, l1y, ...]``, shape (n, 1)."""
+    """Mean ``[x, y, theta, l1x, l1y, ...]``, shape (n, 1); with several robots ``[pose of the active robot,
+    the other robots' poses, landmarks]``."""
     P: Array = _zeros(3, 3)
     """Covariance, shape (n, n)."""
     Q: Array = _zeros(3, 3)
@@ -62,12 +81,24 @@ class EkfState:
     """The newest step's sightings as paired (None: not used)."""
     rejected: list[NDArray[np.bool_]] = field(default_factory=list)
     """Sightings not used (gated, or kept back by association), per update call, in step order."""
+    robots: list[RobotId | None] = field(default_factory=lambda: [None])
+    """The robot of each pose block of ``x``, the active one first."""
+    robot_steps: list[int] = field(default_factory=lambda: [0])
+    """The step index of each block's pose."""
+    robot_times: list[float] = field(default_factory=lambda: [0.0])
+    """The time of each block's pose."""
+    moved: list[int] = field(default_factory=list)
+    """With several robots: the step index of each ``history`` row (rows come as robots move on)."""
+    waiting: list[WaitingSighting] = field(default_factory=list)
+    """Robot sightings waiting for the seen robot's pose of their time."""
+    robot_sightings: dict[str, int] = field(default_factory=lambda: {"used": 0, "gated": 0, "dropped": 0})
+    """Robot sightings used, rejected by the gate, and dropped (a pose they link had gone, or never came)."""
     index: dict[LandmarkId, int] = field(init=False)
     """State index of each landmark id."""
 
     def __post_init__(self) -> None:
         n, m = len(self.x), len(self.landmark_ids)
         sizes = (len(self.streak), len(self.confirmed), len(self.first))
-        if n != 3 + 2 * m or self.P.shape != (n, n) or any(size != m for size in sizes):
+        if n != 3 * len(self.robots) + 2 * m or self.P.shape != (n, n) or any(size != m for size in sizes):
             raise ValueError("x, P, landmark_ids and the per-landmark arrays disagree in size")
         self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}

@@ -1,4 +1,8 @@
-"""Accumulates steps into the arrays of a factor graph, with odometry-composed initial values."""
+"""Accumulates steps into the arrays of a factor graph, with odometry-composed initial values.
+
+With several robots each robot's poses form their own odometry chain from their own start (poses indexed over
+all robots in step order), and a sighting of a robot links the sighting pose to the seen robot's newest pose
+at the step's time (:class:`RobotSightings`)."""
 
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ from online_slam.factors.graph import FactorGraph, sqrt_information
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
 from online_slam.models.observation import landmark_from_sighting, tags
-from online_slam.sources.events import LandmarkId
+from online_slam.sources.events import LandmarkId, RobotId
 
 Array = NDArray[np.float64]
 
@@ -26,6 +30,62 @@ def _concat(chunks: list[np.ndarray], shape: tuple[int, ...], dtype: type) -> np
 def _extended(cached: tuple[np.ndarray, ...], new: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
     """Cached concatenations with the arrays of the chunks added since appended (``new`` when nothing cached)."""
     return tuple(np.concatenate([a, b]) for a, b in zip(cached, new)) if cached else new
+
+
+@dataclass(eq=False)
+class RobotSightings:
+    """Sightings of robots by robots, each linking its step's pose to the seen robot's newest pose at the step's
+    time. That pose may begin after the step (another robot's pose of the same time comes later in step order):
+    a sighting stays open while poses of its time may still come."""
+
+    pose: list[int] = field(default_factory=list)
+    """The sighting pose of each."""
+    robot: list[RobotId] = field(default_factory=list)
+    """The seen robot of each."""
+    seen_pose: list[int] = field(default_factory=list)
+    """The seen robot's newest pose at the sighting step's time (-1: none, so far)."""
+    t: list[float] = field(default_factory=list)
+    """The sighting step's time."""
+    z: list[Array] = field(default_factory=list)
+    """Range and bearing, each shape (2,)."""
+    cov: list[Array] = field(default_factory=list)
+    """Their covariances, each shape (2, 2)."""
+    open: list[int] = field(default_factory=list)
+    """Sightings of the newest step time (the seen robot may still get a pose of that time)."""
+
+    def add(self, step: Step, newest: dict[RobotId | None, int]) -> None:
+        """Take a new step (``newest``: each robot's newest pose, this step's included): it may be the pose an
+        open sighting sees; then record its own sightings."""
+        if self.open and self.t[self.open[0]] < step.t:
+            self.open = []
+        for k in self.open:
+            if self.robot[k] == step.robot:
+                self.seen_pose[k] = step.index
+        for robot, z, cov in zip(step.robots_seen, step.z_robots, step.z_robots_cov):
+            self.open.append(len(self.pose))
+            self.pose.append(step.index)
+            self.robot.append(robot)
+            self.seen_pose.append(newest.get(robot, -1))
+            self.t.append(step.t)
+            self.z.append(z)
+            self.cov.append(cov)
+
+    def linked(self) -> NDArray[np.bool_]:
+        """Which sightings link two poses (the seen robot had a pose at the step's time), shape (R,)."""
+        return np.array(self.seen_pose, dtype=np.int64) >= 0
+
+    def factors(self) -> dict[str, Array]:
+        """The linked sightings as the robot-sighting arrays of a :class:`FactorGraph` ({} when there are none)."""
+        linked = np.flatnonzero(self.linked())
+        if not len(linked):
+            return {}
+        cov = np.array(self.cov)[linked]
+        return {
+            "rob_from": np.array(self.pose, dtype=np.int64)[linked],
+            "rob_to": np.array(self.seen_pose, dtype=np.int64)[linked],
+            "rob_z": np.array(self.z, dtype=float)[linked],
+            "rob_sqrt_info": sqrt_information(cov),
+        }
 
 
 @dataclass(eq=False)
@@ -48,6 +108,12 @@ class ProblemLog(Checkpointed):
     """Initial landmark values (from their first sight), each shape (2,)."""
     prior: tuple[Array, Array | None] | None = None
     """The start pose and its covariance (None: held fixed), once step 0 arrived."""
+    robots: list[RobotId | None] = field(default_factory=list)
+    """The robot of each pose, in step order."""
+    starts: dict[int, tuple[Array, Array | None]] = field(default_factory=dict)
+    """The start pose and covariance of every robot after the first, by its first pose's index."""
+    seen: RobotSightings = field(default_factory=lambda: RobotSightings())
+    """Sightings of robots by robots."""
     _odo_delta: list[Array] = field(default_factory=list)
     """Odometry increments, each shape (3,)."""
     _odo_cov: list[Array] = field(default_factory=list)
@@ -72,9 +138,12 @@ class ProblemLog(Checkpointed):
     """Odometry entries the concatenations cover."""
     _cat_odo: tuple[Array, ...] = field(init=False)
     """Concatenated odometry arrays (see :meth:`_odometry_arrays`)."""
+    _newest: dict[RobotId | None, int] = field(init=False)
+    """Index of each robot's newest pose."""
 
     def __post_init__(self) -> None:
         self._landmark_index = {lid: k for k, lid in enumerate(self.landmark_ids)}
+        self._newest = {robot: k for k, robot in enumerate(self.robots)}
         self._reset_cache()
 
     def _reset_cache(self) -> None:
@@ -130,13 +199,20 @@ class ProblemLog(Checkpointed):
         if step.odometry is None:
             assert step.prior is not None
             pose = np.array(step.prior, dtype=float)
-            self.prior = (pose, step.prior_cov)
+            if self.poses:  # another robot begins
+                self.starts[step.index] = (pose, step.prior_cov)
+            else:
+                self.prior = (pose, step.prior_cov)
         else:
-            pose = compose(self.poses[-1], step.odometry)
+            pose = compose(self.poses[self._newest.get(step.robot, -1)], step.odometry)
             if self.keep_factors:
                 self._odo_delta.append(step.odometry)
                 self._odo_cov.append(step.odometry_cov)
         self.poses.append(pose)
+        self.robots.append(step.robot)
+        self._newest[step.robot] = step.index
+        if self.keep_factors:
+            self.seen.add(step, self._newest)
         self.extend(step, 0)
         return pose
 
@@ -201,14 +277,7 @@ class ProblemLog(Checkpointed):
         if not self.keep_factors:
             raise ValueError("this log keeps no factors")
         n = len(self.poses)
-        fixed: list[int] = []
-        prior_args: dict[str, object] = {}
-        if self.prior is not None:
-            mean, cov = self.prior
-            if cov is None:
-                fixed = [0]
-            else:
-                prior_args = {"prior_pose": [0], "prior_mean": mean[None], "prior_cov": cov[None]}
+        fixed, prior_args = self._priors()
         obs_pose, obs_landmark, obs_z, _, obs_sqrt, obs_model = self._observation_arrays()
         odo_delta, odo_sqrt = self._odometry_arrays()
         if labels is not None:
@@ -220,10 +289,11 @@ class ProblemLog(Checkpointed):
         base = FactorGraph.build(
             n, len(self.landmark_ids) if n_landmarks is None else n_landmarks, fixed_poses=fixed, **prior_args
         )
+        odo_from, odo_to = self._chains()
         return replace(
             base,
-            odo_from=np.arange(n - 1, dtype=np.int64),
-            odo_to=np.arange(1, n, dtype=np.int64),
+            odo_from=odo_from,
+            odo_to=odo_to,
             odo_delta=odo_delta,
             odo_sqrt_info=odo_sqrt,
             obs_pose=obs_pose[used],
@@ -231,6 +301,37 @@ class ProblemLog(Checkpointed):
             obs_z=obs_z[used],
             obs_sqrt_info=obs_sqrt[used],
             obs_model=obs_model[used],
+            **self.seen.factors(),
+        )
+
+    def _priors(self) -> tuple[list[int], dict[str, object]]:
+        """The start poses held fixed, and the prior factors of the others (keyword arguments of the graph)."""
+        starts = ({} if self.prior is None else {0: self.prior}) | self.starts
+        fixed = [i for i, (_, cov) in starts.items() if cov is None]
+        free = [(i, mean, cov) for i, (mean, cov) in starts.items() if cov is not None]
+        if not free:
+            return fixed, {}
+        return fixed, {
+            "prior_pose": [i for i, _, _ in free],
+            "prior_mean": np.array([mean for _, mean, _ in free]),
+            "prior_cov": np.array([cov for _, _, cov in free]),
+        }
+
+    def _chains(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """(earlier, later) pose of every odometry factor, in the order the increments came."""
+        n = len(self.poses)
+        if not self.starts:  # one robot: one chain
+            return np.arange(n - 1, dtype=np.int64), np.arange(1, n, dtype=np.int64)
+        newest: dict[RobotId | None, int] = {}
+        pairs = []
+        for k, robot in enumerate(self.robots):
+            if k not in self.starts and k > 0:
+                pairs.append((newest[robot], k))
+            newest[robot] = k
+        return (
+            tuple(np.array(c, dtype=np.int64).reshape(-1) for c in zip(*pairs))
+            if pairs
+            else (np.zeros(0, np.int64),) * 2
         )
 
 
@@ -241,6 +342,7 @@ class LoggedEstimator:
     """
 
     name = "logged"
+    several_robots = True
     log: ProblemLog
 
     def step(self, step: Step) -> Snapshot:

@@ -127,6 +127,8 @@ class EstimatorResult:
     """Sightings judged outliers (and, on marked streams, how many were true outliers), where it judges."""
     association: AssociationScore | None = None
     """How it paired sightings with landmarks, scored against the stream's ids (``--association nn|jcbb``)."""
+    robots: dict[str, EstimatorResult] = field(default_factory=dict)
+    """With several robots: the same figures per robot, by robot id as text (empty with one robot)."""
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of this result."""
@@ -145,6 +147,8 @@ class EstimatorResult:
             out["outliers"] = self.outliers.to_json()
         if self.association is not None:
             out["association"] = {**out.get("association", {}), **self.association.to_dict()}
+        if self.robots:
+            out["robots"] = {robot: result.to_json() for robot, result in self.robots.items()}
         return out
 
     def row(self) -> Row:
@@ -237,6 +241,8 @@ class Results:
     """Time of every step, seconds, shape (N,)."""
     robot: int | str | None = None
     """The robot the stream's header names (``"robot"`` in its metadata, e.g. an MRCLAM robot), or None."""
+    left: tuple[str, ...] = ()
+    """Estimators that did not run to the end: they take one robot at a time and a second robot began."""
 
     def rows(self) -> dict[str, Row]:
         """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its
@@ -277,4 +283,5 @@ class Results:
             "estimators": {name: result.to_json() for name, result in self.estimators.items()},
             "input": self.input.to_json(),
             "error": self.error,
+            **({"left": list(self.left)} if self.left else {}),
         }

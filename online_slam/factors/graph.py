@@ -6,7 +6,9 @@ Three factor kinds, all whitened by the square-root information ``W`` (``W^T W =
 - odometry between poses a and b: ``W (between(a, b) - delta)`` (angle wrapped) — the article's model;
 - observation of landmark l from pose p: ``W (h(p, l) - z)``, with ``h`` the sighting's own model
   (:mod:`online_slam.models.observation`: range-bearing, bearing wrapped, or the landmark's position in the
-  robot frame), tagged per observation in ``obs_model``.
+  robot frame), tagged per observation in ``obs_model``;
+- range-bearing sighting of a robot: pose b's position seen from pose a, ``W (h(a, b_xy) - z)`` (bearing wrapped;
+  one robot's pose sighted from another's). Its rows come last.
 
 The state vector holds the free poses then the landmarks; fixed poses have no columns.
 """
@@ -14,7 +16,7 @@ The state vector holds the free poses then the landmarks; fixed poses have no co
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -24,6 +26,7 @@ from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
 from online_slam.models.observation import RANGE_BEARING, predict, predict_with_jacobians, wrap_bearings
+from online_slam.models.range_bearing import range_bearing_with_jacobians
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -80,6 +83,14 @@ class FactorGraph:
     """Square-root information of the observations, shape (L, 2, 2)."""
     obs_model: NDArray[np.int8]
     """Model tag of each observation (:mod:`online_slam.models.observation`), shape (L,)."""
+    rob_from: Index = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """Sighting pose of each robot sighting, shape (R,)."""
+    rob_to: Index = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """Sighted pose (another robot's) of each robot sighting, shape (R,)."""
+    rob_z: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    """Measured ``[range, bearing]`` to the sighted pose's position, shape (R, 2)."""
+    rob_sqrt_info: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    """Square-root information of the robot sightings, shape (R, 2, 2)."""
 
     @staticmethod
     def build(
@@ -99,6 +110,10 @@ class FactorGraph:
         obs_z: ArrayLike = (),
         obs_cov: ArrayLike = (),
         obs_model: ArrayLike = RANGE_BEARING,
+        rob_from: ArrayLike = (),
+        rob_to: ArrayLike = (),
+        rob_z: ArrayLike = (),
+        rob_cov: ArrayLike = (),
     ) -> FactorGraph:
         """Build a graph from covariances (computes the square-root information once); ``obs_model`` tags every
         observation with one model, or each with its own (L,)."""
@@ -106,6 +121,7 @@ class FactorGraph:
         odo_cov = np.asarray(odo_cov, dtype=float).reshape(-1, 3, 3)
         obs_cov = np.asarray(obs_cov, dtype=float).reshape(-1, 2, 2)
         obs_pose = _index(obs_pose)
+        rob_cov = np.asarray(rob_cov, dtype=float).reshape(-1, 2, 2)
         return FactorGraph(
             n_poses=int(n_poses),
             n_landmarks=int(n_landmarks),
@@ -122,12 +138,16 @@ class FactorGraph:
             obs_z=np.asarray(obs_z, dtype=float).reshape(-1, 2),
             obs_sqrt_info=sqrt_information(obs_cov) if len(obs_cov) else obs_cov,
             obs_model=np.broadcast_to(np.asarray(obs_model, dtype=np.int8), obs_pose.shape).copy(),
+            rob_from=_index(rob_from),
+            rob_to=_index(rob_to),
+            rob_z=np.asarray(rob_z, dtype=float).reshape(-1, 2),
+            rob_sqrt_info=sqrt_information(rob_cov) if len(rob_cov) else rob_cov,
         )
 
     @property
     def n_residuals(self) -> int:
         """Number of scalar residuals."""
-        return 3 * len(self.prior_pose) + 3 * len(self.odo_from) + 2 * len(self.obs_pose)
+        return 3 * len(self.prior_pose) + 3 * len(self.odo_from) + 2 * len(self.obs_pose) + 2 * len(self.rob_from)
 
 
 @dataclass(frozen=True)
@@ -185,6 +205,12 @@ def layout(graph: FactorGraph, entries: bool = True) -> SparseLayout:
         _block_indices(obs_rows, 2, pose_column[graph.obs_pose], 3),
         _block_indices(obs_rows, 2, landmark_column[graph.obs_landmark], 2),
     ]
+    if len(graph.rob_from):
+        rob_rows = 3 * P + 3 * K + 2 * L + 2 * np.arange(len(graph.rob_from), dtype=np.int64)
+        parts += [
+            _block_indices(rob_rows, 2, pose_column[graph.rob_from], 3),
+            _block_indices(rob_rows, 2, pose_column[graph.rob_to], 3),
+        ]
     rows = np.concatenate([p[0] for p in parts])
     cols = np.concatenate([p[1] for p in parts])
     keep = cols >= 0
@@ -219,6 +245,41 @@ def _errors(
     return e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
 
 
+def robot_sighting_residual_with_jacobians(pose_a: Array, pose_b: Array, z: Array) -> tuple[Array, Array, Array]:
+    """Residual of robot sightings (pose b's position seen from pose a) with its Jacobians.
+
+    Args:
+        pose_a: Sighting poses, shape (R, 3). pose_b: Sighted poses, shape (R, 3).
+        z: Measured ``[range, bearing]``, shape (R, 2).
+
+    Returns:
+        (e = h(a, b_xy) - z with the bearing wrapped (R, 2), de/da (R, 2, 3), de/db (R, 2, 3); b's heading has none).
+    """
+    h, J_a, J_xy = range_bearing_with_jacobians(pose_a, pose_b[:, :2])
+    e = h - z
+    e[:, 1] = wrap(e[:, 1])
+    J_b = np.zeros_like(J_a)
+    J_b[:, :, :2] = J_xy
+    return e, J_a, J_b
+
+
+def _robot_rows(graph: FactorGraph, poses: Array, loss: RobustLoss | None) -> tuple[Array, Array, Array, float]:
+    """Whitened robot-sighting residuals and Jacobians (IRLS-weighted under ``loss``) and their cost.
+
+    Returns:
+        (r (R, 2), W de/da (R, 2, 3), W de/db (R, 2, 3), cost as :func:`cost` counts it).
+    """
+    e, J_a, J_b = robot_sighting_residual_with_jacobians(poses[graph.rob_from], poses[graph.rob_to], graph.rob_z)
+    W = graph.rob_sqrt_info
+    r = _whiten(W, e)
+    s = np.sum(r * r, axis=1)
+    if loss is None or not len(s) or s.max() <= loss.quadratic_within:
+        return r, W @ J_a, W @ J_b, 0.5 * float(np.sum(s))
+    sqrt_w = np.sqrt(loss.weight(s))
+    W = W * sqrt_w[:, None, None]
+    return r * sqrt_w[:, None], W @ J_a, W @ J_b, 0.5 * float(np.sum(loss.rho(s)))
+
+
 def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     """Whitened residuals.
 
@@ -231,13 +292,14 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
         Residual vector, shape (n_residuals,), ordered priors, odometry, observations.
     """
     e_prior, e_odo, _, _, e_obs, _, _ = _errors(graph, poses, landmarks)
-    return np.concatenate(
-        [
-            _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
-            _whiten(graph.odo_sqrt_info, e_odo).reshape(-1),
-            _whiten(graph.obs_sqrt_info, e_obs).reshape(-1),
-        ]
-    )
+    parts = [
+        _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
+        _whiten(graph.odo_sqrt_info, e_odo).reshape(-1),
+        _whiten(graph.obs_sqrt_info, e_obs).reshape(-1),
+    ]
+    if len(graph.rob_from):
+        parts.append(_robot_rows(graph, poses, None)[0].reshape(-1))
+    return np.concatenate(parts)
 
 
 def sighting_chi2(poses: Array, landmarks: Array, z: Array, sqrt_info: Array, model: ArrayLike) -> Array:
@@ -261,6 +323,19 @@ def observation_chi2(graph: FactorGraph, poses: Array, landmarks: Array) -> Arra
     return sighting_chi2(
         poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_z, graph.obs_sqrt_info, graph.obs_model
     )
+
+
+def robot_sighting_chi2(graph: FactorGraph, poses: Array) -> Array:
+    """Squared whitened norm of each robot sighting's residual in a graph, shape (R,)."""
+    r = _robot_rows(graph, poses, None)[0]
+    return np.sum(r * r, axis=1)
+
+
+def without_robot_sightings(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
+    """The same graph with the robot sightings flagged in ``drop`` (R,) switched off (zero information)."""
+    W = graph.rob_sqrt_info.copy()
+    W[drop] = 0.0
+    return dataclasses.replace(graph, rob_sqrt_info=W)
 
 
 def without_observations(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
@@ -307,22 +382,24 @@ def linearize(
     if loss is not None and len(e_obs):
         s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
         W_obs = W_obs * np.sqrt(loss.weight(s))[:, None, None]
-    r = np.concatenate(
-        [
-            _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
-            _whiten(W_odo, e_odo).reshape(-1),
-            _whiten(W_obs, e_obs).reshape(-1),
-        ]
-    )
-    data = np.concatenate(
-        [
-            graph.prior_sqrt_info.reshape(-1),
-            (W_odo @ J_a).reshape(-1),
-            (W_odo @ J_b).reshape(-1),
-            (W_obs @ J_p).reshape(-1),
-            (W_obs @ J_l).reshape(-1),
-        ]
-    )[sparse.keep]
+    r_parts = [
+        _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
+        _whiten(W_odo, e_odo).reshape(-1),
+        _whiten(W_obs, e_obs).reshape(-1),
+    ]
+    data_parts = [
+        graph.prior_sqrt_info.reshape(-1),
+        (W_odo @ J_a).reshape(-1),
+        (W_odo @ J_b).reshape(-1),
+        (W_obs @ J_p).reshape(-1),
+        (W_obs @ J_l).reshape(-1),
+    ]
+    if len(graph.rob_from):
+        r_rob, WJ_from, WJ_to, _ = _robot_rows(graph, poses, loss)
+        r_parts.append(r_rob.reshape(-1))
+        data_parts += [WJ_from.reshape(-1), WJ_to.reshape(-1)]
+    r = np.concatenate(r_parts)
+    data = np.concatenate(data_parts)[sparse.keep]
     J = sp.csr_matrix((data, (sparse.rows, sparse.cols)), shape=(graph.n_residuals, sparse.n_columns))
     return r, J
 
@@ -355,6 +432,10 @@ class DenseAssembler:
                 (sparse.pose_column[graph.obs_pose], 3), (sparse.landmark_column[graph.obs_landmark], 2)
             ),
         }
+        if len(graph.rob_from):
+            self._columns["robot"] = columns(
+                (sparse.pose_column[graph.rob_from], 3), (sparse.pose_column[graph.rob_to], 3)
+            )
         h_index, g_index = [], []
         # Which entries of each kind's (K, c, c) block products and (K, c) gradients land (None: all of them).
         self._keep: dict[str, tuple[NDArray[np.bool_] | None, NDArray[np.bool_] | None]] = {}
@@ -393,6 +474,10 @@ class DenseAssembler:
             "odometry": (r_odo, W_odo @ np.concatenate([J_a, J_b], axis=2)),
             "observation": (r_obs, W_obs @ np.concatenate([J_p, J_l], axis=2)),
         }
+        if len(graph.rob_from):
+            r_rob, WJ_from, WJ_to, rob_cost = _robot_rows(graph, poses, loss)
+            factors["robot"] = (r_rob, np.concatenate([WJ_from, WJ_to], axis=2))
+            total += rob_cost
         h_value, g_value = [], []
         for kind, (r, J) in factors.items():
             keep_h, keep_g = self._keep[kind]

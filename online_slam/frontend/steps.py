@@ -5,12 +5,12 @@ pose with time <= t. A step is complete when the next pose begins, or at the end
 is pending (the engine may show it to the estimators early, so that queries see every sighting at once).
 Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
 
-A stream of several robots (``robot`` on its lines) stops at the second robot's start with one
-:class:`~online_slam.errors.OnlineSlamError`: the estimators take one robot at a time. It is no bad line (an
-:class:`~online_slam.errors.InputError`, after which a replay reports what it estimated so far): nothing of
-such a stream is estimated. A step carries its robot
-(None: the stream names none) and its sightings of other robots (``robot_seen``) apart from its landmark
-sightings, so that no estimator mistakes a robot for a landmark.
+With several robots (``robot`` on its lines) a step is one robot's pose: poses are indexed in the order they
+begin (one index sequence over all robots, so in time order), a line belongs to its robot's newest pose, and a
+pose is complete when its robot's next pose begins. Steps leave in index order: a complete pose waits for the
+earlier poses of other robots (``later`` holds them), one step per event, the rest at :meth:`FrontEnd.close`.
+A step carries its robot (None: the stream names none) and its sightings of other robots (``robot_seen``) apart
+from its landmark sightings, so that no estimator mistakes a robot for a landmark.
 
 Optional keyframing merges consecutive odometry events with no observation in between into one step (the
 increments composed and their covariance propagated), up to distance, angle and time limits.
@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.errors import OnlineSlamError
 from online_slam.frontend.noise import check_scale, scaled_event
 from online_slam.models.motion import compose_increments
 from online_slam.models.observation import POSITION, RANGE_BEARING
@@ -167,6 +166,7 @@ class PendingStep:
     robots_seen: list[RobotId] = field(default_factory=list)
     z_robots: list[tuple[float, float]] = field(default_factory=list)
     z_robots_cov: list[Array] = field(default_factory=list)
+    closed: bool = False  # its robot's next pose has begun: no line can reach it any more
     _frozen: tuple | None = field(default=None, init=False, repr=False, compare=False)  # freeze's cache
 
     def z_covariances(self) -> Array:
@@ -243,7 +243,10 @@ class FrontEnd:
     counts: dict[str, int] = field(default_factory=dict)
     """Events seen by type, and observations dropped by ``first_observation_only``."""
     pending: PendingStep | None = None
-    """The newest pose (None before the first event); ``pending.sealed`` once an estimator has seen it."""
+    """The oldest pose not yet given out (None before the first event): with one robot, the newest pose;
+    ``pending.sealed`` once an estimator has seen it."""
+    later: list[PendingStep] = field(default_factory=list)
+    """Poses of several robots begun after ``pending``, in index order (empty with one robot)."""
     sightings: int = 0
     """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
     _seen: set[LandmarkId | None] = field(default_factory=set)
@@ -270,8 +273,7 @@ class FrontEnd:
             step = self.push(event)
             if step is not None:
                 yield step
-        last = self.close()
-        if last is not None:
+        while (last := self.close()) is not None:
             yield last
 
     def push(self, event: Event) -> Step | None:
@@ -283,32 +285,33 @@ class FrontEnd:
         Returns:
             The step this event completed (the previous pose, when an odometry event starts a new one), or None.
         """
-        completed: Step | None = None
         config = self.config
         if config.odometry_noise_scale != 1.0 or config.sensor_noise_scale != 1.0:
             event = scaled_event(event, config.odometry_noise_scale, config.sensor_noise_scale)
         if isinstance(event, Odometry):
             self._count("odometry")
-            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
-            if not self._merge(pending, event):
-                completed = pending.freeze()
-                self.pending = PendingStep(
-                    index=pending.index + 1,
-                    t=event.t,
-                    t_begin=pending.t,
-                    odometry=np.array(event.delta),
-                    odometry_cov=self._odometry_covariance(event),
-                    robot=pending.robot,
+            pending = self._newest(event.robot, event.t)
+            if pending is not self._tail() or not self._merge(pending, event):
+                pending.closed = True
+                self.later.append(
+                    PendingStep(
+                        index=self._tail().index + 1,
+                        t=event.t,
+                        t_begin=pending.t,
+                        odometry=np.array(event.delta),
+                        odometry_cov=self._odometry_covariance(event),
+                        robot=pending.robot,
+                    )
                 )
         elif isinstance(event, Observation) and event.robot_seen is not None:
             self._count("robot_observation")
-            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            pending = self._newest(event.robot, event.t)
             pending.robots_seen.append(event.robot_seen)
             pending.z_robots.append((event.range, event.bearing))
             pending.z_robots_cov.append(event.covariance)
         elif isinstance(event, Observation):
             self._count("observation")
-            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            pending = self._newest(event.robot, event.t)
             if self.config.first_observation_only:
                 if event.landmark in self._seen:
                     self._count("dropped_repeat_observation")
@@ -349,19 +352,38 @@ class FrontEnd:
                 pending.full_covariance = True
         elif isinstance(event, Truth):
             self._count("truth")
-            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
+            pending = self._newest(event.robot, event.t)
             if event.t == pending.t:
                 self.truth.poses[pending.index] = np.array(event.pose)
         elif isinstance(event, Start):
-            if self.pending is not None:  # a validated stream starts again only for another robot
-                raise several_robots(self.pending.robot, event.robot)
             self._start_pose(event, event.t)
         elif isinstance(event, LandmarkTruth):
             self._count("landmark_truth")
             self.truth.landmarks[event.landmark] = np.array(event.position)
         elif isinstance(event, Header):
             self.header = event
-        return completed
+        return self._give_out()
+
+    def _newest(self, robot: RobotId | None, t: float) -> PendingStep:
+        """The newest pose of ``robot`` (a first pose at the origin when the stream begins without a start)."""
+        if self.pending is None:
+            return self._start_pose(None, t)
+        for pose in reversed(self.later):
+            if pose.robot == robot:
+                return pose
+        return self.pending
+
+    def _tail(self) -> PendingStep:
+        """The newest pose of all robots (there is one)."""
+        return self.later[-1] if self.later else self.pending  # type: ignore[return-value]
+
+    def _give_out(self) -> Step | None:
+        """The oldest pose if it is complete (it leaves the front-end), else None."""
+        pending = self.pending
+        if pending is None or not pending.closed:
+            return None
+        self.pending = self.later.pop(0) if self.later else None
+        return pending.freeze()
 
     def _odometry_covariance(self, event: Odometry) -> Array:
         """The event's covariance; one shared read-only matrix while the odometry's sigma stays the same."""
@@ -375,23 +397,31 @@ class FrontEnd:
         return cached[1]
 
     def close(self) -> Step | None:
-        """End of stream: the newest pose, complete (None if there was none)."""
-        pending, self.pending = self.pending, None
-        return None if pending is None else pending.freeze()
+        """End of stream: the oldest pose not yet given out, complete (None when none is left); call it until it
+        gives None (with one robot, once more after the newest pose)."""
+        pending = self.pending
+        if pending is not None:
+            pending.closed = True
+        return self._give_out()
 
     def _start_pose(self, start: Start | None, t: float) -> PendingStep:
         prior_cov = None if start is None or start.fixed else start.covariance
         pose = np.zeros(3) if start is None else np.array(start.pose)
         robot = None if start is None else start.robot
-        self.pending = PendingStep(
-            index=0, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov, robot=robot
+        index = 0 if self.pending is None else self._tail().index + 1
+        begun = PendingStep(
+            index=index, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov, robot=robot
         )
-        return self.pending
+        if self.pending is None:
+            self.pending = begun
+        else:
+            self.later.append(begun)
+        return begun
 
     def _merge(self, pending: PendingStep, event: Odometry) -> bool:
         """Fold the odometry event into the pending step if keyframing allows it."""
         limits = self.config.keyframing
-        if limits is None or pending.odometry is None or pending.landmarks or pending.sealed:
+        if limits is None or pending.odometry is None or pending.landmarks or pending.robots_seen or pending.sealed:
             return False
         delta, cov = compose_increments(pending.odometry, pending.odometry_cov, np.array(event.delta), event.covariance)
         if (
@@ -406,10 +436,3 @@ class FrontEnd:
         # The pose moved on in time: a truth recorded for its earlier time no longer applies.
         self.truth.poses.pop(pending.index, None)
         return True
-
-
-def several_robots(first: RobotId | None, second: RobotId | None) -> OnlineSlamError:
-    """The one-line error for a stream of several robots (the estimators take one at a time)."""
-    which = f"robot {second!r} starts after robot {first!r}"
-    advice = "replay one robot (an MRCLAM folder: --robot N)"
-    return OnlineSlamError(f"several robots: the estimators take one robot at a time ({which}); {advice}")

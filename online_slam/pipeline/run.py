@@ -191,6 +191,9 @@ class ReplayRun:
         if saved.settings != self.settings:
             raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
         try:
+            left = saved.engine.state.left  # estimators that left at a second robot's start
+            self.estimators = [e for e in self.estimators if e.name not in left]
+            self.tracks = {name: track for name, track in self.tracks.items() if name not in left}
             if sorted(saved.tracks) != sorted(self.tracks):
                 raise ValueError("the checkpoint holds other estimators")
             self.engine.restore(saved.engine)
@@ -224,7 +227,8 @@ class ReplayRun:
         except _CheckpointFailure as exc:
             self.error, self._checkpoint = str(exc), None  # no more writes: the last one written stays
         try:
-            self._take(self.engine.close())
+            while (record := self.engine.close()) is not None:  # several robots: a step per robot is left
+                self._take(record)
         except _CheckpointFailure as exc:
             self.error = str(exc)
         if self.engine.steps == 0:
@@ -257,6 +261,13 @@ class ReplayRun:
         """Record a complete step, give it to the sinks, and write a checkpoint when one is due."""
         if record is None:
             return
+        if len(self.tracks) > len(record.snapshots) - 1:  # estimators left (one robot at a time): dead reckoning aside
+            self.estimators = [e for e in self.estimators if e.name in record.snapshots]
+            self.tracks = {name: track for name, track in self.tracks.items() if name in record.snapshots}
+            if not self.tracks:
+                raise OnlineSlamError(
+                    f"several robots: the {', '.join(self.engine.state.left)} takes one robot at a time"
+                )
         self.step_times.append(record.step.t)
         if self.association != "known":
             self.sighting_ids.extend(record.step.landmarks)

@@ -3,6 +3,7 @@ against the stream's truth, into one :class:`~online_slam.evaluation.results.Res
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 
@@ -13,6 +14,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.protocol import Estimate, Estimator
 from online_slam.evaluation.association import AssociationScore, majority, score_association, true_labels, with_true_ids
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
+from online_slam.evaluation.robots import final_errors, per_robot, robot_steps
 from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
@@ -52,6 +54,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         input=InputReport(sum(run.skipped.by_reason.values()), run.skipped.by_reason),
         step_times=np.array(run.step_times, dtype=float),
         robot=header.meta.get("robot") if (header := run.engine.frontend.header) is not None else None,
+        left=tuple(run.engine.state.left),
     )
 
 
@@ -113,6 +116,12 @@ def _score_estimator(
         outliers=outliers,
         association=association,
     )
+    steps = robot_steps(run.odometry.log.robots)
+    if steps:  # several robots: the same figures per robot
+        final = final_errors(scored, truth, errors)
+        series = None if online is None else online.series
+        robots = per_robot(result, scored, final, series, np.array(track.seconds), steps)
+        result = dataclasses.replace(result, robots=robots)
     return result, None if online is None else online.series
 
 

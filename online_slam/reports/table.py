@@ -76,9 +76,10 @@ class Closure:
 
 
 def path_closure(results: Results) -> Closure | None:
-    """The true path's end-to-start gap and length (positions with truth, in step order); None without truth."""
+    """The true path's end-to-start gap and length (positions with truth, in step order); None without truth,
+    and with several robots (their paths, interleaved, are no one path)."""
     truth = results.truth_poses
-    if truth is None:
+    if truth is None or any(r.robots for r in results.estimators.values()):
         return None
     xy = truth[np.isfinite(truth[:, :2]).all(axis=1), :2]
     if len(xy) < 2:
@@ -102,7 +103,9 @@ def table_lines(results: Results, rows: Mapping[str, Row]) -> list[str]:
         rows: One row per estimator.
     """
     closure = path_closure(results)
-    columns = [c for c in COLUMNS if c[0] != "end gap m" or closure is None or closure.closed]
+    several = any(r.robots for r in results.estimators.values())
+    shown = not several and (closure is None or closure.closed)
+    columns = [c for c in COLUMNS if c[0] != "end gap m" or shown]
     header = ["estimator", *(h for h, _ in columns)]
     cells = [[name, *(cell(name, row) for _, cell in columns)] for name, row in rows.items()]
     if any(r.association is not None for r in results.estimators.values()):
@@ -132,7 +135,9 @@ def legend(results: Results, rows: Mapping[str, Row], closure: Closure | None) -
             f"NEES: 3 if consistent (its 95% band over {counted(steps, 'step')}: {low:.2f}..{high:.2f}); "
             f"in band: steps within {one_low:.2f}..{one_high:.2f}; NIS: 2 if consistent."
         )
-    if closure is None:
+    if any(r.robots for r in results.estimators.values()):
+        lines.append("robot N: that robot's poses, in the frame of the figures over all robots; the map is shared.")
+    elif closure is None:
         lines.append("end gap: estimated end to start; without truth it measures drift only if the robot came back.")
     elif closure.closed:
         lines.append(
@@ -169,6 +174,8 @@ def notes(results: Results) -> list[str]:
                 else ""
             )
             out.append(f"{name}: {o.rejected} of {counted(o.sightings, 'sighting')} rejected as outliers{scored}")
+    for name in results.left:
+        out.append(f"{name}: left out, it takes one robot at a time and this stream has several")
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
         out.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
@@ -187,4 +194,15 @@ def format_results(results: Results) -> str:
         Lines of text, ending without a newline.
     """
     extra = notes(results)
-    return "\n".join([*table_lines(results, results.rows()), *([""] + extra if extra else [])])
+    return "\n".join([*table_lines(results, robot_rows(results)), *([""] + extra if extra else [])])
+
+
+def robot_rows(results: Results) -> dict[str, Row]:
+    """The table's rows: each estimator's, followed by its rows per robot (``  robot 1``) when it has them."""
+    out: dict[str, Row] = {}
+    for name, row in results.rows().items():
+        out[name] = row
+        result = results.estimators.get(name)
+        for robot, figures in ({} if result is None else result.robots).items():
+            out[f"{name}  robot {robot}"] = figures.row()
+    return out
