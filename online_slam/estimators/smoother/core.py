@@ -29,7 +29,6 @@ from online_slam.estimators.smoother.covariance import (
     window_covariance,
 )
 from online_slam.estimators.smoother.global_solve import (
-    Decisions,
     Relinearization,
     finish_job,
     global_inputs,
@@ -395,14 +394,14 @@ class SlidingWindowSmoother:
             finish_job(job)
             r.job = None
             if job.result is not None:
-                report = {**report, **self._apply_global(job.result, job.decisions, job.n_poses, at_once=False)}
+                report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
                 report["global_s"] = time.perf_counter() - started
         if is_due(self.config, r, p.steps, self.window):
             if self.config.global_solve.delay:
                 inputs = global_inputs(r, self.window)
                 r.since = 0
                 if inputs is not None:
-                    r.job = start_job(inputs, self.config, p.steps, self.name, self._reject_bound)
+                    r.job = start_job(inputs, self.config, p.steps, self.name)
             else:
                 r.since = 0
                 report = {**report, **self.relinearize_globally()}
@@ -414,24 +413,18 @@ class SlidingWindowSmoother:
         inputs = global_inputs(self.relinearization, self.window)
         if inputs is None:
             return {}
-        result, decisions = solve_now(inputs, global_solver(self.config), self.config.robust.loss, self._reject_bound)
-        report = self._apply_global(result, decisions, len(inputs.poses), at_once=True)
+        result = solve_now(inputs, global_solver(self.config), self.config.robust.loss)
+        report = self._apply_global(result, len(inputs.poses), at_once=True)
         report["global_s"] = time.perf_counter() - started
         return report
 
-    def _apply_global(
-        self, result: SolveResult, judged: Decisions | None, n_poses: int, at_once: bool
-    ) -> dict[str, float]:
-        """Write a global solution's revision (:func:`~.global_solve.revise`) into the state, with the outlier
-        decisions it judged again (``judged``: those of the poses that had left the window when it started); its
-        report."""
+    def _apply_global(self, result: SolveResult, n_poses: int, at_once: bool) -> dict[str, float]:
+        """Write a global solution's revision (:func:`~.global_solve.revise`) into the state; its report."""
         r, w = self.relinearization, self.window
-        decisions = r.decisions if judged is None else judged + r.decisions[len(judged) :]
-        revision = revise(result, n_poses, at_once, w, self.prior, r, self.config, decisions)
+        revision = revise(result, n_poses, at_once, w, self.prior, r, self.config)
         if revision is None:
             r.rejections += 1
             return {"global_rejected": 1.0}
-        r.decisions = decisions
         w.history.replace(revision.history)
         self.association.solved = None
         if at_once:

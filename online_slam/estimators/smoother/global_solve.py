@@ -41,8 +41,6 @@ class GlobalJob:
     """Poses in the state it started from (0 .. n_poses - 1)."""
     result: SolveResult | None = None
     """Its solution, once solved."""
-    decisions: Decisions | None = None
-    """The outlier decisions it started from, judged again at its solution (once solved)."""
     error: str | None = None
     """Why it gave no solution, if it failed."""
     thread: threading.Thread | None = field(default=None, init=False)
@@ -114,15 +112,12 @@ def global_inputs(state: Relinearization, window: Window) -> GlobalInputs | None
     return GlobalInputs(log.frozen(), list(state.decisions), poses, window.landmarks.copy())
 
 
-def solve_now(
-    inputs: GlobalInputs, solver: SolverConfig, loss: RobustLoss | None, bound: float
-) -> tuple[SolveResult, Decisions]:
-    """Every factor solved from the given values, and the decisions judged again at the solution (pure: safe in a
-    thread; see :func:`~online_slam.estimators.smoother.relinearize.solve_all`)."""
-    return solve_all(inputs.log, inputs.decisions, inputs.poses, inputs.landmarks, solver, loss, bound)
+def solve_now(inputs: GlobalInputs, solver: SolverConfig, loss: RobustLoss | None) -> SolveResult:
+    """Every factor but the judged outliers, solved from the given values (pure: safe in a thread)."""
+    return solve_all(inputs.log, inputs.decisions, inputs.poses, inputs.landmarks, solver, loss)
 
 
-def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: str, bound: float) -> GlobalJob:
+def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: str) -> GlobalJob:
     """Solve every factor in a background thread; the result is to be handed over ``global_delay`` steps (or
     N / 50 after N steps) after step ``steps``."""
     solver = global_solver(config)
@@ -131,7 +126,7 @@ def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: st
 
     def work() -> None:
         try:
-            job.result, job.decisions = solve_now(inputs, solver, config.robust.loss, bound)
+            job.result = solve_now(inputs, solver, config.robust.loss)
         except Exception as exc:  # noqa: BLE001 - handed over as "no result"; the smoother goes on without it
             job.error = repr(exc)
 
@@ -156,15 +151,13 @@ def revise(
     prior: Prior | None,
     state: Relinearization,
     config: SmootherConfig,
-    decisions: Decisions,
 ) -> Revision | None:
     """The history revised with a global solution over poses ``0..n_poses-1``, and the prior re-anchored.
 
     ``at_once``: the solution is of the current state (window poses and landmarks take its values too);
     otherwise it is of an earlier one (handed over from the background): window poses and landmark estimates
     keep their newer values, poses marginalized since keep theirs, and the prior is re-anchored at the
-    revised history and the current oldest window pose. ``decisions``: the outlier decisions the history's
-    factors are taken with (the solution's, then those of poses that left the window since).
+    revised history and the current oldest window pose.
 
     Returns:
         The revision, or None when the re-anchored prior is rejected
@@ -174,7 +167,7 @@ def revise(
     history, oldest_value, landmarks = _followed(result, n_poses, at_once, window)
     if prior is None or prior.pose != oldest:
         return Revision(history, landmarks, None)
-    past = history_graph(inlier_graph(state.log, decisions), oldest)
+    past = history_graph(inlier_graph(state.log, state.decisions), oldest)
     values = np.vstack([history, oldest_value[None]])
     if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
         values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.robust.loss)

@@ -17,10 +17,8 @@ relinearized too (:func:`prior_marginal`): ``H' = H_kk - H_km H_mm^-1 H_mk`` at 
 factorization with ``2 L + 3`` right-hand sides and a dense inverse; otherwise the prior keeps its covariance
 ``Sigma``, the same information linearized where each factor was folded in.
 
-The whole-history solve itself (:func:`solve_all`) leaves out the sightings judged outliers (:func:`outlier_mask`)
-and judges every sighting again at its solution: a sighting judged an outlier when its pose left the window (at an
-estimate a wrong association had pulled) comes back if the whole history agrees with it, and one folded in goes
-out if it does not (then it solves again).
+The whole-history solve itself (:func:`solve_all`) drops the sightings the smoother judged outliers when their
+pose left the window (:func:`outlier_mask`).
 """
 
 from __future__ import annotations
@@ -31,13 +29,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from online_slam.estimators.problem import ProblemLog
-from online_slam.factors.graph import (
-    FactorGraph,
-    layout,
-    linearize,
-    observation_chi2,
-    without_observations,
-)
+from online_slam.factors.graph import FactorGraph, layout, linearize, without_observations
 from online_slam.factors.robust import RobustLoss
 from online_slam.solvers.least_squares import SolverConfig, SolveResult, solve
 
@@ -212,7 +204,9 @@ def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_
 
 def inlier_graph(log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]]) -> FactorGraph:
     """Every factor of the log but the sightings judged outliers."""
-    return _inliers(log.graph(), decisions)
+    graph = log.graph()
+    drop = outlier_mask(graph, decisions)
+    return without_observations(graph, drop) if drop.any() else graph
 
 
 def solve_all(
@@ -222,46 +216,11 @@ def solve_all(
     landmarks: Array,
     solver: SolverConfig,
     loss: RobustLoss | None,
-    bound: float,
-) -> tuple[SolveResult, list[tuple[int, NDArray[np.bool_]]]]:
-    """Every factor of the log but the judged outliers solved from the given values (pure: safe in a thread), and
-    the decisions judged again at the solution.
-
-    With a robust loss and a finite rejection ``bound``: solve without the sightings judged outliers; judge every
-    sighting of the decisions' poses again at that solution; where a decision changed, solve again (from there)
-    without the new outliers. Otherwise the decisions stand.
+) -> SolveResult:
+    """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread).
 
     Always by the sparse factorization (plain C, no threaded BLAS): the dense one's LAPACK runs on as many
     threads as the process allows at the moment, which the stepping thread changes (it limits BLAS to one thread
     per step), so a small problem solved in the background could differ in the last bits from run to run.
     """
-    graph = log.graph()
-    if loss is None or not np.isfinite(bound):
-        return solve(_inliers(graph, decisions), poses, landmarks, solver, loss=loss, dense=False), decisions
-    result = solve(_inliers(graph, decisions), poses, landmarks, solver, loss=loss, dense=False)
-    judged = rejudged(graph, decisions, observation_chi2(graph, result.poses, result.landmarks) > bound)
-    if any(not np.array_equal(a, b) for (_, a), (_, b) in zip(decisions, judged)):
-        result = solve(_inliers(graph, judged), result.poses, result.landmarks, solver, loss=loss, dense=False)
-    return result, judged
-
-
-def _inliers(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]]) -> FactorGraph:
-    """The graph without the sightings judged outliers."""
-    drop = outlier_mask(graph, decisions)
-    return without_observations(graph, drop) if drop.any() else graph
-
-
-def rejudged(
-    graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]], outliers: NDArray[np.bool_]
-) -> list[tuple[int, NDArray[np.bool_]]]:
-    """The decisions with each pose's mask replaced by ``outliers`` (one per graph sighting, in pose order) where
-    the graph holds exactly as many sightings of the pose as it judged (see :func:`outlier_mask`)."""
-    if not decisions:
-        return []
-    poses = np.fromiter((g for g, _ in decisions), dtype=np.int64, count=len(decisions))
-    start = np.searchsorted(graph.obs_pose, poses)
-    end = np.searchsorted(graph.obs_pose, poses + 1)
-    return [
-        (g, outliers[a:b].copy() if b - a == len(mask) else mask)
-        for (g, mask), a, b in zip(decisions, start.tolist(), end.tolist())
-    ]
+    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss, dense=False)
