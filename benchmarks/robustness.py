@@ -70,20 +70,16 @@ def run_robustness(
         events = list(grid_world(config))
         if level:
             events = list(contaminate(events, Contamination(wrong_ids=level, seed=seed)))
-        results = replay(iter(events), ReplayConfig(), validate=False)
-        figures = results.estimators
-        isam_online = isam_final = None
-        if gtsam_peer.available():
-            isam_online, isam_final = _isam2(events, cauchy)
+        figures = _figures(events, gtsam_peer.available(), cauchy)
         rows.append(
             RobustnessRow(
                 level,
-                figures["ekf"].online_rmse_m or float("nan"),
-                figures["smoother"].online_rmse_m or float("nan"),
-                figures["smoother"].final_rmse_m or float("nan"),
-                figures["batch"].final_rmse_m or float("nan"),
-                isam_online,
-                isam_final,
+                figures["ekf online"],
+                figures["smoother online"],
+                figures["smoother final"],
+                figures["batch final"],
+                figures.get("isam2 online"),
+                figures.get("isam2 final"),
             )
         )
     return rows

@@ -80,7 +80,8 @@ class RobotRules:
         return robot
 
     def sighted_robot(self, record: dict[str, Any], line: int, robot: RobotId | None) -> RobotId | None:
-        """The robot a sighting sees (``robot_seen``; then no landmark nor its truth), or None."""
+        """The robot a sighting sees (``robot_seen``; then no landmark nor its truth, and range and bearing), or
+        None."""
         seen = self.robot(record, line, "robot_seen")
         if seen is None:
             return None
@@ -89,6 +90,8 @@ class RobotRules:
         for key in ("landmark", "truth_landmark", "truth_outlier"):
             if record.get(key) is not None:
                 raise self.fail(line, key, "a sighting of a robot (robot_seen) has no landmark, nor its truth")
+        if "xy" in record:
+            raise self.fail(line, "xy", "a sighting of a robot gives range and bearing, not xy")
         return seen
 
     def _missing(self, line: int) -> InputError:

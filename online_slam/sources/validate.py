@@ -472,8 +472,6 @@ class EventValidator(RobotRules):
         seen = self.sighted_robot(record, line, robot)
         landmark = self.landmark(record, line, optional=True)
         rng, bearing, xy = self._sighting(record, line)
-        if seen is not None and xy is not None:
-            raise self.fail(line, "xy", "a sighting of a robot gives range and bearing, not xy")
         sigma, cov = self.noise(record, 2, line)
         mark = record.get("truth_outlier")
         if mark is not None and mark not in OUTLIER_KINDS:
