@@ -16,7 +16,7 @@ from online_slam.errors import InputError
 from online_slam.importers import open_dataset
 from online_slam.importers.g2o import read_g2o, write_g2o
 from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning
-from online_slam.importers.mrclam_noise import fit_mrclam_noise, fit_variance
+from online_slam.importers.mrclam_noise import fit_mrclam_noise, fit_sighting_sigma, fit_variance
 from online_slam.sources import LandmarkTruth, Observation, Odometry, Truth, read_stream, square_world, write_stream
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -185,6 +185,18 @@ def test_variance_fit_recovers_the_coefficients_of_simulated_increments() -> Non
     assert a == pytest.approx(3e-4, rel=0.15) and b == pytest.approx(0.02, rel=0.1) and c < 2e-3
 
 
+def test_the_sighting_sigma_fit_recovers_a_range_dependent_sigma_beside_outliers() -> None:
+    rng = np.random.default_rng(7)
+    ranges = rng.uniform(0.5, 7.0, 20000)
+    residuals = rng.normal(0.0, 0.02 + 0.05 * ranges)
+    wrong = rng.random(20000) < 0.02
+    residuals[wrong] = rng.uniform(-2.0, 2.0, wrong.sum())
+    a, b = fit_sighting_sigma(residuals, ranges)
+    assert a == pytest.approx(0.02, abs=0.005) and b == pytest.approx(0.05, rel=0.05)
+    constant, growth = fit_sighting_sigma(rng.normal(0.0, 0.01, 5000))
+    assert constant == pytest.approx(0.01, rel=0.05) and growth == 0.0
+
+
 @pytest.mark.slow
 @needs_mrclam
 def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path: Path) -> None:
@@ -195,9 +207,9 @@ def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path:
         assert getattr(fit.noise, name) == pytest.approx(getattr(builtin, name), rel=0.1), name
     # the data pick the form per axis: heading variance linear in the turn, path variance in its square
     assert fit.noise.theta_per_rad2 < 1e-4 and fit.noise.x_per_m < 1e-5 and fit.noise.y_per_m < 1e-5
-    # robust (median-based) sigmas: the core of the residuals, below the built-in Gaussian fits
-    assert 0.05 < fit.noise.range_sigma < builtin.range_sigma
-    assert 0.002 < fit.noise.bearing_sigma < builtin.bearing_sigma
+    # sightings: the range sigma grows with the range (about 0.06 m at 1 m, 0.19 m at 4 m); bearing as built in
+    assert fit.noise.range_sigma < 0.05 and 0.03 < fit.noise.range_sigma_per_m < 0.06
+    assert fit.noise.bearing_sigma == pytest.approx(builtin.bearing_sigma, rel=0.1)
     out = tmp_path / "robot2.jsonl"
     done = subprocess.run(
         [*EXE, "convert", "mrclam", str(MRCLAM), "--robot", "2", "--noise", "fit", "-o", str(out)],

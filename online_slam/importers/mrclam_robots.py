@@ -28,6 +28,7 @@ from online_slam.importers.mrclam import (
     _table,
     load_robot,
     odometry_increments,
+    sighting_sigma,
 )
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
@@ -67,17 +68,23 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Truth(t=float(times[k]), pose=tuple(map(float, true_poses[k])), robot=robot),
         )
-    sigma = (cfg.range_sigma, cfg.bearing_sigma)
     for row, subject in zip(data.measurements, data.subjects):
         t = float(row[0])
-        yield t, _SIGHTING, robot, Observation(t, int(subject), float(row[2]), float(row[3]), sigma, robot=robot)
+        yield (
+            t,
+            _SIGHTING,
+            robot,
+            Observation(t, int(subject), float(row[2]), float(row[3]), sighting_sigma(cfg, row[2]), robot=robot),
+        )
     for row, seen in zip(data.robot_rows, data.robots_seen):
         t = float(row[0])
         yield (
             t,
             _SIGHTING,
             robot,
-            Observation(t, None, float(row[2]), float(row[3]), sigma, robot=robot, robot_seen=int(seen)),
+            Observation(
+                t, None, float(row[2]), float(row[3]), sighting_sigma(cfg, row[2]), robot=robot, robot_seen=int(seen)
+            ),
         )
 
 
