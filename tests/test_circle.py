@@ -147,18 +147,18 @@ def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -
 
 
 @pytest.mark.slow
-def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc() -> None:
-    """esde's world, 20 seeded runs: the standard EKF is overconfident, FEJ and OC inside the 95% band."""
+@pytest.mark.parametrize("linearization, consistent", [("standard", False), ("fej", True), ("oc", True)])
+def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc(
+    linearization: str, consistent: bool
+) -> None:
+    """esde's world, 20 seeded runs (~7 s each linearization): the standard EKF is overconfident, FEJ and OC inside
+    the 95% band (measured: 5.99, 3.43, 3.42; band 2.02 .. 4.16)."""
     seeds = tuple(range(100, 120))
-    anees = {}
-    for linearization in ("standard", "fej", "oc"):
-        config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
-        outcomes = []
-        for seed in seeds:
-            results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
-            outcomes.append((results.rows(), run_errors(results)))
-        mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
-        anees[linearization] = mc.anees["ekf"]
+    config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
+    outcomes = []
+    for seed in seeds:
+        results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
+        outcomes.append((results.rows(), run_errors(results)))
+    mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
     low, high = mc.anees_bounds
-    assert anees["standard"] > high, anees
-    assert low <= anees["fej"] <= high and low <= anees["oc"] <= high, anees
+    assert (low <= mc.anees["ekf"] <= high) == consistent and mc.anees["ekf"] >= low, mc.anees
