@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -101,6 +103,19 @@ def test_circle_is_a_built_in_world_scored_over_esdes_steps() -> None:
     assert list(WORLDS["circle-rb"].events(3)) == list(circle_world(CircleConfig(model="range-bearing", seed=3)))
     with pytest.raises(ValueError, match="model"):
         CircleConfig(model="bearing-only")
+
+
+def test_simulate_circle_takes_the_sighting_model(tmp_path: Path) -> None:
+    from online_slam.cli.main import main
+    from online_slam.sources import read_stream
+
+    paths = [tmp_path / f"{k}.jsonl" for k in range(3)]
+    assert main(["simulate", "circle", "--model", "range-bearing", "--seed", "4", "-o", str(paths[0])]) == 0
+    assert main(["simulate", "circle-rb", "--seed", "4", "-o", str(paths[1])]) == 0
+    assert main(["simulate", "circle", "--model", "xy", "--seed", "4", "-o", str(paths[2])]) == 0
+    assert paths[0].read_text() == paths[1].read_text()
+    assert list(read_stream(paths[2]))[1:] == list(circle_world(CircleConfig(seed=4)))[1:]  # header: lists for tuples
+    assert main(["simulate", "circle-rb", "--model", "xy", "-o", str(paths[0])]) == 2  # a fixed world
 
 
 def test_heading_column_is_the_derivative_of_a_turn() -> None:
