@@ -144,9 +144,11 @@ def test_isam2_reports_the_newest_poses_covariance_in_world_axes() -> None:
 @pytest.mark.slow
 def test_monte_carlo_puts_isam2_beside_the_estimators(tmp_path: Path) -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-    out = tmp_path / "mc.json"
-    done = cli("compare", "circle", "--runs", "2", "--estimators", "ekf", "--peer", "isam2", "--json", str(out))
+    out, png = tmp_path / "mc.json", tmp_path / "mc.png"
+    done = cli("compare", "circle", "--runs", "2", "--estimators", "ekf", "--peer", "isam2", "--json", str(out),
+               "--plot", str(png))  # fmt: skip
     assert done.returncode == 0, done.stderr
+    assert png.stat().st_size > 0  # the peer drawn in the NEES panel, in the legend
     mc = json.loads(out.read_text())["monte_carlo"]
     assert set(mc["anees"]) == {"ekf", "isam2"} and "isam2" not in mc["mean"]  # no table row: figures over steps
     assert 1.0 < mc["anees"]["isam2"] < 10.0 and 0.0 < mc["position_rmse_m"]["isam2"] < 1.0
