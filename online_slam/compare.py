@@ -214,6 +214,8 @@ def peer_errors(peer: str, events: Iterable[Event], config: ReplayConfig, result
     from online_slam import gtsam_peer
 
     steps = list(FrontEnd(config.frontend).steps(events))
+    if len({s.robot for s in steps}) > 1:
+        raise OnlineSlamError(f"peer {peer}: takes one robot, and the stream has several")
     run = gtsam_peer.isam2_online(steps, covariances=True, qr=True)
     truth = _truth(results)
     final = Estimate(peer, run.final_poses, (), np.zeros((0, 2)))
