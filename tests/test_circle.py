@@ -166,8 +166,8 @@ def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -
 def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc(
     linearization: str, consistent: bool
 ) -> None:
-    """esde's world, 20 seeded runs (~8 s of CPU each linearization): the standard EKF is overconfident, FEJ and OC inside
-    the 95% band (measured: 5.99, 3.43, 3.42; band 2.02 .. 4.16)."""
+    """esde's world, 20 seeded runs (~8 s of CPU each linearization): the standard EKF is overconfident, FEJ and
+    OC inside the 95% band (measured: 5.99, 3.43, 3.42; band 2.02 .. 4.16)."""
     seeds = tuple(range(100, 120))
     config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
     outcomes = []
