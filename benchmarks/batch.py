@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from benchmarks import gtsam_peer
+from online_slam import gtsam_peer
 from online_slam.engine import Engine
 from online_slam.estimators.batch import BatchEstimator
 from online_slam.factors.graph import evaluate

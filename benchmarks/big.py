@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from benchmarks import gtsam_peer
+from online_slam import gtsam_peer
 from online_slam.frontend.steps import FrontEnd
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, waypoint_world

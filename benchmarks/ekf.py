@@ -12,7 +12,7 @@ import scipy.linalg as la
 from filterpy.kalman import ExtendedKalmanFilter
 from numpy.typing import NDArray
 
-from benchmarks import gtsam_peer
+from online_slam import gtsam_peer
 from online_slam.engine import Engine
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig

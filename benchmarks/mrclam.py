@@ -6,7 +6,7 @@ two figures is what the loss does, apart from the back-end.
 Both run on the same front-end steps of our conversion (poses at sighting times, odometry integrated from the
 commands, its noise along the axes of the pose reached). iSAM2: relinearization threshold 0.01 every step, a
 Huber kernel of 1.345 sigmas on the sightings; its between factors take our odometry covariance rotated into their
-frame (:func:`~benchmarks.gtsam_peer.between_covariance`). Errors: position RMSE against Vicon at the poses
+frame (:func:`~online_slam.gtsam_peer.between_covariance`). Errors: position RMSE against Vicon at the poses
 Vicon covers, in the dataset's frame (the start pose is Vicon's), each pose as estimated when newest (online) and
 at the end (final).
 """
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks import gtsam_peer
 from benchmarks.ekf import drive
+from online_slam import gtsam_peer
 from online_slam.estimators.smoother import SlidingWindowSmoother
 from online_slam.importers.resolve import open_source
 

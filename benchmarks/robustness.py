@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from benchmarks import gtsam_peer
+from online_slam import gtsam_peer
 from online_slam.engine import Engine
 from online_slam.evaluation.metrics import align_se2, apply_transform
 from online_slam.pipeline import ReplayConfig, replay

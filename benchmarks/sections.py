@@ -287,19 +287,20 @@ def _sweep(args: argparse.Namespace, world: GridConfig) -> None:
 
 
 def _circle(args: argparse.Namespace, world: GridConfig) -> None:
-    from benchmarks.circle import ESDE, run_circle
+    from benchmarks.circle import CIRCLE_WORLDS, ESDE, run_circle
 
     band, rows = run_circle(args.circle_runs, args.workers)
-    print(f"circle world (esde's protocol, range-bearing sightings): {args.circle_runs} Monte Carlo runs from seed 0;")
+    print(f"circle worlds (esde's protocol): {args.circle_runs} Monte Carlo runs from seed 0;")
     print(f"figures over esde's steps 5..399 (0-based 4..398); 95% ANEES band: {band[0]:.2f} .. {band[1]:.2f}")
     head = f"{'ANEES':>7}{'in band':>9}{'landmark ANEES':>16}{'position RMSE m':>17}{'heading RMSE':>14}"
-    print(f"{'estimator':<34}{head}")
+    print(f"{'world':<11}{'estimator':<34}{head}")
     for r in rows:
         landmark = f"{r.landmark_anees:>16.2f}" if r.landmark_anees is not None else f"{'-':>16}"
-        print(f"{r.label:<34}{r.anees:>7.2f}{r.in_band:>9.0%}{landmark}{r.position_rmse_m:>17.4f}"
+        print(f"{r.world:<11}{r.label:<34}{r.anees:>7.2f}{r.in_band:>9.0%}{landmark}{r.position_rmse_m:>17.4f}"
               f"{r.heading_rmse_rad:>14.4f}")  # fmt: skip
+    print("; ".join(f"{name}: {what}" for name, what in CIRCLE_WORLDS.items()))
     for label, (anees, rmse) in ESDE.items():
-        print(f"{'esde ' + label + ' (xy, 100 runs)':<34}{anees:>7.2f}{'':>25}{rmse:>17.4f}")
+        print(f"{'circle':<11}{'esde ' + label + ' (100 runs)':<34}{anees:>7.2f}{'':>25}{rmse:>17.4f}")
 
 
 Section = Callable[[argparse.Namespace, GridConfig], None]

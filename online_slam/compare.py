@@ -5,12 +5,15 @@ Monte Carlo (simulated worlds only) repeats the comparison over noise seeds on a
 average NEES across runs against its chi-square bounds. Its figures over steps follow Bar-Shalom, Li &
 Kirubarajan (2001, 5.4) and esde (Brossard et al. 2019): per step, the NEES averaged over runs (ANEES) and the
 error's root mean square over runs; then both averaged over the world's scored steps (:attr:`World.scored`).
+A peer (:data:`PEERS`: GTSAM's iSAM2, the ``peers`` extra) can run beside the estimators on every run's stream;
+its figures over steps join theirs.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -23,15 +26,21 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.protocol import Estimate
 from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.evaluation.metrics import apply_transform
-from online_slam.evaluation.results import Results, Row
-from online_slam.evaluation.scoring import evaluate, nees_bounds, share_in_bounds
-from online_slam.frontend.steps import GroundTruth
+from online_slam.evaluation.results import Results, Row, Series
+from online_slam.evaluation.scoring import evaluate, nees_bounds, online_figures, share_in_bounds
+from online_slam.frontend.steps import FrontEnd, GroundTruth
 from online_slam.geometry.angles import wrap
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sinks.protocol import ReplaySink
+from online_slam.sources.events import Event
 from online_slam.sources.worlds import WORLDS, World
 
 Array = NDArray[np.float64]
+
+PEERS = ("isam2",)
+"""Peers Monte Carlo can run beside the estimators: ``isam2``, GTSAM's iSAM2 (full smoothing, relinearized
+incrementally; :func:`~online_slam.gtsam_peer.isam2_online`, factorized by QR), each step reading the newest pose
+and its ``marginalCovariance``."""
 
 
 @dataclass(frozen=True)
@@ -48,12 +57,19 @@ class CompareConfig:
     """Monte Carlo runs over noise seeds (simulated worlds only); 1 = just the given stream."""
     workers: int | None = None
     """Processes for Monte Carlo runs (default: all cores)."""
+    peers: tuple[str, ...] = ()
+    """Peers (:data:`PEERS`) run on every Monte Carlo run's stream, beside the estimators: their figures over
+    steps join the online estimators' (Monte Carlo only, so ``runs`` >= 2)."""
 
     def __post_init__(self) -> None:
         if any(w < 1 for w in self.windows) or any(k < 1 for k in self.relinearize_every):
             raise ValueError("windows and relinearize_every must be >= 1")
         if self.runs < 1 or (self.workers is not None and self.workers < 1):
             raise ValueError("runs and workers must be >= 1")
+        if any(p not in PEERS for p in self.peers) or len(set(self.peers)) != len(self.peers):
+            raise ValueError(f"peers must be distinct names of {', '.join(PEERS)}, not {', '.join(self.peers)}")
+        if self.peers and self.runs < 2:
+            raise ValueError("a peer runs in Monte Carlo runs: give runs >= 2")
 
 
 @dataclass(frozen=True)
@@ -69,7 +85,8 @@ class MonteCarlo:
     std: dict[str, dict[str, float | None]]
     """Per estimator, the standard deviation of each figure over runs."""
     anees: dict[str, float]
-    """Per online estimator: pose NEES averaged over runs, then over the scored steps (3 = consistent)."""
+    """Per online estimator (and peer): pose NEES averaged over runs, then over the scored steps (3 =
+    consistent). The figures over steps below are also by online estimator and peer."""
     anees_bounds: tuple[float, float]
     """Two-sided 95% bounds for a per-step NEES averaged over ``runs`` runs (3 dof)."""
     anees_in_bounds: dict[str, float]
@@ -170,33 +187,62 @@ class RunErrors:
 
 
 Outcome = tuple[dict[str, Row], dict[str, RunErrors]]
-"""One run's table rows, and errors per online estimator."""
+"""One run's table rows, and errors per online estimator and peer."""
 
 
-def _run_seed(args: tuple[str, int, ReplayConfig]) -> Outcome:
-    source, seed, config = args
+def _run_seed(args: tuple[str, int, ReplayConfig, tuple[str, ...]]) -> Outcome:
+    source, seed, config, peers = args
     results = replay(_world(source).events(seed), config, name=source, validate=False)
-    return results.rows(), run_errors(results)
+    errors = run_errors(results)
+    for peer in peers:
+        errors[peer] = peer_errors(peer, _world(source).events(seed), config, results)
+    return results.rows(), errors
 
 
 def run_errors(results: Results) -> dict[str, RunErrors]:
     """Per online estimator of a replay with truth: what Monte Carlo averages (see :class:`RunErrors`)."""
+    truth = _truth(results)
+    return {
+        name: _errors(name, series, results.estimates[name], truth, results.alignment)
+        for name, series in results.series.items()
+    }
+
+
+def peer_errors(peer: str, events: Iterable[Event], config: ReplayConfig, results: Results) -> RunErrors:
+    """A peer (:data:`PEERS`) on the events ``results`` came from, through the same front-end, scored as they
+    were (their truth and alignment); no landmark NEES (None)."""
+    from online_slam import gtsam_peer
+
+    steps = list(FrontEnd(config.frontend).steps(events))
+    if len({s.robot for s in steps}) > 1:
+        raise OnlineSlamError(f"peer {peer}: takes one robot, and the stream has several")
+    run = gtsam_peer.isam2_online(steps, covariances=True, qr=True)
+    truth = _truth(results)
+    final = Estimate(peer, run.final_poses, (), np.zeros((0, 2)))
+    times, nis = np.array([s.t for s in steps]), np.full(len(steps), np.nan)
+    assert run.covariances is not None  # asked for
+    figures = online_figures(final, run.poses, list(run.covariances), times, nis, run.step_s, truth, results.alignment)
+    return _errors(peer, figures.series, final, truth, results.alignment)
+
+
+def _truth(results: Results) -> GroundTruth:
+    """The replay's ground truth (poses with a finite truth, landmarks)."""
     poses = {} if results.truth_poses is None else dict(enumerate(results.truth_poses))
-    truth = GroundTruth(
+    return GroundTruth(
         poses={i: p for i, p in poses.items() if np.isfinite(p).all()}, landmarks=results.truth_landmarks
     )
-    out = {}
-    for name, series in results.series.items():
-        online = evaluate(Estimate(name, series.poses, (), np.zeros((0, 2))), truth, results.alignment)
-        heading = np.full(len(series.poses), np.nan)
-        if online.indices is not None and online.transform is not None:
-            moved = apply_transform(online.transform, series.poses[online.indices])
-            true_poses = np.array([truth.poses[i] for i in online.indices])
-            heading[online.indices] = np.abs(wrap(moved[:, 2] - true_poses[:, 2]))
-        final = results.estimates[name]
-        landmark_nees = _landmark_nees(final, evaluate(final, truth, results.alignment).transform, truth)
-        out[name] = RunErrors(series.nees, series.position_error_m, heading, landmark_nees)
-    return out
+
+
+def _errors(name: str, series: Series, final: Estimate, truth: GroundTruth, alignment: str) -> RunErrors:
+    """One online estimator's errors in one run, from its per-step series and its final estimate."""
+    online = evaluate(Estimate(name, series.poses, (), np.zeros((0, 2))), truth, alignment)
+    heading = np.full(len(series.poses), np.nan)
+    if online.indices is not None and online.transform is not None:
+        moved = apply_transform(online.transform, series.poses[online.indices])
+        true_poses = np.array([truth.poses[i] for i in online.indices])
+        heading[online.indices] = np.abs(wrap(moved[:, 2] - true_poses[:, 2]))
+    landmark_nees = _landmark_nees(final, evaluate(final, truth, alignment).transform, truth)
+    return RunErrors(series.nees, series.position_error_m, heading, landmark_nees)
 
 
 def _landmark_nees(estimate: Estimate, transform: Array | None, truth: GroundTruth) -> float | None:
@@ -232,7 +278,9 @@ def compare(
     Returns:
         The comparison (table rows, per-step series through ``results``, Monte Carlo figures).
     """
-    cfg = config or CompareConfig()  # validated when made (windows, periods, runs, workers >= 1)
+    cfg = config or CompareConfig()  # validated when made (windows, periods, runs, workers >= 1, peers)
+    if cfg.peers and importlib.util.find_spec("gtsam") is None:
+        raise OnlineSlamError(f"peer {cfg.peers[0]}: GTSAM is not installed (pip install 'online-slam[peers]')")
     one_replay = replay_config(cfg)
     results = replay(source, one_replay, on_skip=on_skip, sinks=sinks)
     rows = results.rows()
@@ -240,7 +288,7 @@ def compare(
     if cfg.runs > 1:
         name = str(source)
         seeds = tuple(_world(name).seed + k for k in range(cfg.runs))
-        jobs = [(name, seed, one_replay) for seed in seeds]
+        jobs = [(name, seed, one_replay, cfg.peers) for seed in seeds]
         workers = cfg.workers or os.cpu_count() or 1
         if workers > 1:
             with ProcessPoolExecutor(max_workers=workers) as pool:

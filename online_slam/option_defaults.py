@@ -41,5 +41,6 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "association": ("known", "nn", "jcbb"),
     "robust": ("auto", "none", "huber", "cauchy"),
     "ekf_linearization": ("standard", "fej", "oc"),
+    "peer": ("isam2",),
 }
 """Allowed values of the options whose choices the estimators define."""

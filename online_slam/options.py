@@ -61,6 +61,7 @@ CHOICE_HOMES = {
     "association": ("online_slam.estimators.landmark_book", "ASSOCIATION_CHOICES"),
     "robust": ("online_slam.estimators.presets", "ROBUST_CHOICES"),
     "ekf_linearization": ("online_slam.estimators.linearization", "LINEARIZATIONS"),
+    "peer": ("online_slam.compare", "PEERS"),
 }
 """Where the choices of an option are defined: (module, name)."""
 
@@ -318,6 +319,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            metavar="N", unset="all cores", commands=("compare", "sweep")),
     Option("scheduler", "a running Dask scheduler, e.g. tcp://host:8786", "runs", ("cli",), metavar="ADDRESS",
            unset="a local cluster", commands=("sweep",)),
+    Option("peer", "with --runs: also run GTSAM's iSAM2 on every run's stream (the 'peers' extra) and report its "
+           "ANEES (newest pose's marginalCovariance), share in band and RMSE beside the estimators'", "runs",
+           ("cli",), choices=CHOICES["peer"], unset="none", commands=("compare",)),
 )}  # fmt: skip
 """Every option, by name, grouped by concern."""
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,7 @@ from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.linearization import heading_column, null_space, observable
 from online_slam.frontend.steps import FrontEnd
 from online_slam.geometry.se2 import compose
-from online_slam.models.range_bearing import landmark_from_observation, range_bearing_with_jacobians
+from online_slam.models.range_bearing import range_bearing_with_jacobians
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.events import LandmarkTruth, Observation, Odometry, Start, Truth
 from online_slam.sources.worlds import WORLDS, CircleConfig, circle_landmarks, circle_world
@@ -51,18 +53,69 @@ def test_circle_truth_odometry_and_visibility_follow_rws() -> None:
         ranges = np.hypot(*(landmarks - pose[:2]).T)
         visible = {(i, j) for j in range(15) if 0.5 < ranges[j] < 5.0} if i > 0 else set()
         assert {s for s in seen if s[0] == i} == visible  # none from the first pose
-    for e in sightings[:50]:  # range/bearing with the covariance propagated from 0.1 m per axis
-        assert e.sigma == pytest.approx((0.1, 0.1 / e.range))
-        truth_xy = landmark_from_observation(truth[round(e.t)], [e.range, e.bearing])
-        assert np.hypot(*(truth_xy - landmarks[e.landmark])) < 0.6
+    assert all(e.xy is not None and e.range is None and e.sigma == (0.1, 0.1) for e in sightings)
+
+
+def _draws(c: CircleConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """esde's draws, written from the formulas: (measured speeds, turn rates, visible (pose, landmark), noise)."""
+    rng = np.random.default_rng(c.seed)
+    v_m = 0.25 + 0.02 / np.sqrt(2) * rng.normal(size=c.poses)
+    omega_m = 0.075 + 2 * np.sqrt(2) * 0.02 * rng.normal(size=c.poses)
+    theta = 0.075 * np.arange(c.poses)
+    xy = np.zeros((c.poses, 2))
+    xy[1:] = np.cumsum(0.25 * np.c_[np.cos(theta[:-1]), np.sin(theta[:-1])], axis=0)
+    visible = [(i, j) for i in range(c.poses) for j, point in enumerate(circle_landmarks(c))
+               if 0.5 < np.hypot(*(point - xy[i])) < 5.0]  # fmt: skip
+    return v_m, omega_m, np.array(visible), rng.normal(size=(len(visible), 2))
+
+
+@pytest.mark.parametrize("model", ["xy", "range-bearing"])
+def test_circle_draws_are_the_formulas(model: str) -> None:
+    """Every number of the stream from esde's formulas: velocity-input odometry (v_m dt, 0, omega_m dt); a
+    landmark's position in the robot frame plus 0.1 m per axis, or its range and bearing plus (0.1 m, 0.04 rad)."""
+    c = CircleConfig(poses=120, model=model, seed=5)
+    v_m, omega_m, visible, noise = _draws(c)
+    events = list(circle_world(c))
+    deltas = np.array([e.delta for e in events if isinstance(e, Odometry)])
+    assert deltas == pytest.approx(np.c_[v_m, np.zeros(c.poses), omega_m][:-1], abs=1e-15)
+    truth = np.array([e.pose for e in events if isinstance(e, Truth)])
+    landmarks = circle_landmarks(c)
+    sightings = [e for e in events if isinstance(e, Observation)]
+    used = visible[:, 0] > 0  # the first pose's draws are made, not used
+    assert [(round(e.t), e.landmark) for e in sightings] == [tuple(v) for v in visible[used]]
+    for e, (i, j), n in zip(sightings, visible[used], noise[used]):
+        pose, d = truth[i], landmarks[j] - truth[i][:2]
+        if model == "xy":
+            c_, s_ = np.cos(pose[2]), np.sin(pose[2])
+            assert e.xy == pytest.approx([c_ * d[0] + s_ * d[1] + 0.1 * n[0], -s_ * d[0] + c_ * d[1] + 0.1 * n[1]])
+            assert e.sigma == (0.1, 0.1)
+        else:
+            bearing = np.arctan2(d[1], d[0]) - pose[2] + 0.04 * n[1]
+            assert e.range == pytest.approx(np.hypot(*d) + 0.1 * n[0])
+            assert np.cos(e.bearing - bearing) == pytest.approx(1.0) and abs(e.bearing) <= np.pi
+            assert e.sigma == (0.1, 0.04)
 
 
 def test_circle_is_a_built_in_world_scored_over_esdes_steps() -> None:
     world = WORLDS["circle"]
-    assert world.scored == (4, 398)
+    assert world.scored == WORLDS["circle-rb"].scored == (4, 398)
     assert list(world.events(3)) == list(circle_world(CircleConfig(seed=3)))
+    assert list(WORLDS["circle-rb"].events(3)) == list(circle_world(CircleConfig(model="range-bearing", seed=3)))
     with pytest.raises(ValueError, match="model"):
         CircleConfig(model="bearing-only")
+
+
+def test_simulate_circle_takes_the_sighting_model(tmp_path: Path) -> None:
+    from online_slam.cli.main import main
+    from online_slam.sources import read_stream
+
+    paths = [tmp_path / f"{k}.jsonl" for k in range(3)]
+    assert main(["simulate", "circle", "--model", "range-bearing", "--seed", "4", "-o", str(paths[0])]) == 0
+    assert main(["simulate", "circle-rb", "--seed", "4", "-o", str(paths[1])]) == 0
+    assert main(["simulate", "circle", "--model", "xy", "--seed", "4", "-o", str(paths[2])]) == 0
+    assert paths[0].read_text() == paths[1].read_text()
+    assert list(read_stream(paths[2]))[1:] == list(circle_world(CircleConfig(seed=4)))[1:]  # header: lists for tuples
+    assert main(["simulate", "circle-rb", "--model", "xy", "-o", str(paths[0])]) == 2  # a fixed world
 
 
 def test_heading_column_is_the_derivative_of_a_turn() -> None:
@@ -109,18 +162,18 @@ def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -
 
 
 @pytest.mark.slow
-def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc() -> None:
-    """esde's world, 20 seeded runs: the standard EKF is overconfident, FEJ and OC inside the 95% band."""
+@pytest.mark.parametrize("linearization, consistent", [("standard", False), ("fej", True), ("oc", True)])
+def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc(
+    linearization: str, consistent: bool
+) -> None:
+    """esde's world, 20 seeded runs (~8 s of CPU each linearization): the standard EKF is overconfident, FEJ and
+    OC inside the 95% band (measured: 5.99, 3.43, 3.42; band 2.02 .. 4.16)."""
     seeds = tuple(range(100, 120))
-    anees = {}
-    for linearization in ("standard", "fej", "oc"):
-        config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
-        outcomes = []
-        for seed in seeds:
-            results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
-            outcomes.append((results.rows(), run_errors(results)))
-        mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
-        anees[linearization] = mc.anees["ekf"]
+    config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
+    outcomes = []
+    for seed in seeds:
+        results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
+        outcomes.append((results.rows(), run_errors(results)))
+    mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
     low, high = mc.anees_bounds
-    assert anees["standard"] > high, anees
-    assert low <= anees["fej"] <= high and low <= anees["oc"] <= high, anees
+    assert (low <= mc.anees["ekf"] <= high) == consistent and mc.anees["ekf"] >= low, mc.anees

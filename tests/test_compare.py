@@ -116,3 +116,41 @@ def test_monte_carlo_needs_a_simulated_world(tmp_path: Path) -> None:
     done = cli("compare", str(stream), "--runs", "3")
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "simulated world" in done.stderr.strip().splitlines()[-1]
+
+
+def test_a_peer_runs_in_monte_carlo_only_and_must_be_known() -> None:
+    with pytest.raises(ValueError, match="runs >= 2"):
+        CompareConfig(peers=("isam2",))
+    with pytest.raises(ValueError, match="isam2"):
+        CompareConfig(runs=2, peers=("isam",))
+    done = cli("compare", "square", "--peer", "isam2")
+    assert done.returncode == 2 and "runs >= 2" in done.stderr
+
+
+def test_isam2_reports_the_newest_poses_covariance_in_world_axes() -> None:
+    """One odometry step from a start heading north: its forward variance lies along y in world axes."""
+    pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
+    from online_slam import gtsam_peer
+    from online_slam.frontend.steps import FrontEnd
+    from online_slam.sources.events import Odometry, Start
+
+    events = [Start(t=0.0, pose=(1.0, 2.0, np.pi / 2)), Odometry(t=1.0, delta=(1.0, 0.0, 0.0), sigma=(0.1, 0.01, 1e-3))]
+    run = gtsam_peer.isam2_online(list(FrontEnd().steps(events)), covariances=True, qr=True)
+    assert run.poses[1] == pytest.approx([1.0, 3.0, np.pi / 2])
+    assert run.covariances is not None
+    assert run.covariances[1] == pytest.approx(np.diag([1e-4, 1e-2, 1e-6]), abs=1e-9)
+
+
+@pytest.mark.slow
+def test_monte_carlo_puts_isam2_beside_the_estimators(tmp_path: Path) -> None:
+    pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
+    out, png = tmp_path / "mc.json", tmp_path / "mc.png"
+    done = cli("compare", "circle", "--runs", "2", "--estimators", "ekf", "--peer", "isam2", "--json", str(out),
+               "--plot", str(png))  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert png.stat().st_size > 0  # the peer drawn in the NEES panel, in the legend
+    mc = json.loads(out.read_text())["monte_carlo"]
+    assert set(mc["anees"]) == {"ekf", "isam2"} and "isam2" not in mc["mean"]  # no table row: figures over steps
+    assert 1.0 < mc["anees"]["isam2"] < 10.0 and 0.0 < mc["position_rmse_m"]["isam2"] < 1.0
+    assert mc["landmark_anees"]["isam2"] is None and len(mc["anees_per_step"]["isam2"]) == 400
+    assert re.search(r"^\s+isam2\s+\d+\.\d\d\s+\w+\s+\d+%\s+-\s+\d\.\d{4}", done.stdout, flags=re.M)

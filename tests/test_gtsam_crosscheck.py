@@ -10,7 +10,7 @@ from online_slam.frontend import FrontEnd
 from online_slam.sources import GridConfig, grid_world, square_world
 
 gtsam = pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-from benchmarks import gtsam_peer  # noqa: E402
+from online_slam import gtsam_peer  # noqa: E402
 
 
 def solve_both(events):

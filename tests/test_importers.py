@@ -134,7 +134,7 @@ def test_mrclam_robot_counts_match_the_provenance() -> None:
 @needs_mrclam
 def test_mrclam_batch_equals_gtsam_from_the_same_initial_values() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-    from benchmarks import gtsam_peer
+    from online_slam import gtsam_peer
     from online_slam.estimators import BatchEstimator, EkfSlam
     from online_slam.frontend import FrontEnd
 

@@ -114,7 +114,7 @@ def test_a_robot_sighting_links_the_seen_pose_of_its_time_even_when_it_comes_lat
 
 def test_the_multi_robot_batch_equals_gtsam_levenberg_marquardt() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-    from benchmarks import gtsam_peer
+    from online_slam import gtsam_peer
 
     batch = BatchEstimator()
     for step in FrontEnd().steps(meet_world(MeetConfig(poses=80))):

@@ -220,7 +220,7 @@ def test_a_recording_of_position_sightings_reads_back(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_batch_equals_gtsam_on_position_sightings() -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
-    from benchmarks import gtsam_peer
+    from online_slam import gtsam_peer
 
     fe, batch = FrontEnd(), BatchEstimator()
     for step in fe.steps(mixed(grid_world(dataclasses.replace(XY_GRID, poses=120, model="range-bearing")))):

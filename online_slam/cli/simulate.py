@@ -14,6 +14,7 @@ from online_slam.models.observation import MODEL_NAMES
 from online_slam.options import add_options, readable
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import (
+    CIRCLE_WORLDS,
     WORLDS,
     Contamination,
     GridConfig,
@@ -51,9 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
          metavar=("SX", "SY", "STH"))  # fmt: skip
     both("--sensor-sigma", "sensor_sigma", "range and bearing noise (--model xy: dx and dy noise, m, default "
          f"{g.xy_sigma[0]:g} each)", ("m", "rad"), type=float, nargs=2, metavar=("SR", "SB"))  # fmt: skip
-    p.add_argument("--model", choices=MODEL_NAMES, default=g.model,
-                   help=f"grid, waypoint: what a sighting measures: range and bearing, or xy, the landmark's position "
-                   f"in the robot frame (default {g.model})")  # fmt: skip
+    p.add_argument("--model", choices=MODEL_NAMES, default=None,
+                   help=f"grid, waypoint, circle: what a sighting measures: range and bearing, or xy, the landmark's "
+                   f"position in the robot frame (default {g.model}; circle: xy, and range-bearing is the world "
+                   "circle-rb)")  # fmt: skip
     p.add_argument("--blocks", type=int, default=g.blocks, help=f"grid: blocks per side (default {g.blocks})")
     p.add_argument(
         "--block-size", type=float, default=g.block_size, help=f"grid: block edge m (default {g.block_size})"
@@ -89,9 +91,11 @@ def _shown(value: object, units: tuple[str, ...]) -> str:
 def run(args: argparse.Namespace) -> int:
     """Simulate and write; prints a one-line summary on stderr."""
     output = args.output or "-"
+    if args.world == "circle" and args.model is not None:
+        args = argparse.Namespace(**{**vars(args), "world": CIRCLE_WORLDS[args.model], "model": None})
     if args.world not in ("grid", "waypoint"):
         shaped = ("poses", "landmarks", "step", "sensor_range", "odometry_sigma", "sensor_sigma", "model")
-        given = [name for name in shaped if getattr(args, name) not in (None, GridConfig.model)]
+        given = [name for name in shaped if getattr(args, name) is not None]
         if given:
             flag = "--" + given[0].replace("_", "-")
             fixed = "the article's fixed world" if args.world == "square" else "a fixed world"

@@ -315,7 +315,8 @@ def comparison_figure(comparison: Comparison) -> Any:
     from matplotlib.figure import Figure
 
     r = comparison.results
-    look = looks(list(r.estimates))
+    mc = comparison.monte_carlo
+    look = looks([*r.estimates, *(n for n in (mc.anees if mc else ()) if n not in r.estimates)])  # and the peers
     more = max(0, len(r.series) - 3)  # strips beyond three make the figure taller rather than thinner
     fig = Figure(figsize=(14, 13 + 1.1 * more), layout="constrained")
     grid = fig.add_gridspec(3, 2, height_ratios=(1.0 + 0.35 * more, 1.0, 0.9))

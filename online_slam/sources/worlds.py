@@ -7,7 +7,8 @@ goals over a field of scattered landmarks (slower, with random revisits). Both s
 default, or (``model="xy"``) each landmark's position in the robot frame with independent noise per axis.
 ``circle`` the Monte Carlo protocol of
 Brossard, Barrau & Bonnabel (IEEE Sensors J. 2019, code ``CAOR-MINES-ParisTech/esde``), on which the standard
-EKF's inconsistency is textbook. ``meet`` and ``meet-apart`` have several robots (:mod:`~.meet`).
+EKF's inconsistency is textbook, with position sightings as theirs (``circle-rb``: range and bearing). ``meet`` and
+``meet-apart`` have several robots (:mod:`~.meet`).
 """
 
 from __future__ import annotations
@@ -55,17 +56,13 @@ def _events(
     xy: bool = False,
 ) -> Iterator[Event]:
     """Lay out simulated arrays as a time-ordered event stream (pose i at t = i * dt); z holds ranges and
-    bearings, or positions in the robot frame (``xy``).
-
-    ``sensor_sigma`` is one (2,) for every sighting, or one row per sighting (k, 2).
-    """
+    bearings, or positions in the robot frame (``xy``), all with the standard deviations ``sensor_sigma``."""
     yield Header(name=name, meta=meta)
     yield Start(t=0.0, pose=tuple(map(float, truth[0])))
     for j, point in enumerate(landmarks):
         yield LandmarkTruth(landmark=j, position=tuple(map(float, point)))
     odo_sigma = tuple(map(float, odometry_sigma))
-    per_sighting = np.ndim(sensor_sigma) == 2
-    obs_sigma = tuple(map(float, sensor_sigma)) if not per_sighting else ()
+    obs_sigma = tuple(map(float, sensor_sigma))
     bounds = np.searchsorted(observed_pose, np.arange(len(truth) + 1))
     for i in range(len(truth)):
         t = i * dt
@@ -83,7 +80,7 @@ def _events(
                 landmark=int(observed_landmark[k]),
                 range=float(z[k, 0]),
                 bearing=float(z[k, 1]),
-                sigma=tuple(map(float, sensor_sigma[k])) if per_sighting else obs_sigma,
+                sigma=obs_sigma,
             )
 
 
@@ -301,10 +298,6 @@ def _sensed(
     )  # fmt: skip
 
 
-CIRCLE_MODELS = ("range-bearing",)
-"""How the circle world gives its sightings."""
-
-
 @dataclass(frozen=True)
 class CircleConfig:
     """The Monte Carlo world of Brossard, Barrau & Bonnabel 2019 (``esde``: ``simulations/main.m``, ``rws.m``,
@@ -330,28 +323,40 @@ class CircleConfig:
     """Noise on the measured speed, m/s."""
     sigma_omega: float = 2.0 * math.sqrt(2.0) * 0.02
     """Noise on the measured turn rate, rad/s."""
-    sigma_xy: float = 0.1
-    """Noise of each axis of a sighting's position in the robot frame, metres."""
     lateral_sigma: float = 1e-6
     """Standard deviation given to the increment's lateral component, metres. The velocity-input increment
     ``(v_m dt, 0, omega_m dt)`` has none; stream v1 needs a positive one (at least 1e-8). The EKF's figures are
     the same to 4 digits for 0, 1e-8 and 1e-6 (benchmarks/RESULTS.md, "Circle protocol")."""
-    model: str = "range-bearing"
-    """``range-bearing``: each sighting's noisy position ``(dx, dy)`` as range and bearing, with its propagated
-    covariance ``diag(sigma_xy^2, sigma_xy^2 / r^2)`` (r the measured range; exact for isotropic noise)."""
+    model: str = "xy"
+    """``xy`` (esde's): each landmark's position ``(dx, dy)`` in the robot frame, independent noise ``sigma_xy``
+    per axis; ``range-bearing``: its range and bearing, noise ``sigma_range`` and ``sigma_bearing``."""
+    sigma_xy: float = 0.1
+    """Noise of each axis of a position sighting, metres (model ``xy``)."""
+    sigma_range: float = 0.1
+    """Noise of a sighting's range, metres (model ``range-bearing``): ``sigma_xy``."""
+    sigma_bearing: float = 0.04
+    """Noise of a sighting's bearing, radians (model ``range-bearing``): ``sigma_xy`` across the ray at 2.5 m, the
+    middle of the visible ranges. Drawn in range and bearing, so the stream's noise model is exact (the noise of
+    a position sighting propagated to range and bearing is not Gaussian there: its bearing sigma reaches 0.2 rad
+    at 0.5 m)."""
     seed: int = 0
     """Seed of ``numpy.random.default_rng``."""
 
     def __post_init__(self) -> None:
         if self.poses < 2 or self.landmarks < 1 or not 0.0 <= self.min_range < self.max_range:
             raise ValueError("circle world needs poses >= 2, landmarks >= 1 and 0 <= min range < max range")
-        if self.model not in CIRCLE_MODELS:
-            raise ValueError(f"circle world: model must be one of {', '.join(CIRCLE_MODELS)}, not {self.model!r}")
+        if self.model not in MODEL_NAMES:
+            raise ValueError(f"circle world: model must be one of {', '.join(MODEL_NAMES)}, not {self.model!r}")
 
     @property
     def radius(self) -> float:
         """Radius of the landmarks' circle, metres."""
         return self.v / self.omega + 2.0 * self.min_range
+
+    @property
+    def sensor_sigma(self) -> tuple[float, float]:
+        """Standard deviations of a sighting's two components in its model."""
+        return (self.sigma_xy, self.sigma_xy) if self.model == "xy" else (self.sigma_range, self.sigma_bearing)
 
 
 def circle_landmarks(c: CircleConfig) -> Array:
@@ -364,8 +369,9 @@ def circle_world(config: CircleConfig | None = None) -> Iterator[Event]:
     """esde's simulation (``rws.m``): truth, velocity-input odometry and sightings, in their order of draws.
 
     Draw order: the measured speeds of every pose, then the turn rates, then pose by pose each visible
-    landmark's 2-D noise (landmarks in order). Like esde, the first pose's sightings are drawn but not used:
-    the first pose is known exactly, and sightings from it would anchor the map to the truth.
+    landmark's 2-D noise (landmarks in order; the same draws for both models). Like esde, the first pose's
+    sightings are drawn but not used: the first pose is known exactly, and sightings from it would anchor the
+    map to the truth.
 
     Args:
         config: World settings; the defaults are esde's.
@@ -384,22 +390,19 @@ def circle_world(config: CircleConfig | None = None) -> Iterator[Event]:
     omega_m = c.omega + c.sigma_omega * rng.normal(size=c.poses)
     odometry = np.c_[v_m * c.dt, np.zeros(c.poses), omega_m * c.dt][:-1]
     odometry_sigma = np.array([c.sigma_v * c.dt, c.lateral_sigma, c.sigma_omega * c.dt])
-    relative = landmarks[None, :, :] - truth[:, None, :2]
-    distances = np.linalg.norm(relative, axis=2)
+    distances = np.linalg.norm(landmarks[None, :, :] - truth[:, None, :2], axis=2)
     observed_pose, observed_landmark = np.nonzero((distances > c.min_range) & (distances < c.max_range))
-    angle = truth[observed_pose, 2]
-    d = relative[observed_pose, observed_landmark]
-    xy = np.c_[np.cos(angle) * d[:, 0] + np.sin(angle) * d[:, 1], -np.sin(angle) * d[:, 0] + np.cos(angle) * d[:, 1]]
-    xy = xy + c.sigma_xy * rng.normal(size=xy.shape)
+    xy = c.model == "xy"
+    z = (position if xy else range_bearing)(truth[observed_pose], landmarks[observed_landmark])
+    z = z + np.array(c.sensor_sigma) * rng.normal(size=z.shape)
+    if not xy:
+        z[:, 0], z[:, 1] = np.abs(z[:, 0]), wrap(z[:, 1])
     used = observed_pose > 0
-    observed_pose, observed_landmark, xy = observed_pose[used], observed_landmark[used], xy[used]
-    r = np.hypot(xy[:, 0], xy[:, 1])
-    z = np.c_[r, np.arctan2(xy[:, 1], xy[:, 0])]
-    sensor_sigma = np.c_[np.full(len(r), c.sigma_xy), c.sigma_xy / r]
-    meta = {"generator": "online-slam simulate circle", **asdict(c)}
+    name = "circle" if xy else "circle-rb"
+    meta = {"generator": f"online-slam simulate {name}", **asdict(c)}
     yield from _events(
-        "circle", meta, truth, landmarks, odometry, odometry_sigma,
-        observed_pose, observed_landmark, z, sensor_sigma, dt=c.dt,
+        name, meta, truth, landmarks, odometry, odometry_sigma,
+        observed_pose[used], observed_landmark[used], z[used], np.array(c.sensor_sigma), dt=c.dt, xy=xy,
     )  # fmt: skip
 
 
@@ -505,6 +508,10 @@ def _circle(seed: int) -> Iterator[Event]:
     return circle_world(CircleConfig(seed=seed))
 
 
+def _circle_rb(seed: int) -> Iterator[Event]:
+    return circle_world(CircleConfig(model="range-bearing", seed=seed))
+
+
 def _meet(seed: int) -> Iterator[Event]:
     return meet_world(MeetConfig(seed=seed))
 
@@ -526,8 +533,15 @@ WORLDS: dict[str, World] = {
     "circle": World(
         _circle,
         CircleConfig.seed,
-        f"esde's Monte Carlo protocol: {CircleConfig.poses} poses on a circle, {CircleConfig.landmarks} landmarks",
+        f"esde's Monte Carlo protocol: {CircleConfig.poses} poses on a circle, {CircleConfig.landmarks} landmarks "
+        "sighted as positions in the robot frame",
         scored=(4, CircleConfig.poses - 2),  # esde's steps 5..399 (1-based)
+    ),
+    "circle-rb": World(
+        _circle_rb,
+        CircleConfig.seed,
+        "circle with range-bearing sightings",
+        scored=(4, CircleConfig.poses - 2),
     ),
     "meet": World(
         _meet,
@@ -540,6 +554,8 @@ WORLDS: dict[str, World] = {
     ),
 }
 """The built-in worlds by name: ``simulate``, ``replay``, ``compare`` and ``sweep`` all read this registry."""
+CIRCLE_WORLDS = {"xy": "circle", "range-bearing": "circle-rb"}
+"""The circle world by sighting model (``simulate circle --model``)."""
 
 
 def without_ids(events: Iterable[Event]) -> Iterator[Event]:

@@ -13,6 +13,9 @@ Position sightings (the landmark in the robot frame) have no native 2D factor in
 modes model them with a ``CustomFactor`` computing our residual.
 A sighting of one robot by another (several robots) is GTSAM's ``BearingRangeFactorPose2`` between the two
 poses in both modes: bearing and range to the seen pose's position, as ours.
+
+GTSAM is the optional ``peers`` extra: the package imports this module only where a peer is asked for
+(``compare --peer isam2``); the cross-check tests and the benchmarks use it too.
 """
 
 from __future__ import annotations
@@ -229,6 +232,9 @@ class PeerOnline:
     """All poses at the end of the run, shape (N, 3)."""
     step_s: Array
     """Wall time of each step's update plus reading the latest pose, shape (N,)."""
+    covariances: Array | None = None
+    """Marginal covariance of the latest pose after each step, in our axes (x, y, theta), shape (N, 3, 3); None
+    unless asked for (its time is not in ``step_s``)."""
 
 
 def isam2_online(
@@ -237,6 +243,8 @@ def isam2_online(
     relinearize_skip: int = 1,
     cauchy: float | None = None,
     huber: float | None = None,
+    covariances: bool = False,
+    qr: bool = False,
 ) -> PeerOnline:
     """Run GTSAM's iSAM2 step by step (one update per step, reading the latest pose), native factors.
 
@@ -249,20 +257,26 @@ def isam2_online(
         relinearize_skip: Relinearize every this many updates.
         cauchy: Put a Cauchy kernel of this width (sigmas) on the observation factors (None: Gaussian).
         huber: Or a Huber kernel of this width.
+        covariances: Also read the latest pose's ``marginalCovariance`` after each step.
+        qr: Factorize by QR instead of Cholesky: slower, but it takes information over many orders of magnitude
+            (the circle world's lateral odometry sigma of 1e-6 m, beside the fixed start's 1e-9, on which
+            Cholesky reports an indeterminate system).
 
     Returns:
-        Online poses, final poses and per-step times.
+        Online poses, final poses, per-step times (and covariances).
     """
     if gtsam is None:
         raise ImportError("gtsam is not installed: pip install '.[peers]'")
     params = gtsam.ISAM2Params()
     params.setRelinearizeThreshold(relinearize_threshold)
     params.relinearizeSkip = relinearize_skip
+    if qr:
+        params.setFactorization("QR")
     isam = gtsam.ISAM2(params)
     seen: set = set()
     index: dict = {}
     latest = np.zeros(3)
-    online, times = [], []
+    online, times, covs = [], [], []
     for step in steps:
         started = time.perf_counter()
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
@@ -300,6 +314,9 @@ def isam2_online(
         latest = _vec(isam.calculateEstimatePose2(X(i)))
         times.append(time.perf_counter() - started)
         online.append(latest)
+        if covariances:  # GTSAM's is of the pose's local tangent: rotate its position block into world axes
+            T = _tangent(latest[2])
+            covs.append(T @ isam.marginalCovariance(X(i)) @ T.T)
     estimate = isam.calculateEstimate()
     final = np.array([_vec(estimate.atPose2(X(s.index))) for s in steps])
-    return PeerOnline(np.array(online), final, np.array(times))
+    return PeerOnline(np.array(online), final, np.array(times), np.array(covs) if covariances else None)
