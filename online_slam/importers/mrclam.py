@@ -16,9 +16,10 @@ increment (forward and lateral along the axes of the pose it reaches, as GTSAM's
 to the stream as a full covariance in the earlier pose's frame, see :func:`increment_covariances`); range and
 bearing sigmas, the range's optionally growing with the measured range (``--noise fit`` finds 0.011 m + 0.044 m
 per metre on Dataset 6; the default stays a constant 0.178 m: the growing one helps all five robots together,
-batch 0.117 -> 0.106 m, but costs the EKF on robots 3 and 4 alone, see benchmarks/RESULTS.md). The end-frame axes are chosen because they fit Dataset 6's Vicon data better than the earlier
-pose's axes. The default coefficients are maximum-likelihood fits against Vicon over Dataset 6; the floor keeps
-1-ms-apart poses well conditioned. The data choose the form per axis: forward and lateral variances grow with the
+batch 0.117 -> 0.106 m, but costs the EKF on robots 3 and 4 alone, see benchmarks/RESULTS.md). The end-frame
+axes are chosen because they fit Dataset 6's Vicon data better than the earlier pose's axes. The default
+coefficients are maximum-likelihood fits against Vicon over Dataset 6; the floor keeps 1-ms-apart poses well
+conditioned. The data choose the form per axis: forward and lateral variances grow with the
 squared path, the heading variance with the angle turned (a random walk in the angle). An earlier squared-turn
 heading term is not used: it predicted far too wide a heading after long turns, which let association pair a
 cluster of tubes with another cluster a large turn away. :mod:`online_slam.importers.mrclam_noise` repeats the fit
