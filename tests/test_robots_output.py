@@ -54,3 +54,72 @@ def test_tum_files_of_one_robot_keep_their_names(tmp_path: Path) -> None:
     assert results.step_robots == ()
     names = sorted(p.name for p in write_tum(tmp_path, results))
     assert names == ["ekf.tum", "ekf_online.tum", "odometry.tum", "truth.tum"]
+
+
+@pytest.fixture(scope="module")
+def meet_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, online_slam.Results]:
+    pytest.importorskip("rerun", reason="rerun-sdk is not installed")
+    pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
+    from online_slam.pipeline import estimator_names
+    from online_slam.sinks.recording import Layout, RerunConfig, RerunSink
+
+    rrd = tmp_path_factory.mktemp("rrd") / "meet.rrd"
+    config = ReplayConfig(estimators=("ekf", "batch"))
+    sink = RerunSink(RerunConfig(path=str(rrd)), "meet", Layout(*estimator_names(config)))
+    return rrd, online_slam.replay(meet_world(SMALL_MEET), config, sinks=[sink])
+
+
+def test_recording_has_each_robots_entities_in_its_colour(meet_recording) -> None:
+    from online_slam.sinks.recording import Recording
+
+    rrd, results = meet_recording
+    with Recording(rrd) as recording:
+        summary = recording.summary()
+        data = set(recording._table(["/world/**"], "step").column_names)  # entities with data on the timeline
+    robots = summary.results["recording"]["robots"]
+    assert summary.robots == {"1": "robot_1", "2": "robot_2", "3": "robot_3"}
+    assert len({robot["color"] for robot in robots.values()}) == 3  # a colour each
+    for part in summary.robots.values():
+        for root in ("truth", "odometry", "ekf"):
+            assert f"/world/{root}/{part}/pose:Arrows2D:origins" in data
+            assert f"/world/{root}/{part}/path_recent:LineStrips2D:strips" in data
+        assert f"/world/ekf/{part}/pose_cov:LineStrips2D:strips" in data
+        assert f"/world/observations/{part}:LineStrips2D:strips" in data
+        assert f"/world/robot_sightings/{part}:LineStrips2D:strips" in data
+        assert f"/world/batch/{part}/path:LineStrips2D:strips" in data
+    assert not {"/world/ekf/pose:Arrows2D:origins", "/world/truth/pose:Arrows2D:origins"} & data  # all per robot
+    assert "/world/ekf/landmarks:Points2D:positions" in data  # one shared map
+
+
+def test_robot_sightings_go_from_the_sighting_pose_to_the_seen_robot(meet_recording) -> None:
+    from online_slam.sinks.recording import Recording
+
+    rrd, results = meet_recording
+    with Recording(rrd) as recording:
+        series = recording.series()
+        table = recording._table(["/world/robot_sightings/**"], "step")
+    steps = table.column("step").to_pylist()
+    lines = 0
+    for k, robot in enumerate(("1", "2", "3")):
+        strips = table.column(f"/world/robot_sightings/robot_{robot}:LineStrips2D:strips").to_pylist()
+        for step, drawn in zip(steps, strips):
+            for start, end in drawn or []:
+                lines += 1
+                assert step % SMALL_MEET.robots == k  # drawn at a step of the sighting robot
+                np.testing.assert_allclose(start, series.poses["ekf"][step, :2], atol=1e-4)  # float32
+                truth = results.truth_poses
+                assert truth is not None
+                seen = [truth[i, :2] for i in range(step - step % 3, step - step % 3 + 3) if i != step]
+                assert min(np.hypot(*(np.array(end) - p)) for p in seen) < 0.5  # ends at a seen robot
+    assert lines > 10
+    assert set(series.poses) == {"odometry", "ekf", "truth"}
+    assert not np.isnan(series.poses["ekf"]).any()  # every step's pose, from its robot's entity
+
+
+def test_inspect_a_step_shows_every_robot(meet_recording) -> None:
+    from online_slam.sinks.recording import Recording
+
+    rrd, _ = meet_recording
+    with Recording(rrd) as recording:
+        state = recording.state_at(100)
+    assert {f"{name} robot {r}" for name in ("odometry", "ekf", "truth") for r in "123"} == set(state["estimators"])
