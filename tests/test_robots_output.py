@@ -123,3 +123,58 @@ def test_inspect_a_step_shows_every_robot(meet_recording) -> None:
     with Recording(rrd) as recording:
         state = recording.state_at(100)
     assert {f"{name} robot {r}" for name in ("odometry", "ekf", "truth") for r in "123"} == set(state["estimators"])
+
+
+@pytest.fixture(scope="module")
+def meet_comparison(tmp_path_factory: pytest.TempPathFactory):
+    from online_slam.compare import compare
+    from online_slam.sources import write_stream
+
+    stream = tmp_path_factory.mktemp("meet") / "meet.jsonl"
+    write_stream(stream, meet_world(SMALL_MEET))
+    return compare(str(stream))
+
+
+def test_compare_gives_each_robots_figures_in_table_and_json(meet_comparison) -> None:
+    from online_slam.reports.compare_table import format_comparison
+
+    results = meet_comparison.results
+    assert results.left == ("smoother W=20..120 D=18 K=1",)  # one robot at a time: left, and said so
+    text = format_comparison(meet_comparison)
+    figures = meet_comparison.to_json()["estimators"]
+    for name in ("ekf", "batch"):
+        for robot, mine in results.estimators[name].robots.items():
+            assert f"{name}  robot {robot}" in text
+            assert figures[name]["robots"][robot]["final_rmse_m"] == mine.final_rmse_m
+    assert "left out, it takes one robot at a time" in text
+
+
+def test_compare_map_draws_a_path_per_robot(meet_comparison) -> None:
+    pytest.importorskip("matplotlib")
+    from online_slam.reports.plots import comparison_figure
+
+    figure = comparison_figure(meet_comparison)
+    ax = next(a for a in figure.axes if a.get_label() == "map")
+    n = meet_comparison.results.poses
+    paths = [line.get_xydata() for line in ax.get_lines() if len(line.get_xydata()) == n + SMALL_MEET.robots]
+    assert len(paths) == 4  # truth, odometry, ekf, batch: each robot's poses, apart
+    for xy in paths:
+        assert np.isnan(xy[:, 0]).sum() == SMALL_MEET.robots  # a break after each robot
+        steps = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+        assert np.nanmax(steps) < 2.0  # no jump from one robot to another
+
+
+def test_sweep_rows_per_robot_equal_the_replays() -> None:
+    from online_slam.sources import WORLDS
+    from online_slam.sweep import Cell, _value, run_cell
+
+    cell = Cell("meet", ("ekf", "batch"), seed=WORLDS["meet"].seed)
+    rows = {row["estimator"]: row for row in run_cell(cell)}
+    assert list(rows) == ["ekf", *(f"ekf robot {r}" for r in "123"), "batch", *(f"batch robot {r}" for r in "123")]
+    results = online_slam.replay("meet", cell.config())
+    for name in ("ekf", "batch"):
+        assert rows[name]["final_rmse_m"] == results.estimators[name].final_rmse_m
+        for robot, mine in results.estimators[name].robots.items():
+            assert rows[f"{name} robot {robot}"]["final_rmse_m"] == mine.final_rmse_m
+            assert rows[f"{name} robot {robot}"]["online_rmse_m"] == mine.online_rmse_m
+    assert _value("all", "robot") == "all" and _value("3", "robot") == 3  # MRCLAM --robot all reads back
