@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results
     from online_slam.pipeline import ReplayConfig, replay
     from online_slam.sinks.recording.reader import RecordingSeries, read_recording
-    from online_slam.slam import Slam, SlamEstimate
+    from online_slam.slam import RobotEstimate, Slam, SlamEstimate
 
 _HOMES = {
     "ConfigError": "online_slam.errors",
@@ -35,6 +35,7 @@ _HOMES = {
     "replay": "online_slam.pipeline",
     "RecordingSeries": "online_slam.sinks.recording.reader",
     "read_recording": "online_slam.sinks.recording.reader",
+    "RobotEstimate": "online_slam.slam",
     "Slam": "online_slam.slam",
     "SlamEstimate": "online_slam.slam",
 }
@@ -49,6 +50,7 @@ __all__ = [
     "RecordingSeries",
     "ReplayConfig",
     "Results",
+    "RobotEstimate",
     "Slam",
     "SlamEstimate",
     "__version__",

@@ -129,6 +129,9 @@ class Comparison:
             "estimators": {name: _row_json(row) for name, row in self.rows.items()},
             "input": self.results.input.to_json(),
         }
+        for name, result in self.results.estimators.items():  # several robots: each robot's figures
+            if result.robots and name in self.rows:
+                out["estimators"][name]["robots"] = {r: _row_json(f.row()) for r, f in result.robots.items()}
         if self.monte_carlo is not None:
             out["monte_carlo"] = dict(self.monte_carlo.__dict__, seeds=list(self.monte_carlo.seeds))
         return _json_safe(out)

@@ -289,8 +289,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     # -- output ---------------------------------------------------------------------------------------------
     Option("json", "write the results as JSON ('-': stdout, the table then on stderr)", "output", ("cli",),
            metavar="PATH", commands=("replay", "compare")),
-    Option("tum", "write TUM trajectories for evo (truth, odometry, each estimator final and _online)", "output",
-           ("cli",), metavar="DIR", commands=("replay",)),
+    Option("tum", "write TUM trajectories for evo (truth, odometry, each estimator final and _online; several "
+           "robots: one file per robot, NAME_robot<ID>.tum)", "output", ("cli",), metavar="DIR", commands=("replay",)),
     Option("plot", "write the figures (map, error, NEES, latency) to this PNG", "output", ("cli",),
            metavar="PATH", commands=("compare",)),
     Option("rrd", "log every step to a Rerun recording (.rrd) (compare: every configuration in one)", "output",

@@ -7,13 +7,21 @@ numbers, range > 0, bearings in radians, non-decreasing time, ``start`` first); 
 to the newest pose with time <= ``t``. :meth:`Slam.estimate` reflects every event added so far: sightings of
 the newest pose are used before its successor's odometry arrives (see :mod:`online_slam.engine` for how, and why
 a replay gives the same numbers).
+
+Several robots share one map when every event names its ``robot`` (``start`` each robot first, then
+``add_odometry(..., robot=...)``, ``add_observation(..., robot=...)`` and :meth:`Slam.add_robot_observation` for
+a sighting of another robot), as on a stream of several robots. Their poses reach the estimator in the order
+they began (one index over all robots): a pose waits until the earlier poses of the other robots are complete
+(their robots moved on); a query shows the oldest waiting pose at once. :attr:`SlamEstimate.robots` gives each
+robot's newest pose, its covariance and its trajectory. Only the EKF takes several robots today (an estimator
+that does sets ``several_robots`` and gives each robot's newest pose by ``robot_poses()``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
@@ -24,14 +32,14 @@ from numpy.typing import NDArray
 
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, EngineCheckpoint
-from online_slam.errors import ConfigError, InputError
+from online_slam.errors import ConfigError, InputError, OnlineSlamError
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.options import Option, check_value, estimator_options, replay_config
-from online_slam.sources.events import Event, LandmarkId
+from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
 
 Array = NDArray[np.float64]
@@ -51,6 +59,28 @@ OPTIONS: dict[str, Option] = estimator_options()
 association's."""
 _CHECKPOINT_KIND = "slam"
 
+NewestPose = tuple[int, float, Array, Array]
+"""A robot's newest pose in an estimator: its step index, its time, ``[x, y, theta]`` (3,), its covariance
+(3, 3). An estimator of several robots gives them by robot from ``robot_poses()``."""
+
+
+@dataclass(frozen=True)
+class RobotEstimate:
+    """One robot's part of a :class:`SlamEstimate` (arrays read-only)."""
+
+    index: int
+    """Index of the robot's newest pose (one index over all robots' poses, in the order they began)."""
+    t: float
+    """Its time, seconds."""
+    pose: Array
+    """Its estimate ``[x, y, theta]``, shape (3,)."""
+    pose_cov: Array
+    """Its covariance, shape (3, 3)."""
+    steps: NDArray[np.int64]
+    """Indices of the robot's poses in :attr:`SlamEstimate.trajectory`, shape (N_r,)."""
+    trajectory: Array
+    """Current estimate of each of the robot's poses, shape (N_r, 3); the last row is ``pose``."""
+
 
 @dataclass(frozen=True)
 class SlamEstimate:
@@ -66,6 +96,10 @@ class SlamEstimate:
     """Landmark 2x2 marginal covariances, shape (M, 2, 2), or None when not asked for."""
     trajectory_parts: tuple[Array, Array]
     """Poses that no longer change (a read-only view) and the poses that still may, as of the query."""
+    robot_poses: Mapping[RobotId, NewestPose] = field(default_factory=dict)
+    """Each named robot's newest pose at the query (empty when the events name no robot)."""
+    step_robots: list[RobotId] = field(default_factory=list)
+    """The robot of every pose begun by the query, in index order (only appended to afterwards)."""
 
     @property
     def t(self) -> float:
@@ -100,8 +134,20 @@ class SlamEstimate:
 
     @cached_property
     def trajectory(self) -> Array:
-        """Current estimate of every pose so far, shape (N, 3), N = index + 1."""
+        """Current estimate of every pose so far, shape (N, 3), N = index + 1 (with several robots, all robots'
+        poses in index order: see ``robots``)."""
         return _read_only(np.concatenate(self.trajectory_parts))
+
+    @cached_property
+    def robots(self) -> Mapping[RobotId, RobotEstimate]:
+        """Robot id -> its newest pose, covariance and trajectory, for every named robot the estimator has a pose
+        of (in the order they started); empty when the events name no robot."""
+        robots = np.array(self.step_robots[: len(self.trajectory)], dtype=object)
+        out = {}
+        for robot, (index, t, pose, cov) in self.robot_poses.items():
+            steps = _read_only_index(np.flatnonzero(robots == robot))
+            out[robot] = RobotEstimate(index, t, _locked(pose), _locked(cov), steps, _locked(self.trajectory[steps]))
+        return MappingProxyType(out)
 
     @cached_property
     def landmarks(self) -> Mapping[LandmarkId, Array]:
@@ -118,6 +164,11 @@ class SlamEstimate:
 
 def _read_only(array: Array) -> Array:
     array = np.array(array, dtype=float)
+    array.flags.writeable = False
+    return array
+
+
+def _read_only_index(array: NDArray[np.int64]) -> NDArray[np.int64]:
     array.flags.writeable = False
     return array
 
@@ -177,28 +228,40 @@ class Slam:
         self._estimator = EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
         self._engine = Engine([self._estimator], frontend, records=False)
         self._validator = EventValidator("Slam")
+        self._step_robots: list[RobotId] = []
 
     # -- events --------------------------------------------------------------------------------------
-    def start(self, t: float, pose: Any, sigma: Any = None, cov: Any = None) -> None:
-        """The first pose (optional: by default the origin at the first event's time, held fixed).
+    def start(self, t: float, pose: Any, sigma: Any = None, cov: Any = None, robot: RobotId | None = None) -> None:
+        """The first pose (optional: by default the origin at the first event's time, held fixed), or a robot's.
 
         Args:
             t: Time, seconds.
             pose: ``[x, y, theta]``.
             sigma: Standard deviations ``[sx, sy, stheta]`` of a prior on it, or None.
             cov: Full 3x3 prior covariance, or None. With neither, the start pose is held fixed.
-        """
-        self._push("start", {"type": "start", "t": t, "pose": pose}, sigma, cov)
+            robot: The robot starting here (an int or a non-empty string), once per robot and before any other
+                event names it; None: the one unnamed robot.
 
-    def add_odometry(self, t: float, delta: Any, sigma: Any = None, cov: Any = None) -> None:
-        """Motion since the previous pose, in its frame; makes a new pose at ``t``.
+        Raises:
+            OnlineSlamError: A second robot for an estimator that takes one robot (nothing changes).
+        """
+        self._push("start", {"type": "start", "t": t, "pose": pose}, sigma, cov, robot)
+
+    def add_odometry(
+        self, t: float, delta: Any, sigma: Any = None, cov: Any = None, robot: RobotId | None = None
+    ) -> None:
+        """Motion since the previous pose (of ``robot``), in its frame; makes a new pose at ``t``.
 
         Args:
             t: Time of the new pose, seconds (never before the previous event).
             delta: ``[dx, dy, dtheta]``.
             sigma: Standard deviations ``[sx, sy, stheta]``, or None when ``cov`` is given.
             cov: Full 3x3 covariance, or None when ``sigma`` is given.
+            robot: The robot that moved (required once robots are named), or None.
         """
+        if robot is not None:
+            self._push("add_odometry", {"type": "odometry", "t": t, "delta": delta}, sigma, cov, robot)
+            return
         self._validator.name = "Slam.add_odometry"
         self._engine.push(self._validator.parse_odometry(plain(t), plain(delta), plain(sigma), plain(cov)))
 
@@ -211,9 +274,10 @@ class Slam:
         sigma: Any = None,
         cov: Any = None,
         xy: Any = None,
+        robot: RobotId | None = None,
     ) -> None:
         """A sighting of a landmark, range and bearing or its position ``xy`` in the robot frame; it attaches to the
-        newest pose with time <= ``t``.
+        newest pose (of ``robot``) with time <= ``t``.
 
         Args:
             t: Time, seconds (never before the previous event).
@@ -226,11 +290,43 @@ class Slam:
             cov: Full 2x2 covariance, or None when ``sigma`` is given.
             xy: ``[dx, dy]``, the landmark in the robot frame (x ahead, y to the left), metres, instead of range and
                 bearing.
+            robot: The robot that took it (required once robots are named), or None.
         """
         record = {"type": "observation", "t": t, "landmark": landmark}
         measured = {"range": range, "bearing": bearing, "xy": xy}
         record.update((key, value) for key, value in measured.items() if value is not None)
-        self._push("add_observation", record, sigma, cov)
+        self._push("add_observation", record, sigma, cov, robot)
+
+    def add_robot_observation(
+        self,
+        t: float,
+        robot_seen: RobotId,
+        range: float,
+        bearing: float,
+        sigma: Any = None,
+        cov: Any = None,
+        robot: RobotId | None = None,
+    ) -> None:
+        """A sighting of another robot: range and bearing from ``robot``'s newest pose with time <= ``t`` to the
+        position of ``robot_seen``'s newest pose with time <= ``t`` (a stream's ``robot_seen`` observation, checked
+        by the same rules).
+
+        Args:
+            t: Time, seconds (never before the previous event).
+            robot_seen: The robot sighted: a started robot other than ``robot``.
+            range: Distance, metres (> 0).
+            bearing: Angle from ``robot``'s heading, radians, within [-2 pi, 2 pi].
+            sigma: ``[s_range, s_bearing]``, or None when ``cov`` is given.
+            cov: Full 2x2 covariance, or None when ``sigma`` is given.
+            robot: The robot that took it (required: robots are named once any is seen).
+
+        Raises:
+            InputError: As for a stream line (an unknown robot, a robot sighting itself, ...); also when the
+                estimate of ``robot``'s pose was queried already (the estimator has that pose and no longer takes
+                robot sightings of it: add them before querying). Nothing changes.
+        """
+        record = {"type": "observation", "t": t, "robot_seen": robot_seen, "range": range, "bearing": bearing}
+        self._push("add_robot_observation", record, sigma, cov, robot)
 
     def add_observations(
         self,
@@ -294,15 +390,42 @@ class Slam:
         kind = record.get("type")
         self._push(f"add({kind})" if isinstance(kind, str) else "add", record, None, None)
 
-    def _push(self, method: str, record: dict[str, Any], sigma: Any, cov: Any) -> None:
+    def _push(self, method: str, record: dict[str, Any], sigma: Any, cov: Any, robot: Any = None) -> None:
         record = {key: plain(value) for key, value in record.items()}
+        if robot is not None:
+            record["robot"] = plain(robot)
         if sigma is not None:
             record["sigma"] = plain(sigma)
         if cov is not None:
             record["cov"] = plain(cov)
         self._validator.name = f"Slam.{method}"
+        before = self._validator.state
         event: Event = self._validator.parse_record(record)
+        try:
+            self._check_robots(event)
+        except OnlineSlamError:
+            self._validator.state = before
+            raise
         self._engine.push(event)
+        robot = getattr(event, "robot", None)
+        if robot is not None and len(self._step_robots) < self.poses:  # a robot's pose began
+            self._step_robots.append(robot)
+
+    def _check_robots(self, event: Event) -> None:
+        """Refuse what the estimator could not take: a second robot for one of one robot, a robot sighting of a
+        pose the estimator has already been shown (it takes no robot sightings of it any more)."""
+        several = getattr(self._estimator, "several_robots", False)
+        if isinstance(event, Start) and len(self._validator.state.robots) > 1 and not several:
+            name = self.estimator_name
+            raise OnlineSlamError(f"several robots: the {name} takes one robot at a time (Slam('ekf') takes several)")
+        if isinstance(event, Observation) and event.robot_seen is not None:
+            frontend = self._engine.frontend
+            pending = frontend.pending
+            newest = [pose for pose in frontend.later if pose.robot == event.robot]
+            if not newest and pending is not None and pending.sealed:
+                shown = f"robot {event.robot!r}'s pose at t={pending.t}"
+                message = f"the estimate of {shown} was queried already; add its robot sightings before querying"
+                raise self._validator.fail(0, "robot_seen", message)
 
     # -- queries -------------------------------------------------------------------------------------
     def estimate(self, landmark_covs: bool = True) -> SlamEstimate:
@@ -321,19 +444,34 @@ class Slam:
         covs = _read_only(self._estimator.landmark_marginals()) if landmark_covs else None
         frozen, tail = self._estimator.trajectory_parts()
         tail.flags.writeable = False
-        return SlamEstimate(snapshot, covs, (frozen, tail))
+        return SlamEstimate(snapshot, covs, (frozen, tail), self._robot_poses(snapshot), self._step_robots)
+
+    def _robot_poses(self, snapshot: Snapshot) -> Mapping[RobotId, NewestPose]:
+        """Each named robot's newest pose: the snapshot's with one robot, the estimator's with several."""
+        if not self._step_robots:
+            return MappingProxyType({})
+        if len(self._validator.state.robots) == 1:
+            pose = snapshot.pose.copy()
+            cov = snapshot.pose_cov.copy() if snapshot.pose_cov is not None else np.full((3, 3), np.nan)
+            return MappingProxyType({self._step_robots[0]: (snapshot.index, snapshot.t, pose, cov)})
+        newest: dict[RobotId, NewestPose] = self._estimator.robot_poses()  # type: ignore[attr-defined]
+        return MappingProxyType({robot: newest[robot] for robot in self._validator.state.robots if robot in newest})
 
     @property
     def poses(self) -> int:
-        """Poses so far (0 before the first event)."""
-        pending = self._engine.frontend.pending
-        return self._engine.steps + (pending is not None)
+        """Poses so far, of all robots (0 before the first event)."""
+        frontend = self._engine.frontend
+        return self._engine.steps + (frontend.pending is not None) + len(frontend.later)
 
     # -- checkpoints ---------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:
         """Write the whole state to ``path`` atomically (data only; see :mod:`online_slam.checkpoint`)."""
         state = SlamCheckpoint(
-            self.estimator_name, dict(self.options), self._validator.state, self._engine.checkpoint()
+            self.estimator_name,
+            dict(self.options),
+            self._validator.state,
+            self._engine.checkpoint(),
+            self._step_robots,
         )
         write_checkpoint(path, _CHECKPOINT_KIND, state)
 
@@ -349,6 +487,7 @@ class Slam:
             slam = cls(saved.estimator, **saved.options)
             slam._validator.state = saved.validator
             slam._engine.restore(saved.engine)
+            slam._step_robots = saved.step_robots
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
@@ -374,3 +513,5 @@ class SlamCheckpoint:
     """What the input checks remember (time, first pose)."""
     engine: EngineCheckpoint
     """The engine's, the front-end's and the estimator's state."""
+    step_robots: list[RobotId] = field(default_factory=list)
+    """The robot of every pose so far, in index order (empty when the events name no robot)."""

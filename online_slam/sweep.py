@@ -2,11 +2,13 @@
 
 A cell is one replay (a source, a combination of estimator options and, for built-in worlds, a seed), its options
 translated exactly as ``replay`` translates its flags; it gives one tidy row per estimator, holding every estimator
-option's value. Cells run as tasks of a ``dask.distributed`` cluster: a ``LocalCluster`` on this
-machine's cores by default, or an existing scheduler (``tcp://host:port``) whose workers run this package. Rows
-are written to the output file as each cell finishes, so a sweep that is stopped and started again with the same
-output skips the cells already there. A cell that fails is a row with its error, not a dead sweep. Replays are
-deterministic: the same cell gives the same figures (timings aside) wherever it runs.
+option's value; on a stream of several robots each estimator also has a row per robot, its ``estimator`` named
+``<estimator> robot <id>`` (the replay table's figures of that robot). Cells run as tasks of a
+``dask.distributed`` cluster: a ``LocalCluster`` on this machine's cores by default, or an existing scheduler
+(``tcp://host:port``) whose workers run this package. Rows are written to the output file as each cell finishes,
+so a sweep that is stopped and started again with the same output skips the cells already there. A cell that
+fails is a row with its error, not a dead sweep. Replays are deterministic: the same cell gives the same figures
+(timings aside) wherever it runs.
 """
 
 from __future__ import annotations
@@ -59,8 +61,8 @@ class Cell:
     """Estimator options given for this cell as (name, value), in table order; the others keep their defaults."""
     seed: int | None = None
     """Noise seed of a simulated world (None for files and datasets)."""
-    robot: int | None = None
-    """MRCLAM robot (None otherwise)."""
+    robot: int | str | None = None
+    """MRCLAM robot, or ``all`` (None otherwise)."""
 
     @property
     def values(self) -> dict[str, Any]:
@@ -86,7 +88,7 @@ def make_cells(
     settings: Mapping[str, Sequence[Any]] | None = None,
     estimators: Sequence[str] = ESTIMATORS,
     runs: int = 1,
-    robots: Sequence[int] = (),
+    robots: Sequence[int | str] = (),
 ) -> list[Cell]:
     """The cartesian product of sources (x robots for MRCLAM folders, x seeds for built-in worlds) and settings.
 
@@ -145,11 +147,14 @@ def run_cell(cell: Cell) -> list[dict[str, Any]]:
             results = replay(cell.source, config)
     except Exception as exc:  # noqa: BLE001 - a failing cell is a row with its error, whatever it raised
         return [{**head, "estimator": "", **{f: None for f in FIGURES}, "error": f"{type(exc).__name__}: {exc}"}]
-    rows = results.rows()  # dead reckoning's is left out: no setting changes it
-    return [
-        {**head, "estimator": name, **{f: getattr(rows[name], f) for f in FIGURES}, "error": ""}
-        for name in results.estimators
-    ]
+    rows = results.rows()
+    out = []
+    for name, result in results.estimators.items():  # dead reckoning's is left out: no setting changes it
+        named = {name: rows[name], **{f"{name} robot {r}": figures.row() for r, figures in result.robots.items()}}
+        out += [
+            {**head, "estimator": n, **{f: getattr(row, f) for f in FIGURES}, "error": ""} for n, row in named.items()
+        ]
+    return out
 
 
 # -- output -----------------------------------------------------------------------------------------------
@@ -157,7 +162,9 @@ def _value(text: str, column: str) -> Any:
     """A CSV cell as the row held it."""
     if text == "":
         return None if column != "error" else ""
-    kind = float if column in FIGURES else int if column in ("robot", "seed") else None
+    if column == "robot":  # an MRCLAM robot's number, or all
+        return int(text) if text.isdigit() else text
+    kind = float if column in FIGURES else int if column == "seed" else None
     option = OPTIONS.get(column)
     kind = option.kind if option is not None and column in SETTINGS else kind
     if kind is bool:

@@ -166,10 +166,10 @@ def test_the_smoother_alone_refuses_several_robots_with_one_error() -> None:
     steps = list(FrontEnd().steps(validate_events(two_robots())))
     assert [(s.index, s.robot) for s in steps] == [(0, 1), (1, "b"), (2, 1), (3, "b")]
     slam = Slam("smoother")
-    for record in two_robots()[:3]:
-        slam.add(record)
-    with pytest.raises(OnlineSlamError, match="^several robots: the smoother takes one robot at a time$"):
-        slam.add(two_robots()[3])  # completes robot b's first pose
+    slam.add(two_robots()[0])
+    with pytest.raises(OnlineSlamError, match="^several robots: the smoother takes one robot at a time"):
+        slam.add(two_robots()[1])  # robot b's start: refused before anything changes
+    assert slam.poses == 1
     with pytest.raises(OnlineSlamError, match="several robots") as info:
         replay("meet", ReplayConfig(estimators=("smoother",)))
     assert not isinstance(info.value, InputError)  # no bad line

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         if args.step is not None:
             if not 0 <= args.step < summary.steps:
                 raise OnlineSlamError(f"--step: {args.step} is outside the recording's steps 0..{summary.steps - 1}")
-            state = recording.state_at(args.step, summary.layout)
+            state = recording.state_at(args.step, summary.layout, summary.robots)
     if args.json:
         print(json.dumps(_json(summary, state), indent=2))
     elif state is not None:

@@ -74,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
 def _print_summary(groups: list) -> None:
     """One line per (source, robot, settings that vary, estimator): mean +- std over seeds."""
     width = max([len(_settings_text(key[2])) for key, _ in groups] + [8]) + 2
-    header = f"{'source':<28}{'robot':>6}  {'settings':<{width}}{'estimator':>11}"
+    named = max([len(key[3]) for key, _ in groups] + [9]) + 2  # e.g. "ekf robot 1" on a stream of several robots
+    header = f"{'source':<28}{'robot':>6}  {'settings':<{width}}{'estimator':>{named}}"
     print(f"{header}{'online RMSE m':>20}{'final RMSE m':>20}{'step median ms':>17}{'n':>4}")
     for (source, robot, settings, estimator), figures in groups:
         n = max((v[2] for v in figures.values()), default=0)
@@ -82,4 +83,4 @@ def _print_summary(groups: list) -> None:
         online, final = _mean_std(figures, "online_rmse_m"), _mean_std(figures, "final_rmse_m")
         step = _mean_std(figures, "step_median_ms", 2)
         print(f"{name:<28}{robot if robot is not None else '-':>6}  {_settings_text(settings):<{width}}"
-              f"{estimator:>11}{online:>20}{final:>20}{step:>17}{n:>4}")  # fmt: skip
+              f"{estimator:>{named}}{online:>20}{final:>20}{step:>17}{n:>4}")  # fmt: skip

@@ -94,6 +94,16 @@ class SeveralRobots:
         if len(self.state.robots) > 1:
             self.state.moved.append(self.state.robot_steps[0])
 
+    def robot_poses(self) -> dict[RobotId | None, tuple[int, float, Array, Array]]:
+        """Each robot's newest pose by robot: (its step index, its time, ``[x, y, theta]`` (3,), its covariance
+        (3, 3)), copies."""
+        out = {}
+        for k, robot in enumerate(self.state.robots):
+            block = slice(3 * k, 3 * k + 3)
+            pose, cov = self.x[block, 0].copy(), self.P[block, block].copy()
+            out[robot] = (self.state.robot_steps[k], self.state.robot_times[k], pose, cov)
+        return out
+
     def _robots_trajectory(self) -> Array:
         """Every pose in step order, each as it was when its robot moved on (the newest ones as they are)."""
         history, moved = self.state.history.view(), self.state.moved

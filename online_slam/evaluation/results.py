@@ -243,6 +243,8 @@ class Results:
     """The robot the stream's header names (``"robot"`` in its metadata, e.g. an MRCLAM robot), or None."""
     left: tuple[str, ...] = ()
     """Estimators that did not run to the end: they take one robot at a time and a second robot began."""
+    step_robots: tuple[int | str | None, ...] = field(default=(), repr=False)
+    """With several robots: the robot of every step, length N (empty with one robot)."""
 
     def rows(self) -> dict[str, Row]:
         """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its

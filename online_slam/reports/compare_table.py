@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from online_slam.compare import Comparison, MonteCarlo
-from online_slam.reports.table import notes, table_lines
+from online_slam.reports.table import notes, robot_rows, table_lines
 from online_slam.wording import counted
 
 
@@ -16,7 +16,7 @@ def format_comparison(comparison: Comparison) -> str:
     Returns:
         Lines of text, ending without a newline.
     """
-    out = table_lines(comparison.results, comparison.rows)
+    out = table_lines(comparison.results, robot_rows(comparison.results, comparison.rows))
     extra = [*notes(comparison.results), *_same_smoothers(comparison)]
     if extra:
         out += ["", *extra]

@@ -125,17 +125,30 @@ def log_axis(ax: Any, values: list[Array], keep: tuple[float, ...] = (), most: i
     return low, high
 
 
+def _apart(xy: Array, robots: tuple) -> Array:
+    """Positions (N, 2) as one line per robot, NaN rows between them (where matplotlib breaks a line); as given with
+    one robot (``robots``: the robot of each step, or empty)."""
+    if not robots:
+        return xy
+    column = np.array(robots[: len(xy)], dtype=object)
+    return np.concatenate(
+        [np.vstack([xy[column == robot], np.full((1, 2), np.nan)]) for robot in dict.fromkeys(robots)]
+    )
+
+
 def draw_map(ax: Any, r: Results, look: dict[str, Look]) -> None:
     """Final trajectories and landmarks against truth, with 2-sigma ellipses of the landmarks and of the last pose."""
     if r.truth_poses is not None:
-        ax.plot(*r.truth_poses[:, :2].T, color=_TRUTH, lw=3.0, alpha=0.45, solid_capstyle="round", zorder=1)
+        xy = _apart(r.truth_poses[:, :2], r.step_robots)
+        ax.plot(*xy.T, color=_TRUTH, lw=3.0, alpha=0.45, solid_capstyle="round", zorder=1)
     if r.truth_landmarks:
         truth_lm = np.array(list(r.truth_landmarks.values()))
         ax.scatter(*truth_lm.T, marker="x", color="0.15", s=45, lw=1.4, zorder=4)
     for name, estimate in r.estimates.items():
         s = look[name]
         marker = s.marker if len(estimate.poses) <= _MARKED_POSES else None
-        ax.plot(*estimate.poses[:, :2].T, color=s.color, ls=s.dashes, lw=s.width, marker=marker, ms=3.5, zorder=2)
+        xy = _apart(estimate.poses[:, :2], r.step_robots)
+        ax.plot(*xy.T, color=s.color, ls=s.dashes, lw=s.width, marker=marker, ms=3.5, zorder=2)
         if name != "odometry" and len(estimate.landmarks):
             ax.scatter(*estimate.landmarks.T, marker="+", color=s.color, s=55, lw=1.3, zorder=3)
         if estimate.landmark_covs is not None and len(estimate.landmarks):

@@ -197,10 +197,11 @@ def format_results(results: Results) -> str:
     return "\n".join([*table_lines(results, robot_rows(results)), *([""] + extra if extra else [])])
 
 
-def robot_rows(results: Results) -> dict[str, Row]:
-    """The table's rows: each estimator's, followed by its rows per robot (``  robot 1``) when it has them."""
+def robot_rows(results: Results, rows: Mapping[str, Row] | None = None) -> dict[str, Row]:
+    """The table's rows (``rows``, default the results'): each estimator's, followed by its rows per robot
+    (``  robot 1``) when it has them."""
     out: dict[str, Row] = {}
-    for name, row in results.rows().items():
+    for name, row in (results.rows() if rows is None else rows).items():
         out[name] = row
         result = results.estimators.get(name)
         for robot, figures in ({} if result is None else result.robots).items():

@@ -4,6 +4,10 @@ One file per trajectory: ``truth.tum`` (poses with truth), ``odometry.tum``, ``<
 estimate) and ``<estimator>_online.tum`` (each pose as estimated when it was the newest). Estimates are moved
 by the same rigid transform the table applies (anchor or SE(2) alignment), so ``evo_ape tum truth.tum X.tum``
 prints the table's RMSE without any alignment option. z = 0; the quaternion is a rotation about z by the yaw.
+
+With several robots each of these is one file per robot, ``<name>_robot<ID>.tum`` (``truth_robot1.tum``,
+``ekf_online_robot1.tum``, ...), and no file mixes robots (their poses share timestamps). They are moved by the
+transform of the figures over all robots, so evo on a robot's pair prints that robot's figure in the table.
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ def _file_name(name: str) -> str:
 
 
 def write_tum(directory: str | Path, results: Results) -> list[Path]:
-    """Write the TUM files of a replay; returns their paths.
+    """Write the TUM files of a replay (with several robots, a file per robot and trajectory); returns their paths.
 
     Raises:
         OnlineSlamError: The folder cannot be written, or the results have no step times.
@@ -47,29 +51,9 @@ def write_tum(directory: str | Path, results: Results) -> list[Path]:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OnlineSlamError(f"{folder}: cannot create ({exc.strerror or exc})") from None
-    times = results.step_times
-    if times is None:
+    if results.step_times is None:
         raise OnlineSlamError("--tum: the results hold no step times")
-    truth = GroundTruth(
-        poses={i: p for i, p in enumerate(results.truth_poses)} if results.truth_poses is not None else {},
-        landmarks=dict(results.truth_landmarks),
-    )
-    truth.poses = {i: p for i, p in truth.poses.items() if np.all(np.isfinite(p))}
-    files: dict[str, tuple[Array, Array]] = {}
-    if truth.poses:
-        idx = np.array(sorted(truth.poses))
-        files["truth"] = (times[idx], np.array([truth.poses[i] for i in idx]))
-
-    def moved(estimate: Estimate) -> Array:
-        errors = evaluate(estimate, truth, results.alignment)
-        return estimate.poses if errors.transform is None else apply_transform(errors.transform, estimate.poses)
-
-    for name, estimate in results.estimates.items():
-        files[name] = (times[: len(estimate.poses)], moved(estimate))
-        series = results.series.get(name)
-        if series is not None:
-            online = Estimate(name, series.poses, estimate.landmark_ids, estimate.landmarks)
-            files[f"{name}_online"] = (series.t, moved(online))
+    files = _per_robot(_trajectories(results, results.step_times), results.step_robots)
     written = []
     for name, (t, poses) in files.items():
         path = folder / f"{_file_name(name)}.tum"
@@ -80,3 +64,47 @@ def write_tum(directory: str | Path, results: Results) -> list[Path]:
             raise OnlineSlamError(f"{path}: cannot write ({exc.strerror or exc})") from None
         written.append(path)
     return written
+
+
+Trajectory = tuple[Array, Array, Array]
+"""Step indices (K,), times (K,) and poses (K, 3) of one trajectory, in the table's frame."""
+
+
+def _trajectories(results: Results, times: Array) -> dict[str, Trajectory]:
+    """Every trajectory of the replay by file name (without ``.tum``), over all robots."""
+    truth = GroundTruth(
+        poses={i: p for i, p in enumerate(results.truth_poses)} if results.truth_poses is not None else {},
+        landmarks=dict(results.truth_landmarks),
+    )
+    truth.poses = {i: p for i, p in truth.poses.items() if np.all(np.isfinite(p))}
+    files: dict[str, Trajectory] = {}
+    if truth.poses:
+        idx = np.array(sorted(truth.poses))
+        files["truth"] = (idx, times[idx], np.array([truth.poses[i] for i in idx]))
+
+    def moved(estimate: Estimate) -> Array:
+        errors = evaluate(estimate, truth, results.alignment)
+        return estimate.poses if errors.transform is None else apply_transform(errors.transform, estimate.poses)
+
+    for name, estimate in results.estimates.items():
+        n = len(estimate.poses)
+        files[name] = (np.arange(n), times[:n], moved(estimate))
+        series = results.series.get(name)
+        if series is not None:
+            online = Estimate(name, series.poses, estimate.landmark_ids, estimate.landmarks)
+            files[f"{name}_online"] = (np.arange(len(series.t)), series.t, moved(online))
+    return files
+
+
+def _per_robot(files: dict[str, Trajectory], robots: tuple) -> dict[str, tuple[Array, Array]]:
+    """The files to write: each trajectory's times and poses, or with several robots (``robots``, the robot of
+    each step) each robot's part of it as ``<name>_robot<ID>``."""
+    if not robots:
+        return {name: (t, poses) for name, (_, t, poses) in files.items()}
+    column = np.array(robots, dtype=object)
+    out = {}
+    for name, (steps, t, poses) in files.items():
+        for robot in dict.fromkeys(robots):
+            mine = column[steps] == robot
+            out[f"{name}_robot{robot}"] = (t[mine], poses[mine])
+    return out

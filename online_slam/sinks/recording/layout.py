@@ -11,10 +11,25 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from online_slam.reports.palette import COLORS, rgb_colors
+from online_slam.reports.palette import COLORS, OKABE_ITO, rgb_colors
 
 TRUTH = "truth"
 """Entity name of the ground truth."""
+
+ROBOT_COLORS: tuple[tuple[int, int, int], ...] = tuple(
+    OKABE_ITO[name] for name in ("orange", "sky blue", "bluish green", "reddish purple", "blue", "vermillion", "yellow")
+)
+"""0-255 RGB of the robots of a recording of several robots, in the order they first appear (then again)."""
+
+
+def robot_part(robot: int | str) -> str:
+    """A robot id as one entity path part: ``1`` -> ``robot_1``, ``"ugv 2"`` -> ``robot_ugv_2``."""
+    return f"robot_{entity_part(str(robot))}"
+
+
+def robot_color(k: int) -> tuple[int, int, int]:
+    """The colour of the k-th robot (0-based) to appear."""
+    return ROBOT_COLORS[k % len(ROBOT_COLORS)]
 
 
 def entity_part(name: str) -> str:

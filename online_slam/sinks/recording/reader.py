@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -49,6 +49,8 @@ class RecordingSummary:
     figures: dict[str, dict[str, float]]
     """Per online estimator, recomputed from the logged series: online RMSE (sqrt of the mean squared
     ``position_error_m``) and mean ``nees``, to compare with the stored table."""
+    robots: dict[str, str] = field(default_factory=dict)
+    """With several robots: each robot's id (as text) -> its entity part (``robot_1``); empty with one."""
 
 
 @dataclass(frozen=True)
@@ -65,7 +67,8 @@ class RecordingSeries:
     """Stream time of each step, seconds, shape (S,)."""
     poses: Mapping[str, Array]
     """Online estimator (dead reckoning ``odometry`` included) or ``truth`` -> its newest pose ``[x, y, theta]``
-    at each step, shape (S, 3), as logged (float32 precision); NaN where none was logged."""
+    at each step (with several robots: the pose of the step's robot), shape (S, 3), as logged (float32
+    precision); NaN where none was logged."""
     metrics: Mapping[str, Mapping[str, Array]]
     """Online estimator -> figure -> its value at each step, shape (S,), NaN where none was logged. Figures:
     ``position_error_m``, ``nees`` and ``step_ms`` for each, ``nis`` for the EKF, ``cost_before``,
@@ -113,6 +116,17 @@ def _steps(table: Any, count: int) -> list[tuple[int, int]]:
     """(row, step) of every row on the step timeline."""
     steps = table.column("step").to_pylist() if "step" in table.column_names else []
     return [(row, step) for row, step in enumerate(steps) if step is not None and 0 <= step < count]
+
+
+def _merged_poses(table: Any, roots: list[str], rows: list[tuple[int, int]], count: int) -> Array | None:
+    """The poses logged under any of ``roots`` (one per robot; a step logs its robot's) per step, or None."""
+    found = [poses for poses in (_poses(table, root, rows, count) for root in roots) if poses is not None]
+    if not found:
+        return None
+    merged = found[0]
+    for poses in found[1:]:
+        merged = np.where(np.isnan(merged), poses, merged)
+    return merged
 
 
 def _poses(table: Any, root: str, rows: list[tuple[int, int]], count: int) -> Array | None:
@@ -227,6 +241,7 @@ class Recording:
                     "online_rmse_m": float(np.sqrt(np.mean(np.square(errors)))),
                     "nees_mean": float(np.mean(nees)) if nees.size else math.nan,
                 }
+        robots = (results.get("recording") or {}).get("robots", {})
         return RecordingSummary(
             source=results.get("source", "?"),
             robot=results.get("robot"),
@@ -237,20 +252,23 @@ class Recording:
             results=results,
             latency_ms=latency,
             figures=figures,
+            robots={robot: value["entity"] for robot, value in robots.items()},
         )
 
     def series(self) -> RecordingSeries:
         """Every estimator's (and the truth's) pose and logged figures at every step (see :func:`read_recording`)."""
         summary = self.summary()
         layout, count = summary.layout, summary.steps
-        roots = {name: f"/{layout.world(name)}" for name in layout.online} | {TRUTH: "/world/truth"}
-        table = self._table([f"{root}/pose" for root in roots.values()], "step")
+        parts = [f"/{part}" for part in summary.robots.values()] or [""]
+        bases = {name: f"/{layout.world(name)}" for name in layout.online} | {TRUTH: "/world/truth"}
+        roots = {name: [base + part for part in parts] for name, base in bases.items()}
+        table = self._table([f"{root}/pose" for each in roots.values() for root in each], "step")
         rows = _steps(table, count)
         times = table.column("time").to_pylist()
         t = np.full(count, np.nan)
         for row, step in rows:
             t[step] = _seconds(times[row])
-        poses = {name: _poses(table, root, rows, count) for name, root in roots.items()}
+        poses = {name: _merged_poses(table, each, rows, count) for name, each in roots.items()}
         metrics_table = self._table(["/metrics/**"], "step")
         metric_rows = _steps(metrics_table, count)
         metrics: dict[str, dict[str, Array]] = {}
@@ -293,23 +311,33 @@ class Recording:
         names = self._table(["/**"], "step").column_names
         return sorted({n.split(":")[0] for n in names if n.startswith("/")})
 
-    def state_at(self, step: int, layout: Layout | None = None) -> dict[str, Any]:
-        """Per estimator: pose and landmark count at a step (latest values); the step's time and events."""
-        layout = layout or self.summary().layout
+    def state_at(
+        self, step: int, layout: Layout | None = None, robots: Mapping[str, str] | None = None
+    ) -> dict[str, Any]:
+        """Per estimator: pose and landmark count at a step (latest values); the step's time and events.
+
+        With several robots (``robots``: id -> entity part, default the summary's) an estimator has one entry
+        per robot, ``<estimator> robot <id>``, each with that robot's latest pose and the estimator's map.
+        """
+        if layout is None or robots is None:
+            summary = self.summary()
+            layout, robots = layout or summary.layout, summary.robots if robots is None else robots
         table = self._table(["/world/**"], "step", fill_latest_at=True, using_index_values=[step])
         times = [t for t in table.column("time").to_pylist() if t is not None] if "time" in table.column_names else []
         state: dict[str, Any] = {"step": step, "t": _seconds(times[0]) if times else None, "estimators": {}}
+        parts = {f" robot {robot}": f"/{part}" for robot, part in robots.items()} or {"": ""}
         for name in (*layout.online, TRUTH):
             root = "/world/truth" if name == TRUTH else f"/{layout.world(name)}"
-            origins = _column(table, f"{root}/pose:Arrows2D:origins")
-            vectors = _column(table, f"{root}/pose:Arrows2D:vectors")
-            if origins and origins[0]:
-                (x, y), (vx, vy) = origins[0][0], vectors[0][0]
-                landmarks = _column(table, f"{root}/landmarks:Points2D:positions")
-                state["estimators"][name] = {
-                    "pose": [x, y, math.atan2(vy, vx)],
-                    "landmarks": len(landmarks[0]) if landmarks and landmarks[0] else 0,
-                }
+            landmarks = _column(table, f"{root}/landmarks:Points2D:positions")
+            for suffix, part in parts.items():
+                origins = _column(table, f"{root}{part}/pose:Arrows2D:origins")
+                vectors = _column(table, f"{root}{part}/pose:Arrows2D:vectors")
+                if origins and origins[0]:
+                    (x, y), (vx, vy) = origins[0][0], vectors[0][0]
+                    state["estimators"][name + suffix] = {
+                        "pose": [x, y, math.atan2(vy, vx)],
+                        "landmarks": len(landmarks[0]) if landmarks and landmarks[0] else 0,
+                    }
         events = self._table(["/events"], "step")
         texts = _column(events, ":TextLog:text")
         steps = events.column("step").to_pylist() if "step" in events.column_names else []

@@ -15,6 +15,15 @@ Layout of a recording (timelines ``step`` and ``time``; ``<e>`` is an estimator'
 - ``/events`` — text log (landmark initialised, observation gated, relinearization, marginalization, input
   error); ``/summary`` — the results JSON with the layout under ``recording`` (static).
 
+With several robots (steps naming their robot) each robot's entities lie one level down, ``<r>`` being its id as
+``robot_<id>`` (``robot_1``): ``/world/truth/<r>/{pose,path,path_recent}``,
+``/world/<e>/<r>/{pose,pose_cov,path,path_recent}`` (batch: ``/world/<e>/<r>/path``), its sightings
+``/world/observations/<r>`` and its sightings of other robots ``/world/robot_sightings/<r>`` (a line from the
+sighting pose to where it measured the seen robot). Everything of a robot is in its colour (dead reckoning a
+lighter shade; truth grey), each pose arrow labelled ``<estimator> <id>``; an estimator's map stays at
+``/world/<e>/{landmarks,landmark_cov}``. The summary lists the robots under ``recording.robots`` (id -> entity
+part and colour). A stream that names no robot keeps the paths above.
+
 Size stays bounded: a path is re-sent whole only when its tail since the last send has reached max(50, sqrt(n))
 points (plus that short ``path_recent`` tail every step), landmark labels only when the set of ids changes,
 unchanged maps not at all, and landmark covariance ellipses every ``map_every`` steps.
@@ -42,11 +51,12 @@ from online_slam.errors import OnlineSlamError
 from online_slam.estimators.protocol import Snapshot
 from online_slam.evaluation.results import Results
 from online_slam.frontend.steps import GroundTruth, Step
-from online_slam.models.observation import landmark_from_sighting
+from online_slam.models.observation import RANGE_BEARING, landmark_from_sighting
 from online_slam.reports.palette import COLORS
 from online_slam.sinks.geometry import ellipses
 from online_slam.sinks.recording.blueprint import blueprint
-from online_slam.sinks.recording.layout import TRUTH, Layout
+from online_slam.sinks.recording.layout import TRUTH, Layout, robot_color, robot_part
+from online_slam.sources.events import RobotId
 from online_slam.wording import counted
 
 Array = NDArray[np.float64]
@@ -80,6 +90,18 @@ class _Path:
         if n - self.sent >= max(50, int(math.sqrt(n))):  # whole resends ~n^2/2T points, tails ~nT/2: T ~ sqrt(n)
             whole, self.sent = np.array(self.points), n
         return whole, np.array(self.points[max(self.sent - 1, 0) :])
+
+
+def _rays(pose: Array, z: Array, model: NDArray[np.int8]) -> list[Array]:
+    """Segments from a pose to the measured positions of its sightings, each shape (2, 2)."""
+    if not len(z):
+        return []
+    ends = landmark_from_sighting(pose[None, :], z, model)
+    return list(np.stack([np.broadcast_to(pose[:2], ends.shape), ends], axis=1))
+
+
+def _hex(color: tuple[int, int, int]) -> str:
+    return "#{:02x}{:02x}{:02x}".format(*color)
 
 
 def _ids(noun: str, ids: Any) -> str:
@@ -227,7 +249,9 @@ class RerunSink:
             raise OnlineSlamError(f"rerun: cannot open the recording sink: {exc}") from None
         self.rec.send_recording_name(source)
         self.columns = _Columns(self.rec)
-        self.paths: dict[str, _Path] = {}
+        self.paths: dict[tuple[str, str | None], _Path] = {}
+        self.robots: dict[RobotId, tuple[str, tuple[int, int, int]]] = {}
+        """With several robots: each robot's entity part and colour, in the order they appeared."""
         self.labels: dict[str, tuple[Any, ...]] = {}
         self._landmark_values: dict[str, Array] = {}
         self.truth_landmarks = 0
@@ -260,12 +284,8 @@ class RerunSink:
         colors = self.layout.colors()
         for name in (*self.layout.online, TRUTH):
             root, color = self._root(name), [colors[name]]
-            label = {"labels": [name], "show_labels": True} if name != TRUTH else {}
-            log(f"{root}/pose", rr.Arrows2D.from_fields(colors=color, radii=[0.02], **label), static=True)
-            for part in ("path", "path_recent"):
-                log(f"{root}/{part}", rr.LineStrips2D.from_fields(colors=color, radii=[0.015]), static=True)
-            for part in ("pose_cov", "landmark_cov"):
-                log(f"{root}/{part}", rr.LineStrips2D.from_fields(colors=color, radii=[0.008]), static=True)
+            self._track_style(root, colors[name], name if name != TRUTH else None)
+            log(f"{root}/landmark_cov", rr.LineStrips2D.from_fields(colors=color, radii=[0.008]), static=True)
             log(f"{root}/landmarks", rr.Points2D.from_fields(colors=color, radii=[0.08]), static=True)
             if name == TRUTH:
                 continue
@@ -290,8 +310,44 @@ class RerunSink:
             static=True,
         )
 
-    def _root(self, name: str) -> str:
-        return "world/truth" if name == TRUTH else self.layout.world(name)
+    def _track_style(self, root: str, color: tuple[int, int, int], label: str | None) -> None:
+        """Colour and sizes of a pose arrow (labelled unless ``label`` is None), its path and its covariance."""
+        log, colors = self.rec.log, [color]
+        labels = {"labels": [label], "show_labels": True} if label is not None else {}
+        log(f"{root}/pose", rr.Arrows2D.from_fields(colors=colors, radii=[0.02], **labels), static=True)
+        for part in ("path", "path_recent"):
+            log(f"{root}/{part}", rr.LineStrips2D.from_fields(colors=colors, radii=[0.015]), static=True)
+        log(f"{root}/pose_cov", rr.LineStrips2D.from_fields(colors=colors, radii=[0.008]), static=True)
+
+    def _root(self, name: str, robot: str | None = None) -> str:
+        """Entity root of an estimator's (or the truth's) data, or of one robot's part of it."""
+        root = "world/truth" if name == TRUTH else self.layout.world(name)
+        return root if robot is None else f"{root}/{robot}"
+
+    def _robot(self, robot: RobotId | None) -> str | None:
+        """The entity part of a step's robot (None: the stream names none); styled when it first appears."""
+        if robot is None:
+            return None
+        if robot not in self.robots:
+            taken = {part for part, _ in self.robots.values()}
+            part, k = robot_part(robot), 2
+            while part in taken:
+                part, k = f"{robot_part(robot)}_{k}", k + 1
+            self.robots[robot] = (part, robot_color(len(self.robots)))
+            self._robot_appearance(robot)
+        return self.robots[robot][0]
+
+    def _robot_appearance(self, robot: RobotId) -> None:
+        """A new robot's colours: its tracks in every estimator (dead reckoning lighter, truth grey), its sightings."""
+        part, color = self.robots[robot]
+        r, g, b = color
+        lighter = ((r + 255) // 2, (g + 255) // 2, (b + 255) // 2)
+        for name in (*self.layout.online, TRUTH):
+            shade = COLORS[TRUTH] if name == TRUTH else lighter if name == "odometry" else color
+            self._track_style(self._root(name, part), shade, None if name == TRUTH else f"{name} {robot}")
+        for entity, radius in (("observations", 0.005), ("robot_sightings", 0.02)):
+            style = rr.LineStrips2D.from_fields(colors=[color], radii=[radius])
+            self.rec.log(f"world/{entity}/{part}", style, static=True)
 
     # -- per step ----------------------------------------------------------------------------------
     def _time(self, step: Step) -> None:
@@ -301,12 +357,12 @@ class RerunSink:
         else:
             self.rec.set_time("time", duration=step.t)
 
-    def _pose(self, name: str, pose: Array, step: Step) -> None:
-        root = self._root(name)
+    def _pose(self, name: str, pose: Array, step: Step, robot: str | None) -> None:
+        root = self._root(name, robot)
         # position-only truth (GPS) has no heading: a short stub along x marks the point
         heading = 0.5 * np.array([math.cos(pose[2]), math.sin(pose[2])]) if math.isfinite(pose[2]) else np.zeros(2)
         self.columns.add(f"{root}/pose", "arrow", step, (pose[:2], heading))
-        whole, recent = self.paths.setdefault(name, _Path()).add(pose)
+        whole, recent = self.paths.setdefault((name, robot), _Path()).add(pose)
         if whole is not None:
             self.columns.add(f"{root}/path", "strips", step, [whole])
         self.columns.add(f"{root}/path_recent", "strips", step, [recent])
@@ -334,27 +390,34 @@ class RerunSink:
         if len(truth.landmarks) != self.truth_landmarks:
             self.truth_landmarks = len(truth.landmarks)
             self._truth_landmarks(truth)
+        robot = self._robot(step.robot)
         true_pose = truth.poses.get(step.index)
         if true_pose is not None:
-            self._pose(TRUTH, true_pose, step)
+            self._pose(TRUTH, true_pose, step, robot)
         events: list[str] = []
         for name in self.layout.online:
             snap = snapshots.get(name)
             if snap is None:
                 continue
-            self._pose(name, snap.pose, step)
+            self._pose(name, snap.pose, step, robot)
             self._landmarks(name, snap, step)
             if snap.pose_cov is not None and np.all(np.isfinite(snap.pose_cov)):
-                add(f"{self._root(name)}/pose_cov", "ellipse", step, (snap.pose[:2], snap.pose_cov[:2, :2]))
+                add(f"{self._root(name, robot)}/pose_cov", "ellipse", step, (snap.pose[:2], snap.pose_cov[:2, :2]))
             if snap.wall_s is not None and name != "odometry":
                 add(f"{self.layout.metrics(name)}/step_ms", "scalar", step, 1e3 * snap.wall_s)
             events += self._events(name, snap, step)
         current = snapshots.get(self._rays_from) or snapshots.get("odometry")
-        rays: list[Array] = []
-        if current is not None and len(step.landmarks):
-            ends = landmark_from_sighting(current.pose[None, :], step.z, step.z_model)
-            rays = list(np.stack([np.broadcast_to(current.pose[:2], ends.shape), ends], axis=1))
-        add("world/observations", "strips", step, rays)
+        pose = None if current is None else current.pose
+        rays = [] if pose is None else _rays(pose, step.z, step.z_model)
+        add("world/observations" if robot is None else f"world/observations/{robot}", "strips", step, rays)
+        if robot is not None:
+            model = np.full(len(step.z_robots), RANGE_BEARING, dtype=np.int8)
+            add(
+                f"world/robot_sightings/{robot}",
+                "strips",
+                step,
+                [] if pose is None else _rays(pose, step.z_robots, model),
+            )
         if events:
             add("events", "text", step, [f"step {step.index}: {text}" for text in events])
         self._last_step = step
@@ -402,6 +465,20 @@ class RerunSink:
         )
 
     # -- end ---------------------------------------------------------------------------------------
+    def _final_paths(self, name: str, poses: Array, step_robots: tuple[RobotId | None, ...]) -> None:
+        """A final estimate's path, or with several robots each robot's, in its colour."""
+        root = self.layout.world(name)
+        if not step_robots:
+            self.rec.log(
+                f"{root}/path", rr.LineStrips2D([poses[:, :2]], colors=[self.layout.colors()[name]], labels=[name])
+            )
+            return
+        column = np.array(step_robots[: len(poses)], dtype=object)
+        for robot in dict.fromkeys(step_robots):
+            part, color = self._robot(robot), self.robots[robot][1]  # type: ignore[index]
+            strip = poses[column == robot, :2]
+            self.rec.log(f"{root}/{part}/path", rr.LineStrips2D([strip], colors=[color], labels=[f"{name} {robot}"]))
+
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
         """Send what is buffered, the batch solution at the last step, the summary; close the file."""
         rec = self.rec
@@ -424,7 +501,7 @@ class RerunSink:
             if estimate is None or not len(estimate.poses):
                 continue
             root, color = self.layout.world(name), [colors[name]]
-            rec.log(f"{root}/path", rr.LineStrips2D([estimate.poses[:, :2]], colors=color, labels=[name]))
+            self._final_paths(name, estimate.poses, results.step_robots)
             rec.log(
                 f"{root}/landmarks",
                 rr.Points2D(
@@ -439,7 +516,10 @@ class RerunSink:
             rec.log("events", rr.TextLog(f"input stopped early: {results.error}", level="ERROR"))
         if results.robot is not None:  # known from the stream's header, read after the recording was opened
             rec.send_recording_name(f"{results.source}, robot {results.robot}")
-        summary = dict(results.to_json(), recording=self.layout.to_json())
+        recording = self.layout.to_json()
+        if self.robots:
+            recording["robots"] = {str(r): {"entity": part, "color": _hex(c)} for r, (part, c) in self.robots.items()}
+        summary = dict(results.to_json(), recording=recording)
         rec.log("summary", rr.TextDocument(json.dumps(summary, indent=2), media_type="text/plain"), static=True)
         try:  # a viewer that never answers must not hang the run (rerun-sdk 0.41 can wait for it forever)
             rec.flush(timeout_sec=VIEWER_FLUSH_S) if self.live else rec.flush()
