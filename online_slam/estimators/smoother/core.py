@@ -29,8 +29,11 @@ from online_slam.estimators.smoother.covariance import (
     window_covariance,
 )
 from online_slam.estimators.smoother.global_solve import (
+    Decisions,
     Relinearization,
+    Revision,
     finish_job,
+    followed,
     global_inputs,
     global_solver,
     is_due,
@@ -39,6 +42,7 @@ from online_slam.estimators.smoother.global_solve import (
     start_job,
 )
 from online_slam.estimators.smoother.prior import Prior, initial_prior, marginalize, release
+from online_slam.estimators.smoother.relinearize import rejudged, solve_all
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
 from online_slam.estimators.smoother.window import (
     Window,
@@ -48,7 +52,7 @@ from online_slam.estimators.smoother.window import (
     linearize,
     solve_window,
 )
-from online_slam.factors.graph import FactorGraph
+from online_slam.factors.graph import FactorGraph, observation_chi2
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.solvers.least_squares import SolveResult
@@ -352,6 +356,29 @@ class SlidingWindowSmoother:
             self.association.solved = None
         return bool(moves)
 
+    def _rejudged_solve(
+        self, result: SolveResult, n_poses: int, at_once: bool
+    ) -> tuple[SolveResult, Revision, Decisions] | None:
+        """A global solution that does not reconcile the history, tried once more: the history's sightings judged
+        again at it (a sighting judged an outlier when its pose left the window, at an estimate a wrong association
+        had pulled, comes back if the solution agrees with it; one folded in goes out if it does not), and every
+        factor solved now with those decisions. None when no decision changes, without a robust loss, or when
+        that solution does not reconcile the history either."""
+        r, w, loss = self.relinearization, self.window, self.config.robust.loss
+        if loss is None or not np.isfinite(self._reject_bound) or not r.decisions:
+            return None
+        if len(r.log.poses) != len(w.history) + len(w.indices) or r.log.landmark_ids != tuple(w.landmark_ids):
+            return None
+        history, _, landmarks = followed(result, n_poses, at_once, w)
+        values = np.vstack([history, result.poses[len(history) :] if at_once else w.values()])
+        graph = r.log.graph()
+        judged = rejudged(graph, r.decisions, observation_chi2(graph, values, landmarks) > self._reject_bound)
+        if all(np.array_equal(a, b) for (_, a), (_, b) in zip(r.decisions, judged)):
+            return None
+        again = solve_all(r.log, judged, values, landmarks, global_solver(self.config), loss)
+        revision = revise(again, len(values), True, w, self.prior, r, self.config, judged)
+        return None if revision is None else (again, revision, judged)
+
     # -- marginalization -------------------------------------------------------------------------
     def marginalize_oldest(self) -> None:
         """Fold the oldest window pose's factors into the prior (:func:`~.prior.marginalize`) and drop the pose.
@@ -423,8 +450,12 @@ class SlidingWindowSmoother:
         r, w = self.relinearization, self.window
         revision = revise(result, n_poses, at_once, w, self.prior, r, self.config)
         if revision is None:
-            r.rejections += 1
-            return {"global_rejected": 1.0}
+            retried = self._rejudged_solve(result, n_poses, at_once)
+            if retried is None:
+                r.rejections += 1
+                return {"global_rejected": 1.0}
+            result, revision, r.decisions = retried
+            at_once = True
         w.history.replace(revision.history)
         self.association.solved = None
         if at_once:

@@ -151,23 +151,25 @@ def revise(
     prior: Prior | None,
     state: Relinearization,
     config: SmootherConfig,
+    decisions: Decisions | None = None,
 ) -> Revision | None:
     """The history revised with a global solution over poses ``0..n_poses-1``, and the prior re-anchored.
 
     ``at_once``: the solution is of the current state (window poses and landmarks take its values too);
     otherwise it is of an earlier one (handed over from the background): window poses and landmark estimates
     keep their newer values, poses marginalized since keep theirs, and the prior is re-anchored at the
-    revised history and the current oldest window pose.
+    revised history and the current oldest window pose. ``decisions``: the outlier decisions the history's
+    factors are taken with (default: the state's).
 
     Returns:
         The revision, or None when the re-anchored prior is rejected
         (:func:`~online_slam.estimators.smoother.prior.reanchored`).
     """
     oldest = window.indices[0]
-    history, oldest_value, landmarks = _followed(result, n_poses, at_once, window)
+    history, oldest_value, landmarks = followed(result, n_poses, at_once, window)
     if prior is None or prior.pose != oldest:
         return Revision(history, landmarks, None)
-    past = history_graph(inlier_graph(state.log, state.decisions), oldest)
+    past = history_graph(inlier_graph(state.log, state.decisions if decisions is None else decisions), oldest)
     values = np.vstack([history, oldest_value[None]])
     if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
         values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.robust.loss)
@@ -176,7 +178,7 @@ def revise(
     return None if anchored is None else Revision(history, landmarks, anchored)
 
 
-def _followed(result: SolveResult, n_poses: int, at_once: bool, window: Window) -> tuple[Array, Array, Array]:
+def followed(result: SolveResult, n_poses: int, at_once: bool, window: Window) -> tuple[Array, Array, Array]:
     """(history, oldest window pose, landmarks) with the solution's values where it has them.
 
     Poses that left the window after the solve started, and landmarks first seen since, follow the solution

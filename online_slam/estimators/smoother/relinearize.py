@@ -209,6 +209,23 @@ def inlier_graph(log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]]
     return without_observations(graph, drop) if drop.any() else graph
 
 
+def rejudged(
+    graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_]]], outliers: NDArray[np.bool_]
+) -> list[tuple[int, NDArray[np.bool_]]]:
+    """The decisions with each pose's mask replaced by ``outliers`` (one per sighting of the graph's first poses, in
+    pose order) where the graph holds exactly as many sightings of the pose as it judged (see
+    :func:`outlier_mask`); poses ``outliers`` does not reach keep theirs."""
+    if not decisions:
+        return []
+    poses = np.fromiter((g for g, _ in decisions), dtype=np.int64, count=len(decisions))
+    start = np.searchsorted(graph.obs_pose, poses)
+    end = np.searchsorted(graph.obs_pose, poses + 1)
+    return [
+        (g, outliers[a:b].copy() if b - a == len(mask) and b <= len(outliers) else mask)
+        for (g, mask), a, b in zip(decisions, start.tolist(), end.tolist())
+    ]
+
+
 def solve_all(
     log: ProblemLog,
     decisions: list[tuple[int, NDArray[np.bool_]]],
