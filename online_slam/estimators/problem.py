@@ -211,8 +211,7 @@ class ProblemLog(Checkpointed):
         self.poses.append(pose)
         self.robots.append(step.robot)
         self._newest[step.robot] = step.index
-        if self.keep_factors:
-            self.seen.add(step, self._newest)
+        self.seen.add(step, self._newest)  # also without factors: the smoother's window reads the pairing
         self.extend(step, 0)
         return pose
 

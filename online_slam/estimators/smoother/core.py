@@ -38,7 +38,8 @@ from online_slam.estimators.smoother.global_solve import (
     solve_now,
     start_job,
 )
-from online_slam.estimators.smoother.prior import Prior, initial_prior, marginalize, release
+from online_slam.estimators.smoother.prior import Prior, Sightings, initial_prior, marginalize, release
+from online_slam.estimators.smoother.robots import SeveralRobots
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
 from online_slam.estimators.smoother.window import (
     Window,
@@ -57,8 +58,9 @@ Array = NDArray[np.float64]
 Index = NDArray[np.int64]
 
 
-class SlidingWindowSmoother:
-    """Fixed-lag smoother over poses, keeping all landmarks; follows the estimator protocol."""
+class SlidingWindowSmoother(SeveralRobots):
+    """Fixed-lag smoother over poses, keeping all landmarks, of one robot or several; follows the estimator
+    protocol."""
 
     name = "smoother"
     online = True
@@ -123,13 +125,17 @@ class SlidingWindowSmoother:
             step, _ = self._resolve(step, 0)
             w.add_sightings(step, 0)
             self.relinearization.log.add(step)
+            if w.sightings_waiting or len(self.relinearization.log.seen.pose) > w.sightings_read:
+                self._link_robot_sightings()
             self._add_retro()
             w.since_solve += 1
             report: dict[str, float] = {}
             if w.since_solve >= self.config.relinearize_every:
                 report = self.solve()
-            marginalized = []
-            while w.is_full(self.config.window):
+            marginalized: list[int] = []
+            while w.several and w.is_full(self.config.window) and self._marginalize_several(marginalized):
+                pass
+            while not w.several and w.is_full(self.config.window):
                 if w.indices[0] in w.unsolved:  # never marginalize a pose before it was optimized
                     report = self.solve()
                 marginalized.append(w.indices[0])
@@ -154,7 +160,10 @@ class SlidingWindowSmoother:
         return np.concatenate(self.trajectory_parts())
 
     def trajectory_parts(self) -> tuple[Array, Array]:
-        """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3))."""
+        """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3)); with
+        several robots (nothing; every pose in step order)."""
+        if self.window.several:
+            return np.zeros((0, 3)), self.window.all_poses()
         return self.window.history.view(), self.window.values().reshape(-1, 3)
 
     def state_dict(self) -> Any:
@@ -199,10 +208,14 @@ class SlidingWindowSmoother:
         w, r, p = self.window, self.relinearization, self.progress
         finish_job(r.job)
         r.job = None
+        if w.sightings_waiting:
+            self._link_robot_sightings(final=True)
         if w.indices:
             with self._blas.limit(limits=1, user_api="blas"):
                 self.solve(final=True)
         decisions = r.decisions + [(g, judge(w, g, self._reject_bound)) for g in w.indices if g in w.observations]
+        if w.several:  # poses left the window out of step order
+            decisions.sort(key=lambda d: d[0])
         rejected = np.concatenate([d[1] for d in decisions]) if decisions else np.zeros(0, dtype=bool)
         return Estimate(
             self.name,
@@ -216,6 +229,7 @@ class SlidingWindowSmoother:
                 "global_solves": r.solves,
                 "global_rejections": r.rejections,
                 "landmarks_released": p.released,
+                **self._robot_info(),
                 "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
                 "final_solve_s": time.perf_counter() - started,
@@ -323,7 +337,7 @@ class SlidingWindowSmoother:
             w.poses[g] = result.poses[k]
         w.landmarks[observed] = result.landmarks
         if s.recover is not None:
-            passive, positions = s.recover(result.poses[0], result.landmarks)
+            passive, positions = s.recover(result.poses[s.prior_poses], result.landmarks)
             w.landmarks[passive] = positions
         information = factored(result.information, w.indices, s.layout, observed)
         self.association.solved = None
@@ -366,13 +380,7 @@ class SlidingWindowSmoother:
         else:
             p = self.prior
         assert p.pose == o
-        sightings = w.observations.get(o)
-        if sightings is not None:
-            keep = ~judge(w, o, self._reject_bound)
-            self.relinearization.decisions.append((o, ~keep))
-            if not keep.all():  # judged outliers are never folded into the prior
-                self.association.solved = None  # the solved information holds them
-                sightings = tuple(a[keep] for a in sightings) if keep.any() else None  # type: ignore[assignment]
+        sightings = self._sightings_to_fold(o)
         delta, _, W = w.odometry[n1]
         recentre = not self.config.first_estimate_jacobians
         self.prior = marginalize(
@@ -380,6 +388,19 @@ class SlidingWindowSmoother:
         )
         w.drop_oldest()
         self.progress.marginalized += 1
+
+    def _sightings_to_fold(self, o: int) -> Sightings | None:
+        """Window pose o's sightings to fold into the prior: those judged outliers at the current estimate are
+        recorded and left out (None: none left)."""
+        w = self.window
+        sightings = w.observations.get(o)
+        if sightings is not None:
+            keep = ~judge(w, o, self._reject_bound)
+            self.relinearization.decisions.append((o, ~keep))
+            if not keep.all():  # judged outliers are never folded into the prior
+                self.association.solved = None  # the solved information holds them
+                sightings = tuple(a[keep] for a in sightings) if keep.any() else None  # type: ignore[assignment]
+        return sightings
 
     # -- global relinearization ------------------------------------------------------------------
     def _global_schedule(self, report: dict[str, float]) -> dict[str, float]:
