@@ -220,7 +220,9 @@ def _passive_regression(s: Solved, prior: Prior | None, wanted: Index) -> tuple[
         B = la.cho_solve(la.cho_factor(prior.Sigma[np.ix_(order, order)]), S_pa.T).T  # (2k, q)
     except (la.LinAlgError, ValueError):
         return None
-    a_columns = np.r_[s.columns(prior.landmarks[is_held]), (s.pose_column[prior_poses][:, None] + np.arange(3)).reshape(-1)]
+    a_columns = np.r_[
+        s.columns(prior.landmarks[is_held]), (s.pose_column[prior_poses][:, None] + np.arange(3)).reshape(-1)
+    ]
     return a_columns, B, prior.Sigma[np.ix_(rows, rows)] - B @ S_pa.T
 
 

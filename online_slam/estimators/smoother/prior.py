@@ -38,9 +38,10 @@ Index = NDArray[np.int64]
 Sightings = tuple[Index, Array, Array, Array, NDArray[np.int8]]
 """A pose's sightings: landmark indices (k,), z (k, 2), covariances (k, 2, 2), square-root information (k, 2, 2),
 model tags (k,)."""
-RobotFold = tuple[Index, Index, Array, Array]
-"""Robot sightings between poses the prior holds: (first row of the sighting pose (k,), of the seen pose (k,),
-z (k, 2), square-root information (k, 2, 2))."""
+RobotFold = tuple[Index, Index, Array, Array, Array]
+"""Robot sightings between poses the prior holds or fixed poses: (first row of the sighting pose (k,), of the seen
+pose (k,), -1 for a fixed pose; z (k, 2); square-root information (k, 2, 2); the fixed poses' values (k, 2, 3),
+read where the row is -1)."""
 Appended = tuple[Array, Array, Array, Array]
 """A whitened factor that appends a variable: (residual r0, Jacobian on the old pose, on the new variable, the
 new variable's linearization point)."""
@@ -260,19 +261,22 @@ def marginalize(
 
 def _fold_robots(Sigma: Array, x_lin: Array, mu: Array, robots: RobotFold, loss: RobustLoss | None) -> Array:
     """Update the prior with robot sightings between poses it holds (Sigma in place); the updated mean."""
-    rows_a, rows_b, z, W = robots
-    pose_a, pose_b = x_lin[rows_a[:, None] + np.arange(3)], x_lin[rows_b[:, None] + np.arange(3)]
+    rows_a, rows_b, z, W, fixed = robots
+    pose_a = np.where(rows_a[:, None] >= 0, x_lin[np.maximum(rows_a, 0)[:, None] + np.arange(3)], fixed[:, 0])
+    pose_b = np.where(rows_b[:, None] >= 0, x_lin[np.maximum(rows_b, 0)[:, None] + np.arange(3)], fixed[:, 1])
     e, J_a, J_b = robot_sighting_residual_with_jacobians(pose_a, pose_b, z)
     r0 = np.einsum("kij,kj->ki", W, e)
     if loss is not None:
         W = W * np.sqrt(loss.weight(np.sum(r0 * r0, axis=1)))[:, None, None]
         r0 = np.einsum("kij,kj->ki", W, e)
     cols = np.unique(np.r_[rows_a, rows_b])
+    cols = cols[cols >= 0]
     where = {int(c): 3 * k for k, c in enumerate(cols)}
     J_s = np.zeros((2 * len(z), 3 * len(cols)))
     for k, (a, b) in enumerate(zip(rows_a.tolist(), rows_b.tolist())):
-        J_s[2 * k : 2 * k + 2, where[a] : where[a] + 3] = W[k] @ J_a[k]
-        J_s[2 * k : 2 * k + 2, where[b] : where[b] + 3] = W[k] @ J_b[k]
+        for row, J in ((a, J_a[k]), (b, J_b[k])):
+            if row >= 0:
+                J_s[2 * k : 2 * k + 2, where[row] : where[row] + 3] = W[k] @ J
     cols = (cols[:, None] + np.arange(3)).reshape(-1)
     PHt = Sigma[:, cols] @ J_s.T
     S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise

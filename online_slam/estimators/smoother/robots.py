@@ -160,7 +160,8 @@ class SeveralRobots:
             if np.isfinite(self._reject_bound) and float(whitened @ whitened) > self._reject_bound:
                 r.robot_rejected.append(f[4])
                 continue
-            self.state.prior = with_last(self._holding(self.state.prior, p), o)
+            if not self._fixed(p):  # a fixed start stays in the window alone: a constant of the sighting
+                self.state.prior = with_last(self._holding(self.state.prior, p), o)
             folded.append(f)
             r.robot_folded.append(f[4])
         if not folded:
@@ -169,11 +170,19 @@ class SeveralRobots:
         assert prior is not None
         first = {int(g): 2 * len(prior.landmarks) + 3 * k for k, g in enumerate(prior.poses)}
         return (
-            np.array([first[f[0]] for f in folded], dtype=np.int64),
-            np.array([first[f[1]] for f in folded], dtype=np.int64),
+            np.array([first.get(f[0], -1) for f in folded], dtype=np.int64),
+            np.array([first.get(f[1], -1) for f in folded], dtype=np.int64),
             np.array([f[2] for f in folded]),
             np.array([f[3] for f in folded]),
+            np.array([[w.poses[f[0]], w.poses[f[1]]] for f in folded]),
         )
+
+    def _fixed(self, pose: int) -> bool:
+        """Whether a window pose is a start held fixed that the prior does not hold."""
+        w = self.state.window
+        if w.start is not None and w.start[0] == pose:
+            return w.start[2] is None
+        return pose in w.starts and w.starts[pose][1] is None
 
     def _robot_info(self) -> dict[str, int]:
         """What became of the robot sightings (nothing with one robot)."""

@@ -258,7 +258,9 @@ def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, 
     to_local = np.full(len(window.landmark_ids), -1, dtype=np.int64)
     to_local[active] = np.arange(len(active))
     if window.several:
-        odo = [(local[window.previous[j]], local[j], *window.odometry[j]) for j in window.indices if j in window.previous]
+        odo = [
+            (local[window.previous[j]], local[j], *window.odometry[j]) for j in window.indices if j in window.previous
+        ]
     else:
         odo = [(local[j] - 1, local[j], *window.odometry[j]) for j in window.indices[1:]]
     obs = [(local[i], *window.observations[i]) for i in window.indices if i in window.observations]
