@@ -59,7 +59,8 @@ class Window:
     start: tuple[int, Array, Array | None] | None = None
     """(start pose, its prior mean, its prior covariance or None when fixed)."""
     pose_cov: Array = field(default_factory=lambda: np.zeros((3, 3)))
-    """Covariance of the newest pose, shape (3, 3)."""
+    """Covariance of the newest pose, shape (3, 3); with several robots, the robot's next pose propagates it from
+    its own newest pose's (``robot_cov``)."""
     unsolved: set[int] = field(default_factory=set)
     """Window poses with factors added since the last solve."""
     since_solve: int = 0
@@ -79,6 +80,9 @@ class Window:
     number in the log's :class:`~online_slam.estimators.problem.RobotSightings`)."""
     left: list[int] = field(default_factory=list)
     """The pose index of each ``history`` row, once several robots began (with one, row k is pose k)."""
+    robot_cov: dict[int, Array] = field(default_factory=dict)
+    """The covariance of each robot's newest pose but the window's newest (``pose_cov``), by pose, as it was when
+    that pose stopped being the window's newest (several robots)."""
     sightings_read: int = 0
     """Robot sightings of the log read so far."""
     sightings_waiting: list[int] = field(default_factory=list)
@@ -122,13 +126,19 @@ class Window:
             else:
                 self.start = (i, *start)
             self.robots.append(step.robot)
+            if self.several:
+                self.robot_cov[self.indices[-1]] = self.pose_cov
             self.pose_cov = np.zeros((3, 3)) if step.prior_cov is None else np.array(step.prior_cov)
         else:
             previous = self.newest(step.robot)
+            cov = self.pose_cov
             if self.several:
                 self.previous[i] = previous
+                if previous != self.indices[-1]:  # another robot's pose is the newest: keep its covariance
+                    self.robot_cov[self.indices[-1]] = self.pose_cov
+                    cov = self.robot_cov.pop(previous, self.pose_cov)
             pose, F, G = compose_with_jacobians(self.poses[previous], step.odometry)
-            self.pose_cov = F @ self.pose_cov @ F.T + G @ step.odometry_cov @ G.T
+            self.pose_cov = F @ cov @ F.T + G @ step.odometry_cov @ G.T
             self.odometry[i] = (
                 np.array(step.odometry),
                 np.array(step.odometry_cov),
