@@ -66,6 +66,22 @@ def test_marginalizing_interleaved_chains_is_exact_at_the_solution() -> None:
     assert np.allclose(smoother.window.pose_cov, covariance[np.ix_(last, last)], rtol=1e-6, atol=1e-12)
 
 
+def test_a_frozen_log_of_several_robots_does_not_change_with_later_steps() -> None:
+    """A global solve reads a frozen copy of the log in the background: its robot sightings and starts stay."""
+    steps = list(FrontEnd().steps(meet_world(MeetConfig(poses=30))))
+    batch = BatchEstimator()
+    for step in steps[:40]:
+        batch.step(step)
+    frozen = batch.log.frozen()
+    before = frozen.graph()
+    for step in steps[40:]:
+        batch.step(step)
+    after = frozen.graph()
+    assert len(before.rob_from) > 5 and len(batch.log.graph().rob_from) > len(before.rob_from)
+    for name in ("rob_from", "rob_to", "rob_z", "prior_pose", "fixed_poses"):
+        assert np.array_equal(getattr(before, name), getattr(after, name)), name
+
+
 def drifting(with_sightings: bool) -> list:
     """meet-apart with robot 2's landmark sightings dropped: only robot sightings can correct its odometry."""
     kept = []
