@@ -1,5 +1,6 @@
 """Several robots in the estimators: the robot-sighting factor, steps in index order, the batch (== GTSAM) and
-the centralized EKF, robot sightings pulling a drifting robot back, and the figures per robot."""
+the centralized EKF, robot sightings pulling a drifting robot back, and the figures per robot (the smoother's in
+test_smoother_robots.py)."""
 
 from __future__ import annotations
 
@@ -163,14 +164,15 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
                                               "state_", "robot", "association", "outliers"))}  # fmt: skip
 
 
-def test_replay_meet_runs_ekf_and_batch_and_leaves_the_smoother_out() -> None:
+def test_replay_meet_runs_every_estimator() -> None:
     done = subprocess.run([*EXE, "replay", "meet", "--json", "-"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     data = json.loads(done.stdout)
-    assert data["left"] == ["smoother"] and sorted(data["estimators"]) == ["batch", "ekf"]
-    assert sorted(data["estimators"]["ekf"]["robots"]) == ["1", "2", "3"]
-    assert "smoother: left out, it takes one robot at a time" in done.stderr
-    assert "ekf  robot 3" in done.stderr
+    assert not data.get("left") and sorted(data["estimators"]) == ["batch", "ekf", "smoother"]
+    for name in ("ekf", "smoother"):
+        assert sorted(data["estimators"][name]["robots"]) == ["1", "2", "3"]
+    assert "left out" not in done.stderr
+    assert "ekf  robot 3" in done.stderr and "smoother  robot 3" in done.stderr
 
 
 def test_the_ekf_refuses_its_consistent_linearizations_for_several_robots() -> None:

@@ -9,15 +9,14 @@ import numpy as np
 import pytest
 
 import online_slam
-from online_slam import ConfigError, InputError, OnlineSlamError, ReplayConfig, Slam
-from online_slam.estimators.smoother import SlidingWindowSmoother
+from online_slam import ConfigError, InputError, ReplayConfig, Slam
 from online_slam.sources import MeetConfig, Odometry, meet_world
 from online_slam.sources.validate import validate_events
 
 SMALL_MEET = MeetConfig(robots=3, poses=60, landmarks=30)
 SIG3, SIG2 = [0.05, 0.05, 0.01], [0.05, 0.01]
-SEVERAL = ["ekf"] + (["smoother"] if getattr(SlidingWindowSmoother, "several_robots", False) else [])
-"""Online estimators that take several robots (the smoother once it sets ``several_robots``)."""
+SEVERAL = ["ekf", "smoother"]
+"""The online estimators, each taking several robots."""
 
 
 def drive(slam: Slam, events: list) -> dict[int, np.ndarray]:
@@ -140,19 +139,6 @@ def test_a_robot_sighting_pulls_both_robots_and_after_a_query_is_refused() -> No
     slam.add_robot_observation(2.0, 1, 4.0, np.pi, sigma=SIG2, robot=2)  # robot 2's newest pose waits: taken
     slam.add_odometry(3.0, [1.0, 0.0, 0.0], sigma=SIG3, robot=1)
     assert slam.poses == 7
-
-
-def test_an_estimator_of_one_robot_refuses_a_second_and_changes_nothing() -> None:
-    if getattr(SlidingWindowSmoother, "several_robots", False):
-        pytest.skip("the smoother takes several robots")
-    slam = Slam("smoother")
-    slam.start(0.0, [0.0, 0.0, 0.0], robot=1)
-    with pytest.raises(OnlineSlamError, match="the smoother takes one robot at a time"):
-        slam.start(0.0, [5.0, 0.0, 0.0], robot=2)
-    slam.add_odometry(1.0, [1.0, 0.0, 0.0], sigma=SIG3, robot=1)
-    with pytest.raises(InputError, match="unknown robot 2"):  # robot 2 never started
-        slam.add_odometry(1.0, [1.0, 0.0, 0.0], sigma=SIG3, robot=2)
-    assert slam.poses == 2 and list(slam.estimate().robots) == [1]
 
 
 def test_batch_is_no_online_estimator_and_replays_the_same_events() -> None:

@@ -70,6 +70,10 @@ class RobotSightings:
             self.z.append(z)
             self.cov.append(cov)
 
+    def frozen(self) -> RobotSightings:
+        """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
+        return replace(self, **{f.name: list(getattr(self, f.name)) for f in fields(self)})
+
     def linked(self) -> NDArray[np.bool_]:
         """Which sightings link two poses (the seen robot had a pose at the step's time), shape (R,)."""
         return np.array(self.seen_pose, dtype=np.int64) >= 0
@@ -211,8 +215,7 @@ class ProblemLog(Checkpointed):
         self.poses.append(pose)
         self.robots.append(step.robot)
         self._newest[step.robot] = step.index
-        if self.keep_factors:
-            self.seen.add(step, self._newest)
+        self.seen.add(step, self._newest)  # also without factors: the smoother's window reads the pairing
         self.extend(step, 0)
         return pose
 
@@ -256,7 +259,8 @@ class ProblemLog(Checkpointed):
     def frozen(self) -> ProblemLog:
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
-        copy = replace(self, **{name: list(v) for name, v in values.items() if isinstance(v, list)})
+        lists = {name: list(v) for name, v in values.items() if isinstance(v, list)}
+        copy = replace(self, **lists, starts=dict(self.starts), seen=self.seen.frozen())
         copy._cached_obs, copy._cat_obs = self._cached_obs, self._cat_obs
         copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
         return copy

@@ -22,10 +22,33 @@ trajectory. A global relinearization, in the background, re-solves every factor 
 prior to the revised history (:mod:`.global_solve`, :mod:`.relinearize`). Association reads its covariances
 from the last solve (:mod:`.covariance`).
 
+Several robots (:mod:`.robots`). Each robot's poses form their own odometry chain from its own start (poses
+are indexed over all robots in step order). The window holds the newest poses in step order, of every robot,
+and is sized as with one robot (W poses, the ``distance`` path summed over all robots' odometry in the window,
+``max_poses``): its cost per step stays that of one robot's window, each robot keeping about its share of it.
+A robot's newest pose never leaves the window, so each chain keeps at least one pose. Marginalization takes the
+oldest window pose that is not its robot's newest: it is its robot's oldest window pose, and the prior holds
+the oldest window pose of each robot that has lost one (``Prior.others``, then the pose being marginalized
+last) and every landmark they touched; a robot's start enters the prior with its start prior when its first
+pose leaves (or when a robot sighting needs it there). A sighting of a robot (range and bearing to the seen
+robot's pose) links the sighting pose to the seen robot's newest pose at the step's time, paired as the batch
+pairs it (:class:`~online_slam.estimators.problem.RobotSightings` of the log), and enters the window as a
+pose-to-pose factor once its time is past. When one of its poses leaves the window, the other must be its
+robot's oldest window pose, which the prior then holds: that robot's older poses are marginalized first (they
+are about as old); the sighting is then folded into the prior (a Kalman update of both poses, as a sighting of
+a landmark the prior holds). A sighting whose other pose cannot be brought there is left out of the prior
+(counted: ``robot_sightings_unfolded``). Robot sightings are judged like landmark sightings: the robust loss in
+every solve, and one whose squared whitened residual exceeds the rejection bound when it leaves the window is
+an outlier, never folded in and left out of global solves. Global relinearization solves the whole log, robot
+sightings included, and re-anchors the prior over the factors it folded in, with every pose that left the
+window eliminated (:func:`~.relinearize.several_history_graph`); poses that left after the solve started
+follow their robot's last solved pose rigidly. A checkpoint keeps the new state as any other (robots, window
+chains and robot sightings in :class:`~.window.Window`, the prior's poses, the folded and rejected sightings).
+
 Parts: :mod:`.config` (settings), :mod:`.window` (variables, factors, the window system, consensus),
 :mod:`.prior` (the marginal prior), :mod:`.covariance` (covariance recovery), :mod:`.global_solve` (the
 background global relinearization), :mod:`.relinearize` (its whole-history math), :mod:`.state` (the state as
-data), :mod:`.core` (the estimator).
+data), :mod:`.robots` (several robots), :mod:`.core` (the estimator).
 """
 
 from online_slam.estimators.smoother.config import GlobalConfig, RobustConfig, SmootherConfig, WindowConfig

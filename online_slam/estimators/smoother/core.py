@@ -41,8 +41,9 @@ from online_slam.estimators.smoother.global_solve import (
     solve_now,
     start_job,
 )
-from online_slam.estimators.smoother.prior import Prior, initial_prior, marginalize, release
+from online_slam.estimators.smoother.prior import Prior, Sightings, initial_prior, marginalize, release
 from online_slam.estimators.smoother.relinearize import rejudged, solve_all
+from online_slam.estimators.smoother.robots import SeveralRobots
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
 from online_slam.estimators.smoother.window import (
     Window,
@@ -61,8 +62,9 @@ Array = NDArray[np.float64]
 Index = NDArray[np.int64]
 
 
-class SlidingWindowSmoother:
-    """Fixed-lag smoother over poses, keeping all landmarks; follows the estimator protocol."""
+class SlidingWindowSmoother(SeveralRobots):
+    """Fixed-lag smoother over poses, keeping all landmarks, of one robot or several; follows the estimator
+    protocol."""
 
     name = "smoother"
     online = True
@@ -127,13 +129,17 @@ class SlidingWindowSmoother:
             step, _ = self._resolve(step, 0)
             w.add_sightings(step, 0)
             self.relinearization.log.add(step)
+            if w.sightings_waiting or len(self.relinearization.log.seen.pose) > w.sightings_read:
+                self._link_robot_sightings()
             self._add_retro()
             w.since_solve += 1
             report: dict[str, float] = {}
             if w.since_solve >= self.config.relinearize_every:
                 report = self.solve()
-            marginalized = []
-            while w.is_full(self.config.window):
+            marginalized: list[int] = []
+            while w.several and w.is_full(self.config.window) and self._marginalize_several(marginalized):
+                pass
+            while not w.several and w.is_full(self.config.window):
                 if w.indices[0] in w.unsolved:  # never marginalize a pose before it was optimized
                     report = self.solve()
                 marginalized.append(w.indices[0])
@@ -158,7 +164,10 @@ class SlidingWindowSmoother:
         return np.concatenate(self.trajectory_parts())
 
     def trajectory_parts(self) -> tuple[Array, Array]:
-        """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3))."""
+        """(poses that left the window, read-only (N - W, 3) view; the window's poses now, a copy (W, 3)); with
+        several robots (nothing; every pose in step order)."""
+        if self.window.several:
+            return np.zeros((0, 3)), self.window.all_poses()
         return self.window.history.view(), self.window.values().reshape(-1, 3)
 
     def state_dict(self) -> Any:
@@ -203,10 +212,14 @@ class SlidingWindowSmoother:
         w, r, p = self.window, self.relinearization, self.progress
         finish_job(r.job)
         r.job = None
+        if w.sightings_waiting:
+            self._link_robot_sightings(final=True)
         if w.indices:
             with self._blas.limit(limits=1, user_api="blas"):
                 self.solve(final=True)
         decisions = r.decisions + [(g, judge(w, g, self._reject_bound)) for g in w.indices if g in w.observations]
+        if w.several:  # poses left the window out of step order
+            decisions.sort(key=lambda d: d[0])
         rejected = np.concatenate([d[1] for d in decisions]) if decisions else np.zeros(0, dtype=bool)
         return Estimate(
             self.name,
@@ -220,6 +233,7 @@ class SlidingWindowSmoother:
                 "global_solves": r.solves,
                 "global_rejections": r.rejections,
                 "landmarks_released": p.released,
+                **self._robot_info(),
                 "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
                 "final_solve_s": time.perf_counter() - started,
@@ -327,7 +341,7 @@ class SlidingWindowSmoother:
             w.poses[g] = result.poses[k]
         w.landmarks[observed] = result.landmarks
         if s.recover is not None:
-            passive, positions = s.recover(result.poses[0], result.landmarks)
+            passive, positions = s.recover(result.poses[s.prior_poses], result.landmarks)
             w.landmarks[passive] = positions
         information = factored(result.information, w.indices, s.layout, observed)
         self.association.solved = None
@@ -362,10 +376,10 @@ class SlidingWindowSmoother:
         """A global solution that does not reconcile the history, tried once more: the history's sightings judged
         again at it (a sighting judged an outlier when its pose left the window, at an estimate a wrong association
         had pulled, comes back if the solution agrees with it; one folded in goes out if it does not), and every
-        factor solved now with those decisions. None when no decision changes, without a robust loss, or when
-        that solution does not reconcile the history either."""
+        factor solved now with those decisions. None when no decision changes, without a robust loss, with several
+        robots (not tried yet), or when that solution does not reconcile the history either."""
         r, w, loss = self.relinearization, self.window, self.config.robust.loss
-        if loss is None or not np.isfinite(self._reject_bound) or not r.decisions:
+        if loss is None or not np.isfinite(self._reject_bound) or not r.decisions or w.several:
             return None
         if len(r.log.poses) != len(w.history) + len(w.indices) or r.log.landmark_ids != tuple(w.landmark_ids):
             return None
@@ -393,13 +407,7 @@ class SlidingWindowSmoother:
         else:
             p = self.prior
         assert p.pose == o
-        sightings = w.observations.get(o)
-        if sightings is not None:
-            keep = ~judge(w, o, self._reject_bound)
-            self.relinearization.decisions.append((o, ~keep))
-            if not keep.all():  # judged outliers are never folded into the prior
-                self.association.solved = None  # the solved information holds them
-                sightings = tuple(a[keep] for a in sightings) if keep.any() else None  # type: ignore[assignment]
+        sightings = self._sightings_to_fold(o)
         delta, _, W = w.odometry[n1]
         recentre = not self.config.first_estimate_jacobians
         self.prior = marginalize(
@@ -407,6 +415,19 @@ class SlidingWindowSmoother:
         )
         w.drop_oldest()
         self.progress.marginalized += 1
+
+    def _sightings_to_fold(self, o: int) -> Sightings | None:
+        """Window pose o's sightings to fold into the prior: those judged outliers at the current estimate are
+        recorded and left out (None: none left)."""
+        w = self.window
+        sightings = w.observations.get(o)
+        if sightings is not None:
+            keep = ~judge(w, o, self._reject_bound)
+            self.relinearization.decisions.append((o, ~keep))
+            if not keep.all():  # judged outliers are never folded into the prior
+                self.association.solved = None  # the solved information holds them
+                sightings = tuple(a[keep] for a in sightings) if keep.any() else None  # type: ignore[assignment]
+        return sightings
 
     # -- global relinearization ------------------------------------------------------------------
     def _global_schedule(self, report: dict[str, float]) -> dict[str, float]:

@@ -191,7 +191,7 @@ def _carry(solved: Solved | None, window: Window) -> tuple[bool, tuple[Array, Ar
     if newest == solved.window[-1] and not window.unsolved:
         return True, None
     if len(window.indices) > 1 and window.indices[-2] == solved.window[-1] and window.unsolved == {newest}:
-        if newest in window.observations:
+        if newest in window.observations or window.previous.get(newest, solved.window[-1]) != solved.window[-1]:
             return False, None
         delta, Q, _ = window.odometry[newest]
         _, F, G = compose_with_jacobians(window.poses[solved.window[-1]], delta)
@@ -203,24 +203,26 @@ def _passive_regression(s: Solved, prior: Prior | None, wanted: Index) -> tuple[
     """The regression ``d_p = B d_a + noise`` of landmarks only the prior holds (``wanted``, (k,)) on the prior's
     part the solve saw: (that part's columns in the solved system (q,), B (2k, q), the conditional covariance
     (2k, 2k)), or None when it does not apply."""
-    prior_pose = int(np.searchsorted(s.window, prior.pose)) if prior is not None else len(s.window)
-    if prior is None or not len(prior.landmarks) or prior_pose == len(s.window) or s.window[prior_pose] != prior.pose:
+    if prior is None or not len(prior.landmarks):
         return None
-    if s.pose_column[prior_pose] < 0:  # the prior's pose was fixed in that solve
+    prior_poses, solved = locate(s.window, prior.poses)
+    if not solved.all() or (s.pose_column[prior_poses] < 0).any():  # a prior pose not solved, or fixed
         return None
     slot, held = locate(prior.landmarks, wanted)
     if not held.all():  # not in the prior either (inconsistent state)
         return None
     is_held = np.isin(prior.landmarks, s.active)
     n = len(prior.mu)
-    order = np.r_[(2 * np.flatnonzero(is_held)[:, None] + np.arange(2)).reshape(-1), np.arange(n - 3, n)]
+    order = np.r_[(2 * np.flatnonzero(is_held)[:, None] + np.arange(2)).reshape(-1), np.arange(2 * len(is_held), n)]
     rows = (2 * slot[:, None] + np.arange(2)).reshape(-1)
     S_pa = prior.Sigma[np.ix_(rows, order)]
     try:
         B = la.cho_solve(la.cho_factor(prior.Sigma[np.ix_(order, order)]), S_pa.T).T  # (2k, q)
     except (la.LinAlgError, ValueError):
         return None
-    a_columns = np.r_[s.columns(prior.landmarks[is_held]), s.pose_column[prior_pose] + np.arange(3)]
+    a_columns = np.r_[
+        s.columns(prior.landmarks[is_held]), (s.pose_column[prior_poses][:, None] + np.arange(3)).reshape(-1)
+    ]
     return a_columns, B, prior.Sigma[np.ix_(rows, rows)] - B @ S_pa.T
 
 

@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.smoother.config import GLOBAL_DELAY_GROWTH, GLOBAL_GROWTH, SmootherConfig
 from online_slam.estimators.smoother.prior import Prior, reanchored
-from online_slam.estimators.smoother.relinearize import history_graph, inlier_graph, refine_recent, solve_all
+from online_slam.estimators.smoother.relinearize import (
+    history_graph,
+    inlier_graph,
+    refine_recent,
+    robot_rows,
+    several_history_graph,
+    solve_all,
+)
 from online_slam.estimators.smoother.window import Window
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.se2 import between, compose, rotation
@@ -63,6 +70,10 @@ class Relinearization:
     """Global relinearizations kept."""
     rejections: int = 0
     """Global relinearizations not kept (the solve did not reconcile the history)."""
+    robot_folded: list[int] = field(default_factory=list)
+    """The robot sightings folded into the prior (their numbers in the log's sightings)."""
+    robot_rejected: list[int] = field(default_factory=list)
+    """The robot sightings judged outliers when they left the window (left out of global solves)."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +88,8 @@ class GlobalInputs:
     """Every pose's current estimate, shape (N, 3)."""
     landmarks: Array
     """Every landmark's current estimate, shape (M, 2)."""
+    robot_rejected: tuple[int, ...] = ()
+    """The robot sightings judged outliers so far."""
 
 
 @dataclass(frozen=True)
@@ -108,13 +121,15 @@ def global_inputs(state: Relinearization, window: Window) -> GlobalInputs | None
     log = state.log
     if len(log.poses) != len(window.history) + len(window.indices) or log.landmark_ids != tuple(window.landmark_ids):
         return None
-    poses = np.vstack([window.history.view(), window.values()])
-    return GlobalInputs(log.frozen(), list(state.decisions), poses, window.landmarks.copy())
+    poses = window.all_poses()
+    return GlobalInputs(
+        log.frozen(), list(state.decisions), poses, window.landmarks.copy(), tuple(state.robot_rejected)
+    )
 
 
 def solve_now(inputs: GlobalInputs, solver: SolverConfig, loss: RobustLoss | None) -> SolveResult:
     """Every factor but the judged outliers, solved from the given values (pure: safe in a thread)."""
-    return solve_all(inputs.log, inputs.decisions, inputs.poses, inputs.landmarks, solver, loss)
+    return solve_all(inputs.log, inputs.decisions, inputs.poses, inputs.landmarks, solver, loss, inputs.robot_rejected)
 
 
 def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: str) -> GlobalJob:
@@ -165,6 +180,8 @@ def revise(
         The revision, or None when the re-anchored prior is rejected
         (:func:`~online_slam.estimators.smoother.prior.reanchored`).
     """
+    if window.several:
+        return revise_several(result, n_poses, at_once, window, prior, state, config)
     oldest = window.indices[0]
     history, oldest_value, landmarks = followed(result, n_poses, at_once, window)
     if prior is None or prior.pose != oldest:
@@ -201,3 +218,48 @@ def followed(result: SolveResult, n_poses: int, at_once: bool, window: Window) -
             local = (new - before[:2]) @ rotation(before[2])  # R(before)^T (l - t)
             landmarks[len(result.landmarks) :] = local @ rotation(after[2]).T + after[:2]
     return history, oldest_value, landmarks
+
+
+def revise_several(
+    result: SolveResult,
+    n_poses: int,
+    at_once: bool,
+    window: Window,
+    prior: Prior | None,
+    state: Relinearization,
+    config: SmootherConfig,
+) -> Revision | None:
+    """:func:`revise` with several robots: the history takes the solution's values, the prior is re-anchored at
+    them over the factors it folded in (:func:`~.relinearize.several_history_graph`).
+
+    Poses the solution does not have (that began after it started) follow their robot's last solved pose rigidly,
+    and are not re-solved; landmarks first seen since keep their values. The prior's poses (window poses) take the
+    solution's values only ``at_once``.
+    """
+    values = window.all_poses().copy()
+    current = values.copy()
+    left = np.array(window.left, dtype=np.int64)
+    solved = left[left < n_poses]
+    values[solved] = result.poses[solved]
+    kept = np.zeros(0, dtype=np.int64) if prior is None else prior.poses
+    if at_once:
+        values[kept] = result.poses[kept]
+    names = state.log.robots[: len(values)]
+    code = {robot: k for k, robot in enumerate(dict.fromkeys(names))}
+    robots = np.array([code[robot] for robot in names], dtype=np.int64)
+    for robot in np.unique(robots[n_poses:]):
+        mine = np.flatnonzero(robots == robot)
+        before = mine[mine < n_poses]
+        later = np.intersect1d(mine[mine >= n_poses], np.r_[left, kept])
+        if len(before) and len(later):
+            anchor = before[-1]
+            values[later] = compose(result.poses[anchor], between(current[anchor], current[later]))
+    landmarks = window.landmarks.copy()
+    landmarks[: len(result.landmarks)] = result.landmarks
+    if prior is None:
+        return Revision(values[left], landmarks, None)
+    log = state.log
+    graph = inlier_graph(log, state.decisions, state.robot_rejected)
+    past = several_history_graph(graph, left, kept, robot_rows(log.seen, state.robot_folded))
+    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, config.global_solve.information_max)
+    return None if anchored is None else Revision(values[left], landmarks, anchored)

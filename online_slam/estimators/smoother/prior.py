@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg as la
@@ -25,7 +25,7 @@ from scipy.stats import chi2
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.smoother.config import GLOBAL_FALSE_ALARM
 from online_slam.estimators.smoother.relinearize import prior_covariance, prior_marginal
-from online_slam.factors.graph import FactorGraph, sqrt_information
+from online_slam.factors.graph import FactorGraph, robot_sighting_residual_with_jacobians, sqrt_information
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
@@ -38,6 +38,10 @@ Index = NDArray[np.int64]
 Sightings = tuple[Index, Array, Array, Array, NDArray[np.int8]]
 """A pose's sightings: landmark indices (k,), z (k, 2), covariances (k, 2, 2), square-root information (k, 2, 2),
 model tags (k,)."""
+RobotFold = tuple[Index, Index, Array, Array, Array]
+"""Robot sightings between poses the prior holds or fixed poses: (first row of the sighting pose (k,), of the seen
+pose (k,), -1 for a fixed pose; z (k, 2); square-root information (k, 2, 2); the fixed poses' values (k, 2, 3),
+read where the row is -1)."""
 Appended = tuple[Array, Array, Array, Array]
 """A whitened factor that appends a variable: (residual r0, Jacobian on the old pose, on the new variable, the
 new variable's linearization point)."""
@@ -45,9 +49,10 @@ new variable's linearization point)."""
 
 @dataclass(eq=False)
 class Prior:
-    """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[landmarks..., pose]``.
+    """The marginal prior ``d ~ N(mu, Sigma)``, ``d = x - x_lin``, over ``[landmarks..., others..., pose]``.
 
-    The pose comes last, so that its rows and columns are the ones the next pose reuses.
+    The pose comes last, so that its rows and columns are the ones the next pose reuses; ``others`` are the other
+    robots' oldest window poses (several robots; none with one).
     """
 
     pose: int
@@ -61,6 +66,13 @@ class Prior:
     Sigma: Array
     """Covariance of d, contiguous (n, n), so that Kalman updates run in place
     (:func:`~online_slam.estimators.kalman.downdate`)."""
+    others: Index = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """Indices of the other poses it holds (other robots' oldest window poses), in its order, shape (R,)."""
+
+    @property
+    def poses(self) -> Index:
+        """Every pose it holds, in its order: ``others``, then ``pose``."""
+        return np.r_[self.others, self.pose].astype(np.int64)
 
 
 @dataclass(frozen=True)
@@ -139,7 +151,7 @@ def split(prior: Prior, active: Index) -> PriorSplit:
     """The prior's state split by the landmarks a window solve sees (``active``, sorted)."""
     n = len(prior.mu)
     is_active = np.isin(prior.landmarks, active)
-    order = np.r_[(2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1), np.arange(n - 3, n)]
+    order = np.r_[(2 * np.flatnonzero(is_active)[:, None] + np.arange(2)).reshape(-1), np.arange(2 * len(is_active), n)]
     passive = (2 * np.flatnonzero(~is_active)[:, None] + np.arange(2)).reshape(-1)
     S_aa = prior.Sigma[np.ix_(order, order)]
     try:
@@ -150,37 +162,40 @@ def split(prior: Prior, active: Index) -> PriorSplit:
 
 
 def reduced(
-    prior: Prior, active: Index, pose_column: int, landmark_column: Index
+    prior: Prior, active: Index, pose_columns: Index, landmark_column: Index
 ) -> tuple[QuadraticPrior, Callable[[Array, Array], tuple[Index, Array]] | None]:
-    """The prior's marginal on its pose and the active landmarks, and a function recovering the others.
+    """The prior's marginal on its poses and the active landmarks, and a function recovering the others.
 
     Args:
         prior: The marginal prior.
         active: The landmarks the window observes (sorted), shape (A,).
-        pose_column: The prior pose's column in the window system.
+        pose_columns: The column of each prior pose (:attr:`Prior.poses`) in the window system, shape (R + 1,).
         landmark_column: Each active landmark's column in the window system, shape (A,).
 
     Returns:
         (the quadratic on those columns; None when every landmark of the prior is active, else a function of the
-        solved prior pose (3,) and active landmarks (A, 2) giving the passive landmarks' indices and conditional
-        means (k, 2)).
+        solved prior poses (R + 1, 3) and active landmarks (A, 2) giving the passive landmarks' indices and
+        conditional means (k, 2)).
     """
     s = split(prior, active)
     A = s.information
     mu_a = prior.mu[s.order]
     local = np.searchsorted(active, prior.landmarks[s.is_active])
-    columns = np.r_[(landmark_column[local][:, None] + np.arange(2)).reshape(-1), pose_column + np.arange(3)]
+    columns = np.r_[
+        (landmark_column[local][:, None] + np.arange(2)).reshape(-1),
+        (pose_columns[:, None] + np.arange(3)).reshape(-1),
+    ]
     angle = np.zeros(len(s.order), dtype=bool)
-    angle[-1] = True
+    angle[len(s.order) - 3 * len(pose_columns) + 2 :: 3] = True
     quadratic = QuadraticPrior(columns, prior.x_lin[s.order], angle, A, -A @ mu_a)
     if len(s.passive) == 0:
         return quadratic, None
     passive_ids = prior.landmarks[~s.is_active]
 
-    def recover(oldest_pose: Array, active_landmarks: Array) -> tuple[Index, Array]:
+    def recover(prior_poses: Array, active_landmarks: Array) -> tuple[Index, Array]:
         """Passive landmarks at their conditional mean given the solved active part (matrix-vector only)."""
-        d_a = np.r_[active_landmarks[local].reshape(-1), oldest_pose] - prior.x_lin[s.order]
-        d_a[-1] = wrap(d_a[-1])
+        d_a = np.r_[active_landmarks[local].reshape(-1), prior_poses.reshape(-1)] - prior.x_lin[s.order]
+        d_a[angle] = wrap(d_a[angle])
         d_p = prior.mu[s.passive] + prior.Sigma[np.ix_(s.passive, s.order)] @ (A @ (d_a - mu_a))
         return passive_ids, (prior.x_lin[s.passive] + d_p).reshape(-1, 2)
 
@@ -196,8 +211,9 @@ def marginalize(
     next_pose: tuple[int, Array],
     loss: RobustLoss | None,
     recentre: bool = True,
+    robots: RobotFold | None = None,
 ) -> Prior:
-    """Fold the prior pose o's factors into the prior ``[landmarks..., o]``, then eliminate o.
+    """Fold the prior pose o's factors into the prior ``[landmarks..., others..., o]``, then eliminate o.
 
     First o's observations of landmarks the prior holds update it jointly (a Kalman update). Then every
     variable that o's remaining factors determine — landmarks seen for the first time, and the next pose
@@ -208,7 +224,7 @@ def marginalize(
 
     Args:
         prior: The prior on o (``prior.pose``).
-        pose: o's current estimate, shape (3,).
+        pose: The current estimate of every pose it holds (:attr:`Prior.poses`, o last), shape (3 R + 3,).
         landmarks: Every landmark's current estimate, shape (M, 2).
         sightings: o's sightings to fold in (judged outliers left out), or None.
         odometry: (delta, square-root information) of the odometry from o to n1.
@@ -216,24 +232,70 @@ def marginalize(
         loss: The robust loss on sightings (IRLS weights at the linearization point).
         recentre: Re-centre the prior at the current estimate first and linearize there (else at the prior's
             first estimates: FEJ).
+        robots: o's robot sightings of (or by) the other poses the prior holds, or None.
     """
     x_lin, mu, Sigma = prior.x_lin, prior.mu, prior.Sigma
     n = len(mu)
     if recentre:
         current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
         shift = current - x_lin
-        shift[-1] = wrap(shift[-1])
+        if len(prior.others):
+            shift[2 * len(prior.landmarks) + 2 :: 3] = wrap(shift[2 * len(prior.landmarks) + 2 :: 3])
+        else:
+            shift[-1] = wrap(shift[-1])
         x_lin, mu = current, mu - shift
     lin_o = x_lin[n - 3 :]
     held = list(prior.landmarks)
     appended: list[Appended] = []
     if sightings is not None:
         mu, held, appended = _fold_sightings(Sigma, x_lin, mu, held, sightings, landmarks, loss)
+    if robots is not None:
+        mu = _fold_robots(Sigma, x_lin, mu, robots, loss)
     delta, W = odometry
     index, value = next_pose
     e, J_a, J_b = odometry_residual_with_jacobians(lin_o, value, delta)
     appended.append((W @ e, W @ J_a, W @ J_b, value))
-    return _grown(index, np.array(held, dtype=np.int64), x_lin, mu, Sigma, appended)
+    grown = _grown(index, np.array(held, dtype=np.int64), x_lin, mu, Sigma, appended)
+    return grown if not len(prior.others) else _landmarks_first(grown, len(prior.landmarks), prior.others)
+
+
+def _fold_robots(Sigma: Array, x_lin: Array, mu: Array, robots: RobotFold, loss: RobustLoss | None) -> Array:
+    """Update the prior with robot sightings between poses it holds (Sigma in place); the updated mean."""
+    rows_a, rows_b, z, W, fixed = robots
+    pose_a = np.where(rows_a[:, None] >= 0, x_lin[np.maximum(rows_a, 0)[:, None] + np.arange(3)], fixed[:, 0])
+    pose_b = np.where(rows_b[:, None] >= 0, x_lin[np.maximum(rows_b, 0)[:, None] + np.arange(3)], fixed[:, 1])
+    e, J_a, J_b = robot_sighting_residual_with_jacobians(pose_a, pose_b, z)
+    r0 = np.einsum("kij,kj->ki", W, e)
+    if loss is not None:
+        W = W * np.sqrt(loss.weight(np.sum(r0 * r0, axis=1)))[:, None, None]
+        r0 = np.einsum("kij,kj->ki", W, e)
+    cols = np.unique(np.r_[rows_a, rows_b])
+    cols = cols[cols >= 0]
+    where = {int(c): 3 * k for k, c in enumerate(cols)}
+    J_s = np.zeros((2 * len(z), 3 * len(cols)))
+    for k, (a, b) in enumerate(zip(rows_a.tolist(), rows_b.tolist())):
+        for row, J in ((a, J_a[k]), (b, J_b[k])):
+            if row >= 0:
+                J_s[2 * k : 2 * k + 2, where[row] : where[row] + 3] = W[k] @ J
+    cols = (cols[:, None] + np.arange(3)).reshape(-1)
+    PHt = Sigma[:, cols] @ J_s.T
+    S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
+    with contextlib.suppress(np.linalg.LinAlgError):
+        dmu, _, _ = apply_update(Sigma, PHt, S, -(r0.reshape(-1) + J_s @ mu[cols]), exactly_symmetric=False)
+        mu = mu + dmu
+    return mu
+
+
+def _landmarks_first(prior: Prior, old: int, others: Index) -> Prior:
+    """The grown prior ``[old landmarks..., others..., new landmarks..., pose]`` reordered to
+    ``[landmarks..., others..., pose]``."""
+    n, new = len(prior.mu), 2 * (len(prior.landmarks) - old)
+    if not new:
+        return replace(prior, others=others)
+    o = 2 * old + 3 * len(others)
+    order = np.r_[np.arange(2 * old), np.arange(o, o + new), np.arange(2 * old, o), np.arange(n - 3, n)]
+    Sigma = np.ascontiguousarray(prior.Sigma[np.ix_(order, order)])
+    return Prior(prior.pose, prior.landmarks, prior.x_lin[order], prior.mu[order], Sigma, others)
 
 
 def _fold_sightings(
@@ -316,7 +378,8 @@ def release(prior: Prior, stale: list[int]) -> tuple[Prior, int]:
     drop = (2 * slots[:, None] + np.arange(2)).reshape(-1)
     keep = np.setdiff1d(np.arange(len(prior.mu)), drop)
     Sigma = np.ascontiguousarray(prior.Sigma[np.ix_(keep, keep)])
-    return Prior(prior.pose, np.delete(prior.landmarks, slots), prior.x_lin[keep], prior.mu[keep], Sigma), len(slots)
+    landmarks = np.delete(prior.landmarks, slots)
+    return Prior(prior.pose, landmarks, prior.x_lin[keep], prior.mu[keep], Sigma, prior.others), len(slots)
 
 
 def reanchored(
@@ -347,9 +410,10 @@ def reanchored(
         the solve did not reconcile it: a poor minimum).
     """
     relinearized = len(prior.landmarks) <= information_max
-    g_k, H_k = prior_marginal(past, values, landmarks, prior.landmarks, loss, relinearized)
+    kept = None if not len(prior.others) else prior.poses
+    g_k, H_k = prior_marginal(past, values, landmarks, prior.landmarks, loss, relinearized, kept)
     Sigma = prior.Sigma if H_k is None else prior_covariance(H_k, prior.Sigma)
     if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):
         return None
-    x_lin = np.r_[landmarks[prior.landmarks].reshape(-1), values[-1]]
-    return Prior(prior.pose, prior.landmarks, x_lin, -(Sigma @ g_k), Sigma)
+    x_lin = np.r_[landmarks[prior.landmarks].reshape(-1), values[-1] if kept is None else values[kept].reshape(-1)]
+    return Prior(prior.pose, prior.landmarks, x_lin, -(Sigma @ g_k), Sigma, prior.others)

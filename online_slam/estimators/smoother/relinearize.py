@@ -23,13 +23,15 @@ pose left the window (:func:`outlier_mask`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from online_slam.estimators.problem import ProblemLog
-from online_slam.factors.graph import FactorGraph, layout, linearize, without_observations
+from online_slam.estimators.problem import ProblemLog, RobotSightings
+from online_slam.factors.graph import FactorGraph, layout, linearize, without_observations, without_robot_sightings
 from online_slam.factors.robust import RobustLoss
 from online_slam.solvers.least_squares import SolverConfig, SolveResult, solve
 
@@ -69,9 +71,11 @@ def prior_marginal(
     prior_landmarks: Index,
     loss: RobustLoss | None = None,
     information: bool = True,
+    kept: Index | None = None,
 ) -> tuple[Array, Array | None]:
     """The history's cost with the history poses eliminated, as a quadratic over ``[prior landmarks..., oldest
-    pose]``: its gradient and (Gauss-Newton) information at the given values.
+    pose]`` (or ``[prior landmarks..., kept poses...]``): its gradient and (Gauss-Newton) information at the given
+    values.
 
     Args:
         history: :func:`history_graph` (poses ``0..oldest``; the last one is the oldest window pose).
@@ -81,6 +85,8 @@ def prior_marginal(
         loss: The smoother's robust loss on sightings (IRLS weights at these values).
         information: Also compute ``H'`` (else None is returned in its place); landmarks the history sees that
             the prior does not hold are then eliminated with the poses (else held at their values).
+        kept: The poses the prior holds, in its order, when they are not just the last one (several robots); every
+            other free pose is eliminated.
 
     Returns:
         (g', shape (2 L + 3,); H', shape (2 L + 3, 2 L + 3), or None).
@@ -88,12 +94,12 @@ def prior_marginal(
     sparse = layout(history)
     r, J = linearize(history, sparse, poses, landmarks, loss)
     g = J.T @ r
-    oldest = history.n_poses - 1
-    pose_cols = sparse.pose_column[:oldest]
+    kept = np.array([history.n_poses - 1]) if kept is None else kept
+    pose_cols = np.delete(sparse.pose_column, kept)
     m = (pose_cols[pose_cols >= 0][:, None] + np.arange(3)).reshape(-1)
     k = np.r_[
         (sparse.landmark_column[prior_landmarks][:, None] + np.arange(2)).reshape(-1),
-        sparse.pose_column[oldest] + np.arange(3),
+        (sparse.pose_column[kept][:, None] + np.arange(3)).reshape(-1),
     ]
     if information:  # landmarks the history sees but the prior does not hold (released) are eliminated too
         others = np.setdiff1d(np.unique(history.obs_landmark), prior_landmarks)
@@ -202,11 +208,54 @@ def outlier_mask(graph: FactorGraph, decisions: list[tuple[int, NDArray[np.bool_
     return drop
 
 
-def inlier_graph(log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]]) -> FactorGraph:
-    """Every factor of the log but the sightings judged outliers."""
+def inlier_graph(
+    log: ProblemLog, decisions: list[tuple[int, NDArray[np.bool_]]], robot_rejected: Sequence[int] = ()
+) -> FactorGraph:
+    """Every factor of the log but the sightings (and robot sightings) judged outliers."""
     graph = log.graph()
     drop = outlier_mask(graph, decisions)
-    return without_observations(graph, drop) if drop.any() else graph
+    graph = without_observations(graph, drop) if drop.any() else graph
+    if len(robot_rejected):
+        graph = without_robot_sightings(graph, robot_rows(log.seen, robot_rejected))
+    return graph
+
+
+def robot_rows(seen: RobotSightings, numbers: Sequence[int]) -> NDArray[np.bool_]:
+    """Which robot sightings of a log's graph (its linked ones, in order) are among these sighting numbers."""
+    return np.isin(np.flatnonzero(seen.linked()), np.asarray(numbers, dtype=np.int64))
+
+
+def several_history_graph(graph: FactorGraph, left: Index, kept: Index, folded: NDArray[np.bool_]) -> FactorGraph:
+    """The factors the prior folded in, several robots: odometry from the poses that left the window, their
+    sightings, the start priors of those poses and of the prior's poses (``kept``), the robot sightings ``folded``
+    (R,); over every pose, those neither left nor kept held fixed (no columns), the kept ones free."""
+    gone = np.zeros(graph.n_poses, dtype=bool)
+    gone[left] = True
+    inside = gone.copy()
+    inside[kept] = True
+    odo, obs, prior = gone[graph.odo_from], gone[graph.obs_pose], inside[graph.prior_pose]
+    fixed = np.union1d(np.flatnonzero(~inside), graph.fixed_poses[gone[graph.fixed_poses]])
+    return FactorGraph(
+        n_poses=graph.n_poses,
+        n_landmarks=graph.n_landmarks,
+        fixed_poses=fixed.astype(np.int64),
+        prior_pose=graph.prior_pose[prior],
+        prior_mean=graph.prior_mean[prior],
+        prior_sqrt_info=graph.prior_sqrt_info[prior],
+        odo_from=graph.odo_from[odo],
+        odo_to=graph.odo_to[odo],
+        odo_delta=graph.odo_delta[odo],
+        odo_sqrt_info=graph.odo_sqrt_info[odo],
+        obs_pose=graph.obs_pose[obs],
+        obs_landmark=graph.obs_landmark[obs],
+        obs_z=graph.obs_z[obs],
+        obs_sqrt_info=graph.obs_sqrt_info[obs],
+        obs_model=graph.obs_model[obs],
+        rob_from=graph.rob_from[folded],
+        rob_to=graph.rob_to[folded],
+        rob_z=graph.rob_z[folded],
+        rob_sqrt_info=graph.rob_sqrt_info[folded],
+    )
 
 
 def rejudged(
@@ -233,6 +282,7 @@ def solve_all(
     landmarks: Array,
     solver: SolverConfig,
     loss: RobustLoss | None,
+    robot_rejected: Sequence[int] = (),
 ) -> SolveResult:
     """Every factor of the log but the judged outliers, solved from the given values (pure: safe in a thread).
 
@@ -240,4 +290,4 @@ def solve_all(
     threads as the process allows at the moment, which the stepping thread changes (it limits BLAS to one thread
     per step), so a small problem solved in the background could differ in the last bits from run to run.
     """
-    return solve(inlier_graph(log, decisions), poses, landmarks, solver, loss=loss, dense=False)
+    return solve(inlier_graph(log, decisions, robot_rejected), poses, landmarks, solver, loss=loss, dense=False)

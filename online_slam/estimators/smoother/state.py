@@ -30,6 +30,9 @@ class Progress:
     """Poses marginalized."""
     released: int = 0
     """Landmarks let go from the prior because the window's sightings contradicted it (consensus)."""
+    robot_unfolded: int = 0
+    """Robot sightings left out of the prior: when one of their poses left the window, the other was not its
+    robot's oldest window pose (several robots)."""
     step_report: dict[str, int | float] = field(default_factory=dict)
     """The newest step's last solve and global relinearization figures (iteration counts are ints)."""
     step_marginalized: list[int] = field(default_factory=list)

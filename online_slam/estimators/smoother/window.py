@@ -32,7 +32,7 @@ from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
-from online_slam.sources.events import LandmarkId
+from online_slam.sources.events import LandmarkId, RobotId
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -59,32 +59,90 @@ class Window:
     start: tuple[int, Array, Array | None] | None = None
     """(start pose, its prior mean, its prior covariance or None when fixed)."""
     pose_cov: Array = field(default_factory=lambda: np.zeros((3, 3)))
-    """Covariance of the newest pose, shape (3, 3)."""
+    """Covariance of the newest pose, shape (3, 3); with several robots, the robot's next pose propagates it from
+    its own newest pose's (``robot_cov``)."""
     unsolved: set[int] = field(default_factory=set)
     """Window poses with factors added since the last solve."""
     since_solve: int = 0
     """Steps since the last solve."""
+    robots: list[RobotId | None] = field(default_factory=list)
+    """The robots begun, in order (several robots: see :mod:`~online_slam.estimators.smoother.robots`)."""
+    robot_times: list[float] = field(default_factory=list)
+    """The time of each robot's newest pose, in the order of ``robots``."""
+    robot_of: dict[int, RobotId | None] = field(default_factory=dict)
+    """The robot of each window pose, once several robots began (empty with one)."""
+    previous: dict[int, int] = field(default_factory=dict)
+    """The earlier pose of each window odometry factor, keyed by the later pose, once several robots began (with
+    one it is the pose before)."""
+    starts: dict[int, tuple[Array, Array | None]] = field(default_factory=dict)
+    """Start prior (mean, covariance or None when fixed) of each robot after the first, by its start pose, while
+    the marginal prior does not hold it."""
+    robot_factors: list[tuple[int, int, Array, Array, int]] = field(default_factory=list)
+    """Window robot sightings: (sighting pose, seen pose, z (2,), square-root information (2, 2), the sighting's
+    number in the log's :class:`~online_slam.estimators.problem.RobotSightings`)."""
+    left: list[int] = field(default_factory=list)
+    """The pose index of each ``history`` row, once several robots began (with one, row k is pose k)."""
+    robot_cov: dict[int, Array] = field(default_factory=dict)
+    """The covariance of each robot's newest pose but the window's newest (``pose_cov``), by pose, as it was when
+    that pose stopped being the window's newest (several robots)."""
+    sightings_read: int = 0
+    """Robot sightings of the log read so far."""
+    sightings_waiting: list[int] = field(default_factory=list)
+    """Robot sightings read whose seen pose may still come (their time is the newest step's)."""
     index: dict[LandmarkId, int] = field(init=False)
     """Each landmark id's row in ``landmarks``."""
 
     def __post_init__(self) -> None:
         self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
 
+    @property
+    def several(self) -> bool:
+        """Whether a second robot began."""
+        return len(self.robots) > 1
+
     def values(self) -> Array:
         """The window poses' estimates, oldest first, shape (P, 3)."""
         return np.array([self.poses[g] for g in self.indices])
 
+    def all_poses(self) -> Array:
+        """Every pose's estimate in index order (the history's as they left, the window's now), shape (N, 3)."""
+        if not self.several:
+            return np.vstack([self.history.view(), self.values()])
+        out = np.zeros((len(self.history) + len(self.indices), 3))
+        out[self.left] = self.history.view()
+        out[self.indices] = self.values()
+        return out
+
     def add_pose(self, step: Step) -> None:
-        """Add the step's pose: the start (from its prior) or the newest pose composed with the odometry."""
+        """Add the step's pose: a start (from its prior) or the robot's newest pose composed with the odometry."""
         i = step.index
         if step.odometry is None:
             pose = np.array(step.prior, dtype=float)
-            self.start = (i, pose.copy(), None if step.prior_cov is None else np.array(step.prior_cov))
+            start = (pose.copy(), None if step.prior_cov is None else np.array(step.prior_cov))
+            if self.robots:  # another robot begins
+                self.starts[i] = start
+                if not self.several:
+                    self.robot_of = dict.fromkeys(self.indices, self.robots[0])
+                    self.previous = {g: g - 1 for g in self.odometry}
+                    self.left = list(range(len(self.history)))
+            else:
+                self.start = (i, *start)
+            self.robots.append(step.robot)
+            self.robot_times.append(step.t)
+            if self.several:
+                self.robot_cov[self.indices[-1]] = self.pose_cov
             self.pose_cov = np.zeros((3, 3)) if step.prior_cov is None else np.array(step.prior_cov)
         else:
-            previous = self.indices[-1]
+            previous = self.newest(step.robot)
+            self.robot_times[self.robots.index(step.robot)] = step.t
+            cov = self.pose_cov
+            if self.several:
+                self.previous[i] = previous
+                if previous != self.indices[-1]:  # another robot's pose is the newest: keep its covariance
+                    self.robot_cov[self.indices[-1]] = self.pose_cov
+                    cov = self.robot_cov.pop(previous, self.pose_cov)
             pose, F, G = compose_with_jacobians(self.poses[previous], step.odometry)
-            self.pose_cov = F @ self.pose_cov @ F.T + G @ step.odometry_cov @ G.T
+            self.pose_cov = F @ cov @ F.T + G @ step.odometry_cov @ G.T
             self.odometry[i] = (
                 np.array(step.odometry),
                 np.array(step.odometry_cov),
@@ -93,6 +151,14 @@ class Window:
         self.indices.append(i)
         self.poses[i] = pose
         self.unsolved.add(i)
+        if self.several:
+            self.robot_of[i] = step.robot
+
+    def newest(self, robot: RobotId | None) -> int:
+        """The robot's newest pose (the newest pose with one robot)."""
+        if not self.several:
+            return self.indices[-1]
+        return next(g for g in reversed(self.indices) if self.robot_of[g] == robot)
 
     def add_sightings(self, step: Step, start: int) -> None:
         """Factors for the newest pose's sightings ``start:``; new landmarks from their first sight."""
@@ -134,6 +200,20 @@ class Window:
         self.observations.pop(o, None)
         self.indices.pop(0)
 
+    def drop(self, pose: int, successor: int) -> None:
+        """Move a pose (its robot's oldest) to the history and drop its factors: several robots."""
+        self.history.append(self.poses.pop(pose))
+        self.left.append(pose)
+        self.odometry.pop(successor)
+        self.previous.pop(successor)
+        self.observations.pop(pose, None)
+        self.indices.remove(pose)
+        self.robot_of.pop(pose)
+
+    def chain(self, robot: RobotId | None) -> list[int]:
+        """The robot's window poses, oldest first (several robots)."""
+        return [g for g in self.indices if self.robot_of[g] == robot]
+
     def is_full(self, config: WindowConfig) -> bool:
         """Whether the oldest pose is to be marginalized (see :class:`WindowConfig`)."""
         n = len(self.indices)
@@ -156,9 +236,11 @@ class System:
     quadratic: QuadraticPrior | None
     """The prior's marginal on its pose and the active landmarks, or None without a prior."""
     recover: Callable[[Array, Array], tuple[Index, Array]] | None
-    """The passive landmarks from the solved prior pose and active landmarks, or None when there are none."""
+    """The passive landmarks from the solved prior poses and active landmarks, or None when there are none."""
     poses: Array
     """The window poses' current estimates, shape (P, 3)."""
+    prior_poses: Index
+    """The local index of each pose the prior holds, in its order (empty without a prior)."""
 
 
 @dataclass(frozen=True)
@@ -189,17 +271,22 @@ def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, 
     local = {g: k for k, g in enumerate(window.indices)}
     to_local = np.full(len(window.landmark_ids), -1, dtype=np.int64)
     to_local[active] = np.arange(len(active))
-    odo = [(local[j] - 1, local[j], *window.odometry[j]) for j in window.indices[1:]]
+    if window.several:
+        odo = [
+            (local[window.previous[j]], local[j], *window.odometry[j]) for j in window.indices if j in window.previous
+        ]
+    else:
+        odo = [(local[j] - 1, local[j], *window.odometry[j]) for j in window.indices[1:]]
     obs = [(local[i], *window.observations[i]) for i in window.indices if i in window.observations]
     fixed: list[int] = []
     prior_pose, prior_mean, prior_W = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3))
-    start = window.start
-    if start is not None and start[0] in local:
-        if start[2] is None:
-            fixed = [local[start[0]]]
-        else:
-            prior_pose = np.array([local[start[0]]])
-            prior_mean, prior_W = start[1][None], sqrt_information(start[2])[None]
+    starts = {} if window.start is None else {window.start[0]: window.start[1:]}
+    starts |= window.starts
+    free = [(local[i], mean, cov) for i, (mean, cov) in starts.items() if i in local and cov is not None]
+    fixed = [local[i] for i, (_, cov) in starts.items() if i in local and cov is None]
+    if free:
+        prior_pose = np.array([f[0] for f in free], dtype=np.int64)
+        prior_mean, prior_W = np.array([f[1] for f in free]), sqrt_information(np.array([f[2] for f in free]))
     graph = FactorGraph(
         n_poses=len(window.indices),
         n_landmarks=len(active),
@@ -218,8 +305,22 @@ def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, 
         obs_z=np.concatenate([o[2] for o in obs]) if obs else np.zeros((0, 2)),
         obs_sqrt_info=np.concatenate([o[4] for o in obs]) if obs else np.zeros((0, 2, 2)),
         obs_model=np.concatenate([o[5] for o in obs]) if obs else np.zeros(0, dtype=np.int8),
+        **robot_arrays(window.robot_factors, local),
     )
     return graph, local
+
+
+def robot_arrays(factors: list[tuple[int, int, Array, Array, int]], local: dict[int, int]) -> dict[str, Array]:
+    """Robot sightings as the robot-sighting arrays of a :class:`FactorGraph` over local pose indices ({} when
+    there are none)."""
+    if not factors:
+        return {}
+    return {
+        "rob_from": np.array([local[f[0]] for f in factors], dtype=np.int64),
+        "rob_to": np.array([local[f[1]] for f in factors], dtype=np.int64),
+        "rob_z": np.array([f[2] for f in factors]),
+        "rob_sqrt_info": np.array([f[3] for f in factors]),
+    }
 
 
 def system(window: Window, prior: Prior | None, active: Index) -> System:
@@ -227,9 +328,11 @@ def system(window: Window, prior: Prior | None, active: Index) -> System:
     graph, local = window_graph(window, active)
     sparse = layout(graph, entries=False)
     quadratic, recover = None, None
+    held = np.zeros(0, dtype=np.int64)
     if prior is not None:
-        quadratic, recover = reduced(prior, active, sparse.pose_column[local[prior.pose]], sparse.landmark_column)
-    return System(graph, sparse, quadratic, recover, window.values())
+        held = np.array([local[g] for g in prior.poses], dtype=np.int64)
+        quadratic, recover = reduced(prior, active, sparse.pose_column[held], sparse.landmark_column)
+    return System(graph, sparse, quadratic, recover, window.values(), held)
 
 
 def solve_window(
