@@ -13,8 +13,8 @@ Several robots share one map when every event names its ``robot`` (``start`` eac
 a sighting of another robot), as on a stream of several robots. Their poses reach the estimator in the order
 they began (one index over all robots): a pose waits until the earlier poses of the other robots are complete
 (their robots moved on); a query shows the oldest waiting pose at once. :attr:`SlamEstimate.robots` gives each
-robot's newest pose, its covariance and its trajectory. Only the EKF takes several robots today (an estimator
-that does sets ``several_robots`` and gives each robot's newest pose by ``robot_poses()``).
+robot's newest pose, its covariance and its trajectory. The EKF and the smoother take several robots (an
+estimator that does sets ``several_robots`` and gives each robot's newest pose by ``robot_poses()``).
 """
 
 from __future__ import annotations
@@ -417,7 +417,7 @@ class Slam:
         several = getattr(self._estimator, "several_robots", False)
         if isinstance(event, Start) and len(self._validator.state.robots) > 1 and not several:
             name = self.estimator_name
-            raise OnlineSlamError(f"several robots: the {name} takes one robot at a time (Slam('ekf') takes several)")
+            raise OnlineSlamError(f"several robots: the {name} takes one robot at a time")
         if isinstance(event, Observation) and event.robot_seen is not None:
             frontend = self._engine.frontend
             pending = frontend.pending
