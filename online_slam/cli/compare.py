@@ -20,7 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "compare",
         help="compare EKF, smoother configurations and batch on one stream: table, figures, Monte Carlo",
         description="Run the EKF, every smoother (W, K) and the batch solver on the same stream; print one table. "
-        "With --runs N (simulated worlds), Monte Carlo over N noise seeds: ANEES, share of steps in its 95%% band, "
+        "With --runs N (simulated worlds), Monte Carlo over N noise seeds: ANEES, share of steps in its 95% band, "
         "RMSE per online estimator, and with --peer isam2 GTSAM's iSAM2 beside them.",
     )
     options.add_options(p, "compare", lists=GRID)
