@@ -122,3 +122,22 @@ def figures(document: object) -> object:
         timings = ("total_s", "step_ms", "solve_s", "final_solve_s")
         return {k: figures(v) for k, v in document.items() if k not in timings}
     return document
+
+
+def test_each_robots_newest_covariance_takes_the_robot_sightings() -> None:
+    import online_slam
+
+    covs = {}
+    for kind in ("ekf", "smoother"):
+        team = online_slam.Slam(kind)
+        team.start(0.0, [0.0, 0.0, 0.0], robot=1)
+        team.start(0.0, [5.0, 0.0, 0.0], robot=2)
+        for t in (1.0, 2.0):
+            team.add_odometry(t, delta=[1.0, 0.0, 0.0], sigma=[0.05, 0.05, 0.01], robot=1)
+            team.add_odometry(t, delta=[1.0, 0.0, 0.0], sigma=[0.05, 0.05, 0.01], robot=2)
+            team.add_robot_observation(t, robot_seen=2, range=5.0, bearing=0.0, sigma=[0.05, 0.01], robot=1)
+        covs[kind] = {robot: newest.pose_cov for robot, newest in team.estimate().robots.items()}
+    # robot 2 (not the newest pose) is pulled by robot 1's sightings: tighter than its odometry alone (0.05 m)
+    assert np.sqrt(covs["smoother"][2][0, 0]) < 0.045
+    for robot in (1, 2):
+        np.testing.assert_allclose(covs["smoother"][robot], covs["ekf"][robot], rtol=0.02, atol=1e-6)

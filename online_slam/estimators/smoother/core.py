@@ -25,6 +25,7 @@ from online_slam.estimators.smoother.config import SmootherConfig
 from online_slam.estimators.smoother.covariance import (
     factored,
     landmark_marginals,
+    pose_marginals,
     propagated_covariance,
     window_covariance,
 )
@@ -347,6 +348,8 @@ class SlidingWindowSmoother(SeveralRobots):
         self.association.solved = None
         if information is not None:
             w.pose_cov, self.association.solved = information
+            if w.robot_cov and self.association.solved is not None:  # the other robots' newest poses, now
+                w.robot_cov.update(pose_marginals(self.association.solved, list(w.robot_cov)))
         w.since_solve = 0
         w.unsolved.clear()
         self.progress.solves += 1

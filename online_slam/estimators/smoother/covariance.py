@@ -91,6 +91,25 @@ def factored(
     return 0.5 * (cov + cov.T), solved
 
 
+def pose_marginals(solved: Solved, poses: list[int]) -> dict[int, Array]:
+    """The marginal covariance (3, 3) of each of these window poses from a solve's factored information (poses it
+    held fixed, or did not solve, left out)."""
+    position = {int(g): k for k, g in enumerate(solved.window.tolist())}
+    wanted = [(g, int(solved.pose_column[position[g]])) for g in poses if g in position]
+    wanted = [(g, c) for g, c in wanted if c >= 0]
+    if not wanted:
+        return {}
+    unit = np.zeros((solved.factor.shape[0], 3 * len(wanted)))
+    for k, (_, c) in enumerate(wanted):
+        unit[c + np.arange(3), 3 * k + np.arange(3)] = 1.0
+    cov = la.cho_solve((solved.factor, False), unit)
+    out = {}
+    for k, (g, c) in enumerate(wanted):
+        block = cov[c : c + 3, 3 * k : 3 * k + 3]
+        out[g] = 0.5 * (block + block.T)
+    return out
+
+
 def window_covariance(linearized: Linearized, prior: Prior | None, indices: Index) -> Array:
     """Joint covariance of the newest pose and landmarks ``indices`` (c,) from a linearized window, shape
     (3 + 2c, 3 + 2c).
