@@ -158,6 +158,9 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
         steps = 3 * MeetConfig.poses
         squares = sum(r.final_rmse_m**2 * MeetConfig.poses for r in result.robots.values())
         assert np.sqrt(squares / steps) == pytest.approx(result.final_rmse_m, rel=1e-9)
+        gaps = [r.endpoint_gap_m for r in result.robots.values()]  # each robot's loop, not one robot to another
+        assert result.endpoint_gap_m == pytest.approx(np.sqrt(np.mean(np.square(gaps))), rel=1e-12)
+        assert result.endpoint_gap_m < 2.0
     ekf = results.estimators["ekf"]
     assert ekf.online_rmse_m < 0.1 and results.estimators["batch"].final_rmse_m < ekf.final_rmse_m
     assert set(ekf.robots["1"].to_json()) == {k for k in ekf.to_json() if not k.startswith(("gated", "landmarks_",

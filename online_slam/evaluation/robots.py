@@ -28,6 +28,12 @@ def robot_steps(robots: Sequence[RobotId | None]) -> dict[str, NDArray[np.int64]
     return {str(r): np.flatnonzero(column == k) for k, r in enumerate(order)}
 
 
+def robots_gap(poses: Array, steps: dict[str, NDArray[np.int64]]) -> float:
+    """The end gap over several robots: the root mean square of each robot's own (last to first position)."""
+    gaps = [endpoint_gap(poses[idx]) for idx in steps.values() if len(idx) and idx[-1] < len(poses)]
+    return float(np.sqrt(np.mean(np.square(gaps)))) if gaps else float("nan")
+
+
 def _rmse(errors: Array) -> float | None:
     """Root mean square of the finite errors (None when there are none)."""
     finite = errors[np.isfinite(errors)]

@@ -14,7 +14,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.protocol import Estimate, Estimator
 from online_slam.evaluation.association import AssociationScore, majority, score_association, true_labels, with_true_ids
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
-from online_slam.evaluation.robots import final_errors, per_robot, robot_steps
+from online_slam.evaluation.robots import final_errors, per_robot, robot_steps, robots_gap
 from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
@@ -37,13 +37,15 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         if online is not None:
             series[estimator.name] = online
     odometry = evaluate(estimates["odometry"], truth, config.alignment)
+    robots = robot_steps(run.odometry.log.robots)
+    odometry_gap = robots_gap(estimates["odometry"].poses, robots) if robots else odometry.endpoint_gap_m
     steps = run.engine.steps
     return Results(
         source=run.source,
         poses=steps,
         landmarks=len(estimates["odometry"].landmark_ids) or len(set(truth.sighting_landmarks.values())),
         observations=run.engine.observations,
-        odometry=OdometryResult(odometry.rmse_m, odometry.endpoint_gap_m, odometry.landmark_rmse_m),
+        odometry=OdometryResult(odometry.rmse_m, odometry_gap, odometry.landmark_rmse_m),
         estimators=figures,
         estimates=estimates,
         alignment=config.alignment,
@@ -122,7 +124,7 @@ def _score_estimator(
         final = final_errors(scored, truth, errors)
         series = None if online is None else online.series
         robots = per_robot(result, scored, final, series, np.array(track.seconds), steps)
-        result = dataclasses.replace(result, robots=robots)
+        result = dataclasses.replace(result, robots=robots, endpoint_gap_m=robots_gap(scored.poses, steps))
     return result, None if online is None else online.series
 
 
