@@ -91,8 +91,10 @@ def path_closure(results: Results) -> Closure | None:
 def title(results: Results) -> str:
     """The table's first line: source, robot (when the stream names one) and sizes."""
     robot = "" if results.robot is None else f", robot {results.robot}"
-    size = [counted(results.poses, "pose"), counted(results.landmarks, "landmark")]
-    return f"{results.source}{robot}: {', '.join([*size, counted(results.observations, 'observation')])}"
+    robots = [counted(len(set(results.step_robots)), "robot")] if results.step_robots else []
+    size = [*robots, counted(results.poses, "pose"), counted(results.landmarks, "landmark")]
+    sightings = counted(results.observations, "landmark observation" if robots else "observation")
+    return f"{results.source}{robot}: {', '.join([*size, sightings])}"
 
 
 def table_lines(results: Results, rows: Mapping[str, Row]) -> list[str]:
