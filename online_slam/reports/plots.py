@@ -9,7 +9,7 @@ a decade and are labelled at 1, 2, 5 x 10^k (more sparsely on tall spans).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +21,7 @@ from online_slam.compare import Comparison, MonteCarlo, Row
 from online_slam.evaluation.results import Results
 from online_slam.evaluation.scoring import NEES_DOF, position_errors
 from online_slam.reports.palette import palette
+from online_slam.reports.table import title as table_title
 from online_slam.sinks.geometry import ellipses
 from online_slam.wording import counted
 
@@ -84,9 +85,7 @@ def looks(names: list[str]) -> dict[str, Look]:
 def title(results: Results) -> str:
     """The figure's title: the source's short name, its robot when the stream names one, and its size."""
     name = Path(results.source).name or results.source
-    robot = f", robot {results.robot}" if results.robot is not None else ""
-    size = [counted(results.poses, "pose"), counted(results.landmarks, "landmark")]
-    return f"{name}{robot}: {', '.join([*size, counted(results.observations, 'observation')])}"
+    return table_title(replace(results, source=name))
 
 
 def _ticks(low: float, high: float, subs: tuple[float, ...]) -> int:
@@ -136,6 +135,25 @@ def _apart(xy: Array, robots: tuple) -> Array:
     )
 
 
+def _draw_last(ax: Any, r: Results, look: dict[str, Look]) -> None:
+    """Each robot's newest pose with its uncertainty as each online estimator knew it at the end, marked ``last
+    step`` (``robot <id>``, with several robots)."""
+    robots = r.step_robots
+    ends = {robot: len(robots) - 1 - robots[::-1].index(robot) for robot in dict.fromkeys(robots)} or {None: -1}
+    for robot, k in ends.items():
+        last = None
+        for name, series in r.series.items():
+            if not len(series.t) or k >= len(series.t) or not np.isfinite(series.position_cov[k]).all():
+                continue
+            s, last = look[name], series.poses[k : k + 1 if k >= 0 else None, :2]
+            ax.plot(*ellipses(last, series.position_cov[k][None])[0].T, color=s.color, lw=1.6, zorder=5)
+            ax.scatter(*last.T, marker=s.marker, color=s.color, s=30, edgecolor="black", lw=0.6, zorder=6)
+        if last is not None:
+            text = "last step" if robot is None else f"robot {robot}"
+            ax.annotate(text, last[0], xytext=(18, -18), textcoords="offset points", fontsize=9,
+                        arrowprops={"arrowstyle": "-", "color": "0.3", "lw": 0.8}, zorder=6)  # fmt: skip
+
+
 def draw_map(ax: Any, r: Results, look: dict[str, Look]) -> None:
     """Final trajectories and landmarks against truth, with 2-sigma ellipses of the landmarks and of the last pose."""
     if r.truth_poses is not None:
@@ -154,16 +172,7 @@ def draw_map(ax: Any, r: Results, look: dict[str, Look]) -> None:
         if estimate.landmark_covs is not None and len(estimate.landmarks):
             for ring in ellipses(estimate.landmarks, estimate.landmark_covs):
                 ax.plot(*ring.T, color=s.color, lw=0.9, zorder=3)
-    last = None
-    for name, series in r.series.items():  # the newest pose's uncertainty as the estimator knew it at the end
-        if not len(series.t) or not np.isfinite(series.position_cov[-1]).all():
-            continue
-        s, last = look[name], series.poses[-1:, :2]
-        ax.plot(*ellipses(last, series.position_cov[-1:])[0].T, color=s.color, lw=1.6, zorder=5)
-        ax.scatter(*last.T, marker=s.marker, color=s.color, s=30, edgecolor="black", lw=0.6, zorder=6)
-    if last is not None:
-        ax.annotate("last step", last[0], xytext=(18, -18), textcoords="offset points", fontsize=9,
-                    arrowprops={"arrowstyle": "-", "color": "0.3", "lw": 0.8}, zorder=6)  # fmt: skip
+    _draw_last(ax, r, look)
     ax.set(xlabel="x (m)", ylabel="y (m)", title="final trajectories and landmarks; 2-sigma ellipses at the last step")
     ax.set_aspect("equal", adjustable="datalim")
 
