@@ -125,6 +125,16 @@ def test_inspect_a_step_shows_every_robot(meet_recording) -> None:
     assert {f"{name} robot {r}" for name in ("odometry", "ekf", "truth") for r in "123"} == set(state["estimators"])
 
 
+def test_read_recording_names_the_robot_of_every_step(meet_recording) -> None:
+    rrd, results = meet_recording
+    series = online_slam.read_recording(rrd)
+    assert series.robot == tuple(str(r) for r in results.step_robots)
+    np.testing.assert_allclose(series.poses["ekf"][:, :2], results.series["ekf"].poses[:, :2], atol=1e-4)
+    pandas = pytest.importorskip("pandas")
+    frame = series.to_pandas()
+    assert isinstance(frame, pandas.DataFrame) and set(frame["robot"]) == {"1", "2", "3"}
+
+
 @pytest.fixture(scope="module")
 def meet_comparison(tmp_path_factory: pytest.TempPathFactory):
     from online_slam.compare import compare

@@ -69,14 +69,16 @@ class RecordingSeries:
     """Online estimator (dead reckoning ``odometry`` included) or ``truth`` -> its newest pose ``[x, y, theta]``
     at each step (with several robots: the pose of the step's robot), shape (S, 3), as logged (float32
     precision); NaN where none was logged."""
+    robot: tuple[str, ...]
+    """With several robots: the robot (its id as text) of each step, shape (S,); empty with one."""
     metrics: Mapping[str, Mapping[str, Array]]
     """Online estimator -> figure -> its value at each step, shape (S,), NaN where none was logged. Figures:
     ``position_error_m``, ``nees`` and ``step_ms`` for each, ``nis`` for the EKF, ``cost_before``,
     ``cost_after`` and ``iterations`` for smoothers (the table's figures are computed from the same values)."""
 
     def to_pandas(self) -> pandas.DataFrame:
-        """One row per (estimator, step): columns ``step``, ``t``, ``estimator``, ``x``, ``y``, ``theta`` and one
-        per figure (NaN where the estimator has none).
+        """One row per (estimator, step): columns ``step``, ``t``, (``robot`` with several robots,) ``estimator``,
+        ``x``, ``y``, ``theta`` and one per figure (NaN where the estimator has none).
 
         Raises:
             ImportError: pandas is not installed (online-slam does not need it otherwise).
@@ -91,7 +93,8 @@ class RecordingSeries:
         frames = []
         for name in dict.fromkeys([*self.poses, *self.metrics]):
             pose = self.poses.get(name, np.full((len(self.step), 3), np.nan))
-            columns = {"step": self.step, "t": self.t, "estimator": name, "x": pose[:, 0], "y": pose[:, 1]}
+            columns = {"step": self.step, "t": self.t, **({"robot": list(self.robot)} if self.robot else {})}
+            columns |= {"estimator": name, "x": pose[:, 0], "y": pose[:, 1]}
             columns["theta"] = pose[:, 2]
             values = self.metrics.get(name, {})
             columns.update({figure: values.get(figure, missing) for figure in figures})
@@ -127,6 +130,22 @@ def _merged_poses(table: Any, roots: list[str], rows: list[tuple[int, int]], cou
     for poses in found[1:]:
         merged = np.where(np.isnan(merged), poses, merged)
     return merged
+
+
+def _step_robots(
+    table: Any, roots: list[str], robots: list[str], rows: list[tuple[int, int]], count: int
+) -> tuple[str, ...]:
+    """The robot of each step, from which robot's entity logged a pose at it (``roots``: one per robot, in the
+    order of ``robots``); () with one robot."""
+    if len(robots) < 2:
+        return ()
+    out = [""] * count
+    for robot, root in zip(robots, roots):
+        poses = _poses(table, root, rows, count)
+        if poses is not None:
+            for step in np.flatnonzero(np.isfinite(poses[:, 0])).tolist():
+                out[step] = robot
+    return tuple(out)
 
 
 def _poses(table: Any, root: str, rows: list[tuple[int, int]], count: int) -> Array | None:
@@ -269,6 +288,7 @@ class Recording:
         for row, step in rows:
             t[step] = _seconds(times[row])
         poses = {name: _merged_poses(table, each, rows, count) for name, each in roots.items()}
+        robot = _step_robots(table, roots[next(iter(bases))], list(summary.robots), rows, count)
         metrics_table = self._table(["/metrics/**"], "step")
         metric_rows = _steps(metrics_table, count)
         metrics: dict[str, dict[str, Array]] = {}
@@ -287,6 +307,7 @@ class Recording:
             step=np.arange(count),
             t=t,
             poses={name: value for name, value in poses.items() if value is not None},
+            robot=robot,
             metrics=metrics,
         )
 
