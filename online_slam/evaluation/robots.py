@@ -20,10 +20,11 @@ Array = NDArray[np.float64]
 
 
 def robot_steps(robots: Sequence[RobotId | None]) -> dict[str, NDArray[np.int64]]:
-    """The step indices of each robot by its id as text (the JSON key), in order of first step; {} with one."""
+    """The step indices of each robot by its id as text (the JSON key), in order of id (numbers first); {} with
+    one."""
     if len(set(robots)) < 2:
         return {}
-    order = list(dict.fromkeys(robots))
+    order = sorted(set(robots), key=lambda r: (isinstance(r, str), r))
     column = np.array([order.index(r) for r in robots])
     return {str(r): np.flatnonzero(column == k) for k, r in enumerate(order)}
 
