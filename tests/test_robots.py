@@ -136,7 +136,7 @@ def test_a_bad_robot_line_in_a_file_is_one_line_exit_2(tmp_path: Path) -> None:
     done = subprocess.run([*EXE, "replay", str(path)], capture_output=True, text=True)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert done.stderr.strip().splitlines() == [
-        f"online-slam: error: {path}:2: robot: unknown robot 9: no start line names it before this line (robots: 1)"
+        f"online-slam: error: {path}:2: robot: unknown robot 9: no start names it before (robots: 1)"
     ]
 
 

@@ -52,7 +52,7 @@ class RobotRules:
         if value not in started:
             named = f" (robots: {robot_ids(started)})" if started else ""
             shown = robot_ids((value,))
-            raise self.fail(line, key, f"unknown robot {shown}: no start line names it before this line{named}")
+            raise self.fail(line, key, f"unknown robot {shown}: no start names it before{named}")
         return value
 
     def robot_id(self, record: dict[str, Any], line: int, key: str) -> RobotId:
