@@ -331,6 +331,41 @@ def robot_sighting_chi2(graph: FactorGraph, poses: Array) -> Array:
     return np.sum(r * r, axis=1)
 
 
+def subgraph(
+    graph: FactorGraph,
+    n_poses: int,
+    fixed_poses: Index,
+    prior: NDArray[np.bool_],
+    odo: NDArray[np.bool_],
+    obs: NDArray[np.bool_],
+    rob: NDArray[np.bool_] | None = None,
+) -> FactorGraph:
+    """The factors the masks select (priors, odometry, sightings, robot sightings: none when ``rob`` is None), over
+    ``n_poses`` poses with ``fixed_poses`` held constant and every landmark."""
+    rob = np.zeros(len(graph.rob_from), dtype=bool) if rob is None else rob
+    return FactorGraph(
+        n_poses=n_poses,
+        n_landmarks=graph.n_landmarks,
+        fixed_poses=fixed_poses,
+        prior_pose=graph.prior_pose[prior],
+        prior_mean=graph.prior_mean[prior],
+        prior_sqrt_info=graph.prior_sqrt_info[prior],
+        odo_from=graph.odo_from[odo],
+        odo_to=graph.odo_to[odo],
+        odo_delta=graph.odo_delta[odo],
+        odo_sqrt_info=graph.odo_sqrt_info[odo],
+        obs_pose=graph.obs_pose[obs],
+        obs_landmark=graph.obs_landmark[obs],
+        obs_z=graph.obs_z[obs],
+        obs_sqrt_info=graph.obs_sqrt_info[obs],
+        obs_model=graph.obs_model[obs],
+        rob_from=graph.rob_from[rob],
+        rob_to=graph.rob_to[rob],
+        rob_z=graph.rob_z[rob],
+        rob_sqrt_info=graph.rob_sqrt_info[rob],
+    )
+
+
 def without_robot_sightings(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
     """The same graph with the robot sightings flagged in ``drop`` (R,) switched off (zero information)."""
     W = graph.rob_sqrt_info.copy()

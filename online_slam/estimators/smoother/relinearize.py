@@ -31,7 +31,14 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from online_slam.estimators.problem import ProblemLog, RobotSightings
-from online_slam.factors.graph import FactorGraph, layout, linearize, without_observations, without_robot_sightings
+from online_slam.factors.graph import (
+    FactorGraph,
+    layout,
+    linearize,
+    subgraph,
+    without_observations,
+    without_robot_sightings,
+)
 from online_slam.factors.robust import RobustLoss
 from online_slam.solvers.least_squares import SolverConfig, SolveResult, solve
 
@@ -45,23 +52,7 @@ def history_graph(graph: FactorGraph, oldest: int) -> FactorGraph:
     odo = graph.odo_to <= oldest
     obs = graph.obs_pose < oldest
     prior = graph.prior_pose < oldest
-    return FactorGraph(
-        n_poses=oldest + 1,
-        n_landmarks=graph.n_landmarks,
-        fixed_poses=graph.fixed_poses[graph.fixed_poses <= oldest],
-        prior_pose=graph.prior_pose[prior],
-        prior_mean=graph.prior_mean[prior],
-        prior_sqrt_info=graph.prior_sqrt_info[prior],
-        odo_from=graph.odo_from[odo],
-        odo_to=graph.odo_to[odo],
-        odo_delta=graph.odo_delta[odo],
-        odo_sqrt_info=graph.odo_sqrt_info[odo],
-        obs_pose=graph.obs_pose[obs],
-        obs_landmark=graph.obs_landmark[obs],
-        obs_z=graph.obs_z[obs],
-        obs_sqrt_info=graph.obs_sqrt_info[obs],
-        obs_model=graph.obs_model[obs],
-    )
+    return subgraph(graph, oldest + 1, graph.fixed_poses[graph.fixed_poses <= oldest], prior, odo, obs)
 
 
 def prior_marginal(
@@ -235,27 +226,7 @@ def several_history_graph(graph: FactorGraph, left: Index, kept: Index, folded: 
     inside[kept] = True
     odo, obs, prior = gone[graph.odo_from], gone[graph.obs_pose], inside[graph.prior_pose]
     fixed = np.union1d(np.flatnonzero(~inside), graph.fixed_poses[gone[graph.fixed_poses]])
-    return FactorGraph(
-        n_poses=graph.n_poses,
-        n_landmarks=graph.n_landmarks,
-        fixed_poses=fixed.astype(np.int64),
-        prior_pose=graph.prior_pose[prior],
-        prior_mean=graph.prior_mean[prior],
-        prior_sqrt_info=graph.prior_sqrt_info[prior],
-        odo_from=graph.odo_from[odo],
-        odo_to=graph.odo_to[odo],
-        odo_delta=graph.odo_delta[odo],
-        odo_sqrt_info=graph.odo_sqrt_info[odo],
-        obs_pose=graph.obs_pose[obs],
-        obs_landmark=graph.obs_landmark[obs],
-        obs_z=graph.obs_z[obs],
-        obs_sqrt_info=graph.obs_sqrt_info[obs],
-        obs_model=graph.obs_model[obs],
-        rob_from=graph.rob_from[folded],
-        rob_to=graph.rob_to[folded],
-        rob_z=graph.rob_z[folded],
-        rob_sqrt_info=graph.rob_sqrt_info[folded],
-    )
+    return subgraph(graph, graph.n_poses, fixed.astype(np.int64), prior, odo, obs, folded)
 
 
 def rejudged(
