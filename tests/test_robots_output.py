@@ -125,6 +125,21 @@ def test_inspect_a_step_shows_every_robot(meet_recording) -> None:
     assert {f"{name} robot {r}" for name in ("odometry", "ekf", "truth") for r in "123"} == set(state["estimators"])
 
 
+def test_inspect_lists_the_robots_and_each_ones_figures(meet_recording, capsys: pytest.CaptureFixture) -> None:
+    import json
+
+    from online_slam.cli.main import main
+
+    rrd, results = meet_recording
+    assert main(["inspect", str(rrd)]) == 0
+    text = capsys.readouterr().out
+    assert "robots: 1 (entities .../robot_1), 2 (entities .../robot_2), 3 (entities .../robot_3)" in text
+    final = results.estimators["ekf"].robots["2"].final_rmse_m
+    assert any(line.split()[:2] == ["robot", "2"] and f"{final:.4f}" in line for line in text.splitlines())
+    assert main(["inspect", str(rrd), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["robots"] == {r: f"robot_{r}" for r in "123"}
+
+
 def test_read_recording_names_the_robot_of_every_step(meet_recording) -> None:
     rrd, results = meet_recording
     series = online_slam.read_recording(rrd)

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _json(summary: Any, state: dict[str, Any] | None) -> dict[str, Any]:
     """What ``inspect --json`` prints: the summary, or with ``--step`` that step's state alone."""
-    head = {"source": summary.source, "robot": summary.robot, "steps": summary.steps}
+    head = {"source": summary.source, "robot": summary.robot, "robots": summary.robots, "steps": summary.steps}
     if state is not None:
         return {**head, "state": state}
     return {
@@ -75,6 +75,8 @@ def _print_summary(path: str, summary: Any) -> None:
     print(f"source: {_source(summary)}")
     print(f"steps: {summary.steps}   time span: {t0:.3f} .. {t1:.3f} s ({t1 - t0:.3f} s)")
     print(f"estimators: {', '.join(summary.estimators)}")
+    if summary.robots:
+        print(f"robots: {', '.join(f'{robot} (entities .../{part})' for robot, part in summary.robots.items())}")
     if summary.results.get("error"):
         print(f"input stopped early: {summary.results['error']}")
     colors = summary.layout.to_json()["colors"]
@@ -91,6 +93,10 @@ def _print_summary(path: str, summary: Any) -> None:
             f"{name:<{width}}{entities.get(name, '-'):<{room}}{colors.get(name, '-'):<9}{final:>13}"
             f"{_fmt(figures.get('online_rmse_m')):>15}{_fmt(figures.get('landmark_rmse_m')):>17}{latency:>26}"
         )
+        for robot, mine in (figures.get("robots") or {}).items():
+            label = f"  robot {robot}"
+            final, online = _fmt(mine.get("final_rmse_m")), _fmt(mine.get("online_rmse_m"))
+            print(f"{label:<{width + room + 9}}{final:>13}{online:>15}")
     if summary.figures:
         logged = ", ".join(
             f"{name} {f['online_rmse_m']:.4f} m / NEES "
