@@ -161,6 +161,11 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
         gaps = [r.endpoint_gap_m for r in result.robots.values()]  # each robot's loop, not one robot to another
         assert result.endpoint_gap_m == pytest.approx(np.sqrt(np.mean(np.square(gaps))), rel=1e-12)
         assert result.endpoint_gap_m < 2.0
+    odometry = results.odometry  # dead reckoning too
+    squares = sum(r.rmse_m**2 * MeetConfig.poses for r in odometry.robots.values())
+    assert sorted(odometry.robots) == ["1", "2", "3"]
+    assert np.sqrt(squares / (3 * MeetConfig.poses)) == pytest.approx(odometry.rmse_m, rel=1e-9)
+    assert results.to_json()["odometry"]["robots"]["2"]["rmse_m"] == odometry.robots["2"].rmse_m
     ekf = results.estimators["ekf"]
     assert ekf.online_rmse_m < 0.1 and results.estimators["batch"].final_rmse_m < ekf.final_rmse_m
     assert set(ekf.robots["1"].to_json()) == {k for k in ekf.to_json() if not k.startswith(("gated", "landmarks_",

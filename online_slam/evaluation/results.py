@@ -30,6 +30,34 @@ class OdometryResult:
     """Distance between the last and first composed positions, metres."""
     landmark_rmse_m: float | None = None
     """RMSE of landmarks placed from their first observation, metres (None without truth)."""
+    robots: dict[str, OdometryResult] = field(default_factory=dict)
+    """With several robots: the same figures per robot (its id as text); empty with one."""
+
+    def row(self) -> Row:
+        """Its figures as a table row: the online figures are the final ones, and it takes no time."""
+        return Row(
+            online_rmse_m=self.rmse_m,
+            final_rmse_m=self.rmse_m,
+            landmark_rmse_m=self.landmark_rmse_m,
+            endpoint_gap_m=self.endpoint_gap_m,
+            nees_mean=None,
+            nees_in_bounds=None,
+            nis_mean=None,
+            step_median_ms=None,
+            step_p95_ms=None,
+            step_max_ms=None,
+            total_s=0.0,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """Its figures as the results JSON has them."""
+        robots = {"robots": {r: mine.to_json() for r, mine in self.robots.items()}} if self.robots else {}
+        return {
+            "rmse_m": _finite_or_none(self.rmse_m),
+            "endpoint_gap_m": self.endpoint_gap_m,
+            "landmark_rmse_m": _finite_or_none(self.landmark_rmse_m),
+            **robots,
+        }
 
 
 @dataclass(frozen=True)
@@ -249,22 +277,7 @@ class Results:
     def rows(self) -> dict[str, Row]:
         """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its
         final ones, and it takes no time."""
-        odometry = self.odometry
-        rows = {
-            "odometry": Row(
-                online_rmse_m=odometry.rmse_m,
-                final_rmse_m=odometry.rmse_m,
-                landmark_rmse_m=odometry.landmark_rmse_m,
-                endpoint_gap_m=odometry.endpoint_gap_m,
-                nees_mean=None,
-                nees_in_bounds=None,
-                nis_mean=None,
-                step_median_ms=None,
-                step_p95_ms=None,
-                step_max_ms=None,
-                total_s=0.0,
-            )
-        }
+        rows = {"odometry": self.odometry.row()}
         rows.update((name, result.row()) for name, result in self.estimators.items())
         return rows
 
@@ -277,11 +290,7 @@ class Results:
             "landmarks": self.landmarks,
             "observations": self.observations,
             "alignment": self.alignment,
-            "odometry": {
-                "rmse_m": _finite_or_none(self.odometry.rmse_m),
-                "endpoint_gap_m": self.odometry.endpoint_gap_m,
-                "landmark_rmse_m": _finite_or_none(self.odometry.landmark_rmse_m),
-            },
+            "odometry": self.odometry.to_json(),
             "estimators": {name: result.to_json() for name, result in self.estimators.items()},
             "input": self.input.to_json(),
             "error": self.error,

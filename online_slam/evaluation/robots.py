@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from online_slam.estimators.protocol import Estimate
 from online_slam.evaluation.metrics import apply_transform, endpoint_gap
-from online_slam.evaluation.results import EstimatorResult, Latency, Series
+from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Series
 from online_slam.evaluation.scoring import Errors, share_in_bounds
 from online_slam.frontend.steps import GroundTruth
 from online_slam.sources.events import RobotId
@@ -50,6 +50,17 @@ def final_errors(estimate: Estimate, truth: GroundTruth, errors: Errors) -> Arra
     moved = apply_transform(errors.transform, estimate.poses[idx])
     out[idx] = np.hypot(*(moved[:, :2] - np.array([truth.poses[i] for i in idx])[:, :2]).T)
     return out
+
+
+def odometry_per_robot(
+    estimate: Estimate, truth: GroundTruth, errors: Errors, steps: dict[str, NDArray[np.int64]]
+) -> dict[str, OdometryResult]:
+    """Dead reckoning's figures per robot (``steps``: :func:`robot_steps`), in the frame of ``errors``."""
+    final = final_errors(estimate, truth, errors)
+    return {
+        robot: OdometryResult(_rmse(final[idx]), endpoint_gap(estimate.poses[idx]), errors.landmark_rmse_m)
+        for robot, idx in steps.items()
+    }
 
 
 def _online(series: Series, steps: NDArray[np.int64], seconds: Array) -> dict[str, object]:

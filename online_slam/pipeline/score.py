@@ -14,7 +14,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.protocol import Estimate, Estimator
 from online_slam.evaluation.association import AssociationScore, majority, score_association, true_labels, with_true_ids
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
-from online_slam.evaluation.robots import final_errors, per_robot, robot_steps, robots_gap
+from online_slam.evaluation.robots import final_errors, odometry_per_robot, per_robot, robot_steps, robots_gap
 from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
@@ -39,13 +39,14 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
     odometry = evaluate(estimates["odometry"], truth, config.alignment)
     robots = robot_steps(run.odometry.log.robots)
     odometry_gap = robots_gap(estimates["odometry"].poses, robots) if robots else odometry.endpoint_gap_m
+    odometry_robots = odometry_per_robot(estimates["odometry"], truth, odometry, robots) if robots else {}
     steps = run.engine.steps
     return Results(
         source=run.source,
         poses=steps,
         landmarks=len(estimates["odometry"].landmark_ids) or len(set(truth.sighting_landmarks.values())),
         observations=run.engine.observations,
-        odometry=OdometryResult(odometry.rmse_m, odometry_gap, odometry.landmark_rmse_m),
+        odometry=OdometryResult(odometry.rmse_m, odometry_gap, odometry.landmark_rmse_m, odometry_robots),
         estimators=figures,
         estimates=estimates,
         alignment=config.alignment,

@@ -54,7 +54,7 @@ COLUMNS: tuple[tuple[str, Cell], ...] = (
     ("NEES in band", lambda name, row: _share(row.nees_in_bounds)),
     ("NIS", lambda name, row: _n(row.nis_mean)),
     ("step ms med/p95/max", lambda name, row: _latency(row)),
-    ("total s", lambda name, row: "-" if name == "odometry" else f"{row.total_s:.3f}"),
+    ("total s", lambda name, row: "-" if name.split()[0] == "odometry" else f"{row.total_s:.3f}"),
 )
 """The table's columns after the estimator's name: header, and the cell of a row (``end gap m`` only on closed
 paths, see :func:`path_closure`)."""
@@ -205,7 +205,7 @@ def robot_rows(results: Results, rows: Mapping[str, Row] | None = None) -> dict[
     out: dict[str, Row] = {}
     for name, row in (results.rows() if rows is None else rows).items():
         out[name] = row
-        result = results.estimators.get(name)
+        result = results.odometry if name == "odometry" else results.estimators.get(name)
         for robot, figures in ({} if result is None else result.robots).items():
             out[f"{name}  robot {robot}"] = figures.row()
     return out
