@@ -25,7 +25,8 @@ def robot_steps(robots: Sequence[RobotId | None]) -> dict[str, NDArray[np.int64]
     if len(set(robots)) < 2:
         return {}
     order = sorted(set(robots), key=lambda r: (isinstance(r, str), r))
-    column = np.array([order.index(r) for r in robots])
+    index = {r: k for k, r in enumerate(order)}
+    column = np.fromiter(map(index.__getitem__, robots), dtype=np.int64, count=len(robots))
     return {str(r): np.flatnonzero(column == k) for k, r in enumerate(order)}
 
 

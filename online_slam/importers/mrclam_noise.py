@@ -127,17 +127,18 @@ def fit_sighting_sigma(residuals: Array, ranges: Array | None = None) -> tuple[f
     r = np.zeros_like(residuals) if ranges is None else ranges
     spread = MAD_TO_SIGMA * float(np.median(np.abs(residuals)))
 
-    def cost(p: Array) -> float:
-        a, b, w = np.exp(p[0]), np.exp(p[1]), 1.0 / (1.0 + np.exp(-p[2]))
-        sigma = a + b * r
+    def cost(log_a: float, log_b: float, logit_w: float) -> float:
+        sigma = np.exp(log_a) + np.exp(log_b) * r
+        w = 1.0 / (1.0 + np.exp(-logit_w))
         gauss = np.exp(-0.5 * (residuals / sigma) ** 2) / (np.sqrt(2.0 * np.pi) * sigma)
         return -float(np.sum(np.log((1.0 - w) * gauss + w / span)))
 
-    start = np.array([np.log(spread / 2.0), np.log(spread / 4.0 if ranges is not None else 1e-9), -3.0])
     if ranges is None:
-        best = minimize(lambda q: cost(np.r_[q[0], -np.inf, q[1]]), start[[0, 2]], method="Nelder-Mead")
+        best = minimize(lambda q: cost(q[0], -np.inf, q[1]), [np.log(spread / 2.0), -3.0], method="Nelder-Mead")
         return float(np.exp(best.x[0])), 0.0
-    best = minimize(cost, start, method="Nelder-Mead", options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6})
+    start = [np.log(spread / 2.0), np.log(spread / 4.0), -3.0]
+    options = {"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-6}
+    best = minimize(lambda q: cost(*q), start, method="Nelder-Mead", options=options)
     return float(np.exp(best.x[0])), float(np.exp(best.x[1]))
 
 

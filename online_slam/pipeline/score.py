@@ -58,7 +58,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         step_times=np.array(run.step_times, dtype=float),
         robot=header.meta.get("robot") if (header := run.engine.frontend.header) is not None else None,
         left=tuple(run.engine.state.left),
-        step_robots=tuple(run.odometry.log.robots) if robot_steps(run.odometry.log.robots) else (),
+        step_robots=tuple(run.odometry.log.robots) if robots else (),
     )
 
 

@@ -145,8 +145,8 @@ def _draw_last(ax: Any, r: Results, look: dict[str, Look]) -> None:
         for name, series in r.series.items():
             if not len(series.t) or k >= len(series.t) or not np.isfinite(series.position_cov[k]).all():
                 continue
-            s, last = look[name], series.poses[k : k + 1 if k >= 0 else None, :2]
-            ax.plot(*ellipses(last, series.position_cov[k][None])[0].T, color=s.color, lw=1.6, zorder=5)
+            s, last = look[name], series.poses[[k], :2]
+            ax.plot(*ellipses(last, series.position_cov[[k]])[0].T, color=s.color, lw=1.6, zorder=5)
             ax.scatter(*last.T, marker=s.marker, color=s.color, s=30, edgecolor="black", lw=0.6, zorder=6)
         if last is not None:
             text = "last step" if robot is None else f"robot {robot}"

@@ -38,6 +38,7 @@ from online_slam.estimators.smoother.global_solve import (
     global_inputs,
     global_solver,
     is_due,
+    log_matches,
     revise,
     solve_now,
     start_job,
@@ -384,7 +385,7 @@ class SlidingWindowSmoother(SeveralRobots):
         r, w, loss = self.relinearization, self.window, self.config.robust.loss
         if loss is None or not np.isfinite(self._reject_bound) or not r.decisions or w.several:
             return None
-        if len(r.log.poses) != len(w.history) + len(w.indices) or r.log.landmark_ids != tuple(w.landmark_ids):
+        if not log_matches(r.log, w):
             return None
         history, _, landmarks = followed(result, n_poses, at_once, w)
         values = np.vstack([history, result.poses[len(history) :] if at_once else w.values()])

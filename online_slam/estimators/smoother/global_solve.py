@@ -116,10 +116,16 @@ def is_due(config: SmootherConfig, state: Relinearization, steps: int, window: W
     return bool(due) and state.job is None
 
 
+def log_matches(log: ProblemLog, window: Window) -> bool:
+    """Whether the log's variables are the smoother's: every pose (history and window) and landmark."""
+    poses = len(window.history) + len(window.indices)
+    return len(log.poses) == poses and log.landmark_ids == tuple(window.landmark_ids)
+
+
 def global_inputs(state: Relinearization, window: Window) -> GlobalInputs | None:
     """What a global solve needs, copied; None when the log does not match the window's variables."""
     log = state.log
-    if len(log.poses) != len(window.history) + len(window.indices) or log.landmark_ids != tuple(window.landmark_ids):
+    if not log_matches(log, window):
         return None
     poses = window.all_poses()
     return GlobalInputs(

@@ -121,31 +121,27 @@ def _steps(table: Any, count: int) -> list[tuple[int, int]]:
     return [(row, step) for row, step in enumerate(steps) if step is not None and 0 <= step < count]
 
 
-def _merged_poses(table: Any, roots: list[str], rows: list[tuple[int, int]], count: int) -> Array | None:
-    """The poses logged under any of ``roots`` (one per robot; a step logs its robot's) per step, or None."""
-    found = [poses for poses in (_poses(table, root, rows, count) for root in roots) if poses is not None]
-    if not found:
+def _merged(found: list[Array | None]) -> Array | None:
+    """One pose per step from the poses logged under each robot's entity (a step logs its robot's), or None."""
+    logged = [poses for poses in found if poses is not None]
+    if not logged:
         return None
-    merged = found[0]
-    for poses in found[1:]:
+    merged = logged[0]
+    for poses in logged[1:]:
         merged = np.where(np.isnan(merged), poses, merged)
     return merged
 
 
-def _step_robots(
-    table: Any, roots: list[str], robots: list[str], rows: list[tuple[int, int]], count: int
-) -> tuple[str, ...]:
-    """The robot of each step, from which robot's entity logged a pose at it (``roots``: one per robot, in the
-    order of ``robots``); () with one robot."""
+def _step_robots(found: list[Array | None], robots: list[str], count: int) -> tuple[str, ...]:
+    """The robot of each step, from which robot's entity logged a pose at it (``found``: per robot, in the order
+    of ``robots``); () with one robot."""
     if len(robots) < 2:
         return ()
-    out = [""] * count
-    for robot, root in zip(robots, roots):
-        poses = _poses(table, root, rows, count)
+    out = np.full(count, "", dtype=object)
+    for robot, poses in zip(robots, found):
         if poses is not None:
-            for step in np.flatnonzero(np.isfinite(poses[:, 0])).tolist():
-                out[step] = robot
-    return tuple(out)
+            out[np.isfinite(poses[:, 0])] = robot
+    return tuple(out.tolist())
 
 
 def _poses(table: Any, root: str, rows: list[tuple[int, int]], count: int) -> Array | None:
@@ -287,8 +283,9 @@ class Recording:
         t = np.full(count, np.nan)
         for row, step in rows:
             t[step] = _seconds(times[row])
-        poses = {name: _merged_poses(table, each, rows, count) for name, each in roots.items()}
-        robot = _step_robots(table, roots[next(iter(bases))], list(summary.robots), rows, count)
+        found = {name: [_poses(table, root, rows, count) for root in each] for name, each in roots.items()}
+        poses = {name: _merged(each) for name, each in found.items()}
+        robot = _step_robots(found[next(iter(bases))], list(summary.robots), count)
         metrics_table = self._table(["/metrics/**"], "step")
         metric_rows = _steps(metrics_table, count)
         metrics: dict[str, dict[str, Array]] = {}
