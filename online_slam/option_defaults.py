@@ -29,6 +29,7 @@ DEFAULTS: dict[str, object] = {
     "relinearize_every": 1,
     "global_every": 200,
     "global_delay": 50,
+    "smoother_linearization": "standard",
     "global_information_max": 0,
     "association": "auto",
     "new_density": 0.0,
@@ -41,6 +42,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "association": ("known", "nn", "jcbb"),
     "robust": ("auto", "none", "huber", "cauchy"),
     "ekf_linearization": ("standard", "fej", "oc"),
+    "smoother_linearization": ("standard", "fej"),
     "peer": ("isam2",),
 }
 """Allowed values of the options whose choices the estimators define."""

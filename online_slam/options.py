@@ -61,6 +61,7 @@ CHOICE_HOMES = {
     "association": ("online_slam.estimators.landmark_book", "ASSOCIATION_CHOICES"),
     "robust": ("online_slam.estimators.presets", "ROBUST_CHOICES"),
     "ekf_linearization": ("online_slam.estimators.linearization", "LINEARIZATIONS"),
+    "smoother_linearization": ("online_slam.estimators.smoother.config", "LINEARIZATIONS"),
     "peer": ("online_slam.compare", "PEERS"),
 }
 """Where the choices of an option are defined: (module, name)."""
@@ -267,6 +268,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("global_delay", "hand each global solve (a background thread) over D steps later, or N/50 after "
                "step N if longer (0 = at once)", "smoother", "smoother", ("GlobalConfig", "delay"),
                metavar="D", lands=("smoother.global_solve.delay",)),
+    _estimator("smoother_linearization", "where the smoother's Jacobians of the variables its marginal prior "
+               "holds are evaluated: the current estimate (standard) or the prior's linearization point, re-anchored "
+               "at each global solve (fej: consistent, less accurate where first estimates are poor)", "smoother",
+               "smoother", ("SmootherConfig", "linearization"),
+               choices=CHOICES["smoother_linearization"], lands=("smoother.linearization",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "
                "at most L landmarks (0 = never)", "smoother", "smoother",
                ("GlobalConfig", "information_max"), metavar="L",

@@ -203,13 +203,18 @@ def test_snapshots_report_the_window_and_solves() -> None:
     assert [s.index for s in snapshots if s.info["relinearized"]][:3] == [2, 5, 8]  # K alone: 4, 9, 14
 
 
-def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> None:
+@pytest.mark.parametrize("linearization", ["standard", "fej"])
+def test_global_relinearization_puts_the_window_solve_at_the_full_solution(linearization: str) -> None:
     """After a converged global solve the re-anchored prior balances the window's factors exactly: the window
-    solve stays at the full problem's solution, and every pose (history included) is the batch's."""
+    solve stays at the full problem's solution, and every pose (history included) is the batch's. With FEJ too:
+    re-anchoring moves the first estimates to the solution and relinearizes the prior's covariance there."""
     from online_slam.solvers import SolverConfig
 
     config = SmootherConfig(
-        window=WindowConfig(size=5), solver=SolverConfig(), global_solve=GlobalConfig(every=10**6, iterations=100)
+        window=WindowConfig(size=5),
+        solver=SolverConfig(),
+        global_solve=GlobalConfig(every=10**6, iterations=100),
+        linearization=linearization,
     )
     fe, smoother, _, _, batch, _ = run(square_world(), config)
     with threadpool_limits(limits=1, user_api="blas"):
@@ -228,19 +233,21 @@ def test_global_relinearization_puts_the_window_solve_at_the_full_solution() -> 
 def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estimate() -> None:
     """``global_information_max``: re-anchoring replaces the prior's covariance by the exact marginal of the
     history's factors at the revised estimate (checked against a dense elimination); without it the covariance
-    keeps the fold-in linearization, which differs."""
+    keeps the fold-in linearization, which differs. FEJ always relinearizes it (its first estimates move)."""
     from online_slam.estimators.smoother.relinearize import history_graph, inlier_graph
 
     events = list(grid_world(GridConfig(poses=120, seed=5)))
     covariances = {}
-    for cap in (0, 10**6):
+    for cap, linearization in ((0, "standard"), (10**6, "standard"), (0, "fej")):
         config = SmootherConfig(
-            window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=10**6, information_max=cap)
+            window=WindowConfig(size=5, distance=0.0),
+            global_solve=GlobalConfig(every=10**6, information_max=cap),
+            linearization=linearization,
         )
         _, smoother, _, _, _, _ = run(events, config)
         with threadpool_limits(limits=1, user_api="blas"):
             assert "global_rejected" not in smoother.relinearize_globally()
-        covariances[cap] = smoother.prior.Sigma
+        covariances[cap, linearization] = smoother.prior.Sigma
     p = smoother.prior
     relinearization, window = smoother.relinearization, smoother.window
     past = history_graph(inlier_graph(relinearization.log, relinearization.decisions), p.pose)
@@ -255,8 +262,10 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
     rest = np.setdiff1d(np.flatnonzero(np.diag(H) > 0), k)  # landmarks only the window sees have no column
     marginal = H[np.ix_(k, k)] - H[np.ix_(k, rest)] @ np.linalg.solve(H[np.ix_(rest, rest)], H[np.ix_(rest, k)])
     assert len(k) > 20
-    np.testing.assert_allclose(np.linalg.inv(covariances[10**6]), marginal, rtol=1e-7, atol=1e-6 * np.abs(H).max())
-    difference = np.abs(np.linalg.inv(covariances[0]) - marginal).max() / np.abs(marginal).max()
+    for relinearized in ((10**6, "standard"), (0, "fej")):  # FEJ moves its first estimates: always relinearized
+        inverse = np.linalg.inv(covariances[relinearized])
+        np.testing.assert_allclose(inverse, marginal, rtol=1e-7, atol=1e-6 * np.abs(H).max())
+    difference = np.abs(np.linalg.inv(covariances[0, "standard"]) - marginal).max() / np.abs(marginal).max()
     print(f"fold-in covariance vs relinearized marginal: largest difference {difference:.2e} of the largest entry")
     assert difference > 1e-6
 
@@ -379,3 +388,25 @@ def test_in_place_downdate_equals_numpy_to_rounding(layout_: str, n: int, m: int
     assert np.abs(target - target.T).max() <= 1e-14 * scale
     if layout_ == "view":
         assert np.array_equal(buffer[n:], np.zeros((7, n + 7)))
+
+
+def test_fej_takes_the_priors_variables_jacobians_at_its_linearization_point() -> None:
+    """``linearization="fej"``: the window's Jacobians of the variables the prior holds are taken at the prior's
+    linearization point (its poses and the landmarks the window sees), every other variable's at the current
+    estimate; the standard linearization takes all at the current estimate."""
+    from online_slam.estimators.smoother.window import active, system
+
+    config = SmootherConfig(window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=0))
+    _, smoother, _, _, _, _ = run(list(grid_world(GridConfig(poses=60, seed=5)))[:-30], config)
+    p, w = smoother.prior, smoother.window
+    observed = active(w)
+    s = system(w, p, observed, fej=True)
+    point = s.jacobian_point
+    assert point is not None and system(w, p, observed).jacobian_point is None
+    np.testing.assert_array_equal(point.pose_rows, [w.indices.index(p.pose)])
+    np.testing.assert_array_equal(point.pose_values[0], p.x_lin[-3:])
+    seen = np.isin(p.landmarks, observed)
+    assert 0 < seen.sum() < len(p.landmarks)  # some held landmarks in the window, some only in the prior
+    np.testing.assert_array_equal(observed[point.landmark_rows], p.landmarks[seen])
+    np.testing.assert_array_equal(point.landmark_values, p.x_lin[: 2 * len(p.landmarks)].reshape(-1, 2)[seen])
+    assert np.abs(point.pose_values[0] - w.poses[p.pose]).max() > 1e-6  # first estimates are not the current ones

@@ -8,6 +8,7 @@ from conftest import numerical_jacobian
 
 from online_slam.estimators import BatchEstimator
 from online_slam.factors import FactorGraph, evaluate, layout, linearize
+from online_slam.factors.graph import DenseAssembler, JacobianPoint
 from online_slam.frontend import FrontEnd
 from online_slam.geometry import between, wrap
 from online_slam.solvers import SolverConfig, solve
@@ -57,6 +58,23 @@ def test_graph_jacobian_matches_numerical(rng: np.random.Generator, prior: bool)
     # Residual differences pass through wrap inside evaluate; use small steps away from the branch cut.
     assert np.allclose(J.toarray(), numerical_jacobian(f, x0, eps=1e-7), atol=1e-5)
     assert J.shape == (graph.n_residuals, sparse.n_columns)
+
+
+def test_jacobian_point_moves_the_jacobians_and_keeps_the_residuals(rng: np.random.Generator) -> None:
+    """First-Estimates Jacobians: the rows of the fixed variables' Jacobians are those at their fixed values, the
+    residuals those at the current values; the sparse and dense assemblies agree."""
+    graph, poses, landmarks = small_graph(rng, True)
+    sparse = layout(graph)
+    at = JacobianPoint(np.array([1, 3]), poses[[1, 3]] + 0.3, np.array([2]), landmarks[[2]] - 0.5)
+    r, J = linearize(graph, sparse, poses, landmarks, at=at)
+    _, J_at = linearize(graph, sparse, *at.apply(poses, landmarks))
+    _, J_now = linearize(graph, sparse, poses, landmarks)
+    np.testing.assert_allclose(r, evaluate(graph, poses, landmarks))
+    np.testing.assert_allclose(J.toarray(), J_at.toarray())
+    assert np.abs(J.toarray() - J_now.toarray()).max() > 0.01
+    H, g, _ = DenseAssembler(graph, layout(graph, entries=False))(poses, landmarks, None, at)
+    np.testing.assert_allclose(H, (J.T @ J).toarray(), atol=1e-9)
+    np.testing.assert_allclose(g, J.T @ r, atol=1e-9)
 
 
 def test_solver_recovers_noise_free_problem(rng: np.random.Generator) -> None:

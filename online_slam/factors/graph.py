@@ -224,14 +224,40 @@ def layout(graph: FactorGraph, entries: bool = True) -> SparseLayout:
     )
 
 
+@dataclass(frozen=True)
+class JacobianPoint:
+    """Values some variables' Jacobians are evaluated at instead of their current values (First-Estimates
+    Jacobians: a marginal prior's variables keep the linearization point the prior was built at, so that the
+    window's factors and the prior see one linearization of each variable). Residuals stay at the current values.
+    """
+
+    pose_rows: Index
+    """Graph pose indices whose Jacobians are taken at ``pose_values``, shape (a,)."""
+    pose_values: Array
+    """Their linearization points, shape (a, 3)."""
+    landmark_rows: Index
+    """Graph landmark indices whose Jacobians are taken at ``landmark_values``, shape (b,)."""
+    landmark_values: Array
+    """Their linearization points, shape (b, 2)."""
+
+    def apply(self, poses: Array, landmarks: Array) -> tuple[Array, Array]:
+        """Copies of (poses (P, 3), landmarks (M, 2)) with the fixed rows set to their linearization points."""
+        poses, landmarks = poses.copy(), landmarks.copy()
+        poses[self.pose_rows] = self.pose_values
+        landmarks[self.landmark_rows] = self.landmark_values
+        return poses, landmarks
+
+
 def _whiten(W: Array, e: Array) -> Array:
     return np.einsum("kij,kj->ki", W, e)
 
 
 def _errors(
-    graph: FactorGraph, poses: Array, landmarks: Array
+    graph: FactorGraph, poses: Array, landmarks: Array, at: JacobianPoint | None = None
 ) -> tuple[Array, Array, Array, Array, Array, Array, Array]:
     """Unwhitened errors of every factor (angles wrapped) and the Jacobians of odometry and observations.
+
+    ``at``: where the Jacobians of some variables are evaluated (the errors stay at the given values).
 
     Returns:
         (e_prior (P, 3), e_odo (K, 3), d e_odo/da and /db (K, 3, 3), e_obs (L, 2), d e_obs/dpose (L, 2, 3),
@@ -240,7 +266,13 @@ def _errors(
     e_prior = poses[graph.prior_pose] - graph.prior_mean
     e_prior[:, 2] = wrap(e_prior[:, 2])
     e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
-    z, J_p, J_l = predict_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
+    if at is None:
+        z, J_p, J_l = predict_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
+    else:
+        z = predict(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
+        p, l = at.apply(poses, landmarks)
+        _, J_a, J_b = odometry_residual_with_jacobians(p[graph.odo_from], p[graph.odo_to], graph.odo_delta)
+        _, J_p, J_l = predict_with_jacobians(p[graph.obs_pose], l[graph.obs_landmark], graph.obs_model)
     e_obs = wrap_bearings(z - graph.obs_z, graph.obs_model)
     return e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
 
@@ -263,13 +295,19 @@ def robot_sighting_residual_with_jacobians(pose_a: Array, pose_b: Array, z: Arra
     return e, J_a, J_b
 
 
-def _robot_rows(graph: FactorGraph, poses: Array, loss: RobustLoss | None) -> tuple[Array, Array, Array, float]:
+def _robot_rows(
+    graph: FactorGraph, poses: Array, loss: RobustLoss | None, at: Array | None = None
+) -> tuple[Array, Array, Array, float]:
     """Whitened robot-sighting residuals and Jacobians (IRLS-weighted under ``loss``) and their cost.
+
+    ``at``: the poses the Jacobians are evaluated at (default: ``poses``).
 
     Returns:
         (r (R, 2), W de/da (R, 2, 3), W de/db (R, 2, 3), cost as :func:`cost` counts it).
     """
     e, J_a, J_b = robot_sighting_residual_with_jacobians(poses[graph.rob_from], poses[graph.rob_to], graph.rob_z)
+    if at is not None:
+        _, J_a, J_b = robot_sighting_residual_with_jacobians(at[graph.rob_from], at[graph.rob_to], graph.rob_z)
     W = graph.rob_sqrt_info
     r = _whiten(W, e)
     s = np.sum(r * r, axis=1)
@@ -398,7 +436,12 @@ def cost(graph: FactorGraph, r: Array, loss: RobustLoss | None = None) -> float:
 
 
 def linearize(
-    graph: FactorGraph, sparse: SparseLayout, poses: Array, landmarks: Array, loss: RobustLoss | None = None
+    graph: FactorGraph,
+    sparse: SparseLayout,
+    poses: Array,
+    landmarks: Array,
+    loss: RobustLoss | None = None,
+    at: JacobianPoint | None = None,
 ) -> tuple[Array, sp.csr_matrix]:
     """Whitened residuals and their Jacobian with respect to the free variables.
 
@@ -408,11 +451,12 @@ def linearize(
         poses: Pose values, shape (n_poses, 3).
         landmarks: Landmark values, shape (n_landmarks, 2).
         loss: Robust loss on observations: their rows are scaled by ``sqrt(rho'(s))`` (IRLS).
+        at: Where some variables' Jacobians are evaluated (default: the given values).
 
     Returns:
         (r, J): residuals, shape (n_residuals,), and the Jacobian, sparse (n_residuals, n_columns).
     """
-    e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks)
+    e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, at)
     W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
     if loss is not None and len(e_obs):
         s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
@@ -430,7 +474,8 @@ def linearize(
         (W_obs @ J_l).reshape(-1),
     ]
     if len(graph.rob_from):
-        r_rob, WJ_from, WJ_to, _ = _robot_rows(graph, poses, loss)
+        at_poses = None if at is None else at.apply(poses, landmarks)[0]
+        r_rob, WJ_from, WJ_to, _ = _robot_rows(graph, poses, loss, at_poses)
         r_parts.append(r_rob.reshape(-1))
         data_parts += [WJ_from.reshape(-1), WJ_to.reshape(-1)]
     r = np.concatenate(r_parts)
@@ -484,16 +529,19 @@ class DenseAssembler:
         self._h_index = np.concatenate(h_index)
         self._g_index = np.concatenate(g_index)
 
-    def __call__(self, poses: Array, landmarks: Array, loss: RobustLoss | None = None) -> tuple[Array, Array, float]:
+    def __call__(
+        self, poses: Array, landmarks: Array, loss: RobustLoss | None = None, at: JacobianPoint | None = None
+    ) -> tuple[Array, Array, float]:
         """(H (n, n), g (n,), cost) at the given values; cost as :func:`cost`.
 
         Args:
             poses: Pose values, shape (n_poses, 3).
             landmarks: Landmark values, shape (n_landmarks, 2).
             loss: Robust loss on observations (IRLS weights), or None.
+            at: Where some variables' Jacobians are evaluated (default: the given values).
         """
         graph, n = self.graph, self.n
-        e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks)
+        e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, at)
         W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
         r_prior, r_odo, r_obs = _whiten(graph.prior_sqrt_info, e_prior), _whiten(W_odo, e_odo), _whiten(W_obs, e_obs)
         total = 0.5 * float(np.sum(r_prior**2) + np.sum(r_odo**2))
@@ -510,7 +558,8 @@ class DenseAssembler:
             "observation": (r_obs, W_obs @ np.concatenate([J_p, J_l], axis=2)),
         }
         if len(graph.rob_from):
-            r_rob, WJ_from, WJ_to, rob_cost = _robot_rows(graph, poses, loss)
+            at_poses = None if at is None else at.apply(poses, landmarks)[0]
+            r_rob, WJ_from, WJ_to, rob_cost = _robot_rows(graph, poses, loss, at_poses)
             factors["robot"] = (r_rob, np.concatenate([WJ_from, WJ_to], axis=2))
             total += rob_cost
         h_value, g_value = [], []

@@ -16,7 +16,16 @@ import scipy.linalg as la
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from online_slam.factors.graph import DenseAssembler, FactorGraph, SparseLayout, cost, evaluate, layout, linearize
+from online_slam.factors.graph import (
+    DenseAssembler,
+    FactorGraph,
+    JacobianPoint,
+    SparseLayout,
+    cost,
+    evaluate,
+    layout,
+    linearize,
+)
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 
@@ -181,13 +190,15 @@ class _Problem:
     prior: QuadraticPrior | None
     assemble: DenseAssembler | None
     """Dense normal-equation assembler, or None for the sparse path."""
+    at: JacobianPoint | None = None
+    """Where some variables' Jacobians are evaluated (First-Estimates Jacobians), or None: at the current values."""
 
     def system(self, p: Array, l: Array) -> tuple[Array | sp.spmatrix, Array, float]:
         """Normal equations and cost at (p, l), in one pass over the factors."""
         if self.assemble is not None:
-            H, g, value = self.assemble(p, l, self.loss)
+            H, g, value = self.assemble(p, l, self.loss, self.at)
         else:
-            r, J = linearize(self.graph, self.sparse, p, l, self.loss)
+            r, J = linearize(self.graph, self.sparse, p, l, self.loss, self.at)
             H, g = J.T @ J, J.T @ r
             value = 0.5 * float(r @ r) if self.loss is None else cost(self.graph, evaluate(self.graph, p, l), self.loss)
         prior = self.prior
@@ -222,6 +233,7 @@ def solve(
     return_information: bool = False,
     dense: bool | None = None,
     graph_layout: SparseLayout | None = None,
+    jacobian_point: JacobianPoint | None = None,
 ) -> SolveResult:
     """Minimise ``0.5 * |r(x)|^2`` (robust on observations) plus an optional quadratic prior.
 
@@ -237,6 +249,9 @@ def solve(
         dense: Assemble and factor the normal equations densely; default: when a prior is given or the
             problem has at most ``DENSE_LIMIT`` free variables (a smoother's window), sparse otherwise.
         graph_layout: ``layout(graph)`` when the caller has it already.
+        jacobian_point: Evaluate some variables' Jacobians at fixed values (First-Estimates Jacobians; the
+            residuals and the cost stay at the iterate): the iterations then converge where ``J^T r`` with those
+            Jacobians vanishes, and the information is that of the fixed linearization.
 
     Returns:
         The solution and convergence report.
@@ -248,7 +263,8 @@ def solve(
     use_dense = dense if dense is not None else (prior is not None or sparse.n_columns <= DENSE_LIMIT)
     if not use_dense and len(sparse.keep) == 0 and graph.n_residuals:
         sparse = layout(graph)  # the sparse path needs every Jacobian entry's place
-    problem = _Problem(graph, sparse, loss, prior, DenseAssembler(graph, sparse) if use_dense else None)
+    assemble = DenseAssembler(graph, sparse) if use_dense else None
+    problem = _Problem(graph, sparse, loss, prior, assemble, jacobian_point)
     H, g, current = problem.system(poses, landmarks)
     if sparse.n_columns == 0:
         return SolveResult(poses, landmarks, 0, True, current, current, "no free variables")

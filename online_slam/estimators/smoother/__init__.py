@@ -8,12 +8,18 @@ Levenberg-Marquardt to convergence. A pose is never marginalized before it has b
 When the window holds more than W poses, the oldest is marginalized: its factors (odometry to the next pose,
 its observations, a start prior) are linearized and folded into the marginal prior, a Gaussian in covariance
 form over the oldest window pose and every landmark it has touched, and its 3 variables are eliminated
-(:mod:`.prior`). The prior's quadratic is never relinearized: by default it is re-centred (exactly) at the
-current estimate before new factors are folded in and those are linearized there;
-``first_estimate_jacobians=True`` instead linearizes them at the prior's first estimates (FEJ). FEJ diverges
-where first estimates are far off before a loop closure, so it is not the default. Landmarks are never
-marginalized, so a re-observation long after the poses that saw a landmark left the window (a loop closure)
-still corrects the map and the current pose.
+(:mod:`.prior`). The prior's quadratic is never relinearized between global solves. By default
+(``linearization="standard"``) it is re-centred (exactly) at the current estimate before each fold-in, and every
+Jacobian is taken at the current estimate. ``linearization="fej"`` (First-Estimates Jacobians) instead takes, in
+every factor on a variable the prior holds — its poses and landmarks, in the window's solves and in later fold-ins
+alike — that variable's Jacobian at the prior's linearization point, so each variable has one linearization and
+the window cannot gain information along the directions no sighting observes (global position and heading;
+Dong-Si & Mourikis, ICRA 2011); each global relinearization re-anchors those first estimates at its solution and
+relinearizes the prior's covariance there, so first estimates far off do not stay, and window solves start
+undamped. It is consistent where the standard smoother is overconfident, and less accurate where first estimates
+are poor, so it is not the default (benchmarks/RESULTS.md). Landmarks are never marginalized, so a
+re-observation long after the poses that saw a landmark left the window (a loop closure) still corrects the map
+and the current pose.
 
 Each solve eliminates from the prior the landmarks no window pose observes and recovers them afterwards from
 their conditional mean, so each iteration factors a system over the window poses and the observed landmarks

@@ -254,7 +254,9 @@ class SlidingWindowSmoother(SeveralRobots):
         propagated = propagated_covariance(self.association.solved, self.window, self.prior, indices)
         if propagated is not None:
             return propagated
-        return window_covariance(linearize(self.window, self.prior, self.config.robust.loss), self.prior, indices)
+        return window_covariance(
+            linearize(self.window, self.prior, self.config.robust.loss, self.config.fej), self.prior, indices
+        )
 
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
@@ -266,7 +268,8 @@ class SlidingWindowSmoother(SeveralRobots):
         if not self.window.indices:
             return np.full((count, 2, 2), np.nan)
         with self._blas.limit(limits=1, user_api="blas"):
-            return landmark_marginals(linearize(self.window, self.prior, self.config.robust.loss), self.prior, count)
+            linearized = linearize(self.window, self.prior, self.config.robust.loss, self.config.fej)
+            return landmark_marginals(linearized, self.prior, count)
 
     # -- association -----------------------------------------------------------------------------
     def _resolve(self, step: Step, start: int) -> tuple[Step, int]:
@@ -337,8 +340,8 @@ class SlidingWindowSmoother(SeveralRobots):
         """One window solve written into the state; (its report, its graph, the landmarks it solved)."""
         w = self.window
         observed = active(w)
-        solver = self.config.final_solver if final else self.config.solver
-        s, result = solve_window(w, self.prior, observed, solver, self.config.robust.loss)
+        solver = self.config.final_solver if final else self.config.window_solver
+        s, result = solve_window(w, self.prior, observed, solver, self.config.robust.loss, self.config.fej)
         for k, g in enumerate(w.indices):
             w.poses[g] = result.poses[k]
         w.landmarks[observed] = result.landmarks
@@ -413,7 +416,7 @@ class SlidingWindowSmoother(SeveralRobots):
         assert p.pose == o
         sightings = self._sightings_to_fold(o)
         delta, _, W = w.odometry[n1]
-        recentre = not self.config.first_estimate_jacobians
+        recentre = not self.config.fej
         self.prior = marginalize(
             p, w.poses[o], w.landmarks, sightings, (delta, W), (n1, w.poses[n1]), self.config.robust.loss, recentre
         )

@@ -197,8 +197,15 @@ def revise(
     if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
         values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.robust.loss)
         history = values[:-1]
-    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, config.global_solve.information_max)
+    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, information_max(config))
     return None if anchored is None else Revision(history, landmarks, anchored)
+
+
+def information_max(config: SmootherConfig) -> int:
+    """Most landmarks the prior may hold for re-anchoring to relinearize its covariance: every count with
+    First-Estimates Jacobians (its linearization point moves, so its information must follow), else the
+    setting."""
+    return np.iinfo(np.int64).max if config.fej else config.global_solve.information_max
 
 
 def followed(result: SolveResult, n_poses: int, at_once: bool, window: Window) -> tuple[Array, Array, Array]:
@@ -267,5 +274,5 @@ def revise_several(
     log = state.log
     graph = inlier_graph(log, state.decisions, state.robot_rejected)
     past = several_history_graph(graph, left, kept, robot_rows(log.seen, state.robot_folded))
-    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, config.global_solve.information_max)
+    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, information_max(config))
     return None if anchored is None else Revision(values[left], landmarks, anchored)

@@ -131,7 +131,7 @@ class SeveralRobots:
             (delta, W),
             (n1, w.poses[n1]),
             self.config.robust.loss,
-            not self.config.first_estimate_jacobians,
+            not self.config.fej,
             fold,
         )
         w.drop(o, n1)

@@ -21,6 +21,7 @@ from online_slam.estimators.smoother.config import WindowConfig
 from online_slam.estimators.smoother.prior import Prior, Sightings, reduced
 from online_slam.factors.graph import (
     FactorGraph,
+    JacobianPoint,
     SparseLayout,
     layout,
     observation_chi2,
@@ -241,6 +242,8 @@ class System:
     """The window poses' current estimates, shape (P, 3)."""
     prior_poses: Index
     """The local index of each pose the prior holds, in its order (empty without a prior)."""
+    jacobian_point: JacobianPoint | None = None
+    """First-Estimates Jacobians: the prior's variables' Jacobians taken at its linearization point (or None)."""
 
 
 @dataclass(frozen=True)
@@ -323,24 +326,53 @@ def robot_arrays(factors: list[tuple[int, int, Array, Array, int]], local: dict[
     }
 
 
-def system(window: Window, prior: Prior | None, active: Index) -> System:
-    """The window's factor graph, its layout, the reduced prior (and passive recovery), the window poses."""
+def system(window: Window, prior: Prior | None, active: Index, fej: bool = False) -> System:
+    """The window's factor graph, its layout, the reduced prior (and passive recovery), the window poses.
+
+    ``fej``: the Jacobians of the variables the prior holds are taken at its linearization point
+    (:func:`first_estimates`).
+    """
     graph, local = window_graph(window, active)
     sparse = layout(graph, entries=False)
-    quadratic, recover = None, None
+    quadratic, recover, point = None, None, None
     held = np.zeros(0, dtype=np.int64)
     if prior is not None:
         held = np.array([local[g] for g in prior.poses], dtype=np.int64)
         quadratic, recover = reduced(prior, active, sparse.pose_column[held], sparse.landmark_column)
-    return System(graph, sparse, quadratic, recover, window.values(), held)
+        if fej:
+            point = first_estimates(prior, held, active)
+    return System(graph, sparse, quadratic, recover, window.values(), held, point)
+
+
+def first_estimates(prior: Prior, held: Index, active: Index) -> JacobianPoint:
+    """Where the window's factors take the Jacobians of the prior's variables: its linearization point.
+
+    The prior's information was built with those Jacobians; taking the window's at the same point gives each
+    variable one linearization, so the window and the prior cannot together gain information along directions
+    no sighting observes (Dong-Si & Mourikis, ICRA 2011). ``held``: the local index of each pose the prior holds,
+    in its order; ``active``: the window's landmarks (sorted).
+    """
+    count = len(prior.landmarks)
+    inside = np.isin(prior.landmarks, active)
+    return JacobianPoint(
+        held,
+        prior.x_lin[2 * count :].reshape(-1, 3),
+        np.searchsorted(active, prior.landmarks[inside]),
+        prior.x_lin[: 2 * count].reshape(-1, 2)[inside],
+    )
 
 
 def solve_window(
-    window: Window, prior: Prior | None, active: Index, solver: SolverConfig, loss: RobustLoss | None
+    window: Window,
+    prior: Prior | None,
+    active: Index,
+    solver: SolverConfig,
+    loss: RobustLoss | None,
+    fej: bool = False,
 ) -> tuple[System, SolveResult]:
     """The window's system over the ``active`` landmarks, solved from the current estimate (with its
-    information at the solution)."""
-    s = system(window, prior, active)
+    information at the solution); ``fej`` as in :func:`system`."""
+    s = system(window, prior, active, fej)
     result = solve(
         s.graph,
         s.poses,
@@ -350,14 +382,16 @@ def solve_window(
         prior=s.quadratic,
         return_information=True,
         graph_layout=s.layout,
+        jacobian_point=s.jacobian_point,
     )
     return s, result
 
 
-def linearize(window: Window, prior: Prior | None, loss: RobustLoss | None) -> Linearized:
-    """The window and the reduced prior linearized once at the current estimate (no iteration)."""
+def linearize(window: Window, prior: Prior | None, loss: RobustLoss | None, fej: bool = False) -> Linearized:
+    """The window and the reduced prior linearized once at the current estimate (no iteration); ``fej`` as in
+    :func:`system`."""
     observed = active(window)
-    s = system(window, prior, observed)
+    s = system(window, prior, observed, fej)
     linearized = solve(
         s.graph,
         s.poses,
@@ -368,6 +402,7 @@ def linearize(window: Window, prior: Prior | None, loss: RobustLoss | None) -> L
         return_information=True,
         graph_layout=s.layout,
         dense=True,
+        jacobian_point=s.jacobian_point,
     )
     H = None if linearized.information is None else np.asarray(linearized.information)
     return Linearized(observed, s.layout, s.quadratic, H, len(window.indices))
