@@ -9,6 +9,7 @@ from online_slam import gtsam_peer
 from online_slam.compare import CompareConfig, MonteCarlo, compare
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.linearization import LINEARIZATIONS
+from online_slam.estimators.smoother import SmootherConfig
 from online_slam.pipeline import ReplayConfig
 
 ESDE = {"standard EKF": (4.43, 0.245), "OC-EKF (Huang)": (1.88, 0.173), "iSAM": (1.86, 0.179)}
@@ -44,8 +45,8 @@ def run_circle(
     peer: bool = True,
     worlds: tuple[str, ...] = tuple(CIRCLE_WORLDS),
 ) -> tuple[tuple[float, float], list[CircleRow]]:
-    """The EKF with every linearization, the default smoother and iSAM2 (when GTSAM is installed) over seeds
-    0..runs-1 of each world.
+    """The EKF with every linearization, the default smoother, the smoother with First-Estimates Jacobians and
+    iSAM2 (when GTSAM is installed) over seeds 0..runs-1 of each world.
 
     Returns:
         (the 95% band of the ANEES for ``runs`` runs, one row per world and estimator).
@@ -64,6 +65,14 @@ def run_circle(
             assert mc is not None
             band = mc.anees_bounds
             rows += _rows(world, mc, linearization)
+        if smoother:
+            fej = SmootherConfig(linearization="fej")
+            replay = ReplayConfig(estimators=("smoother",), smoother=fej)
+            windows, every = (fej.window.size,), (fej.relinearize_every,)
+            config = CompareConfig(replay=replay, runs=runs, workers=workers, windows=windows, relinearize_every=every)
+            mc = compare(world, config).monte_carlo
+            assert mc is not None
+            rows += _rows(world, mc, "fej")
     return band, rows
 
 

@@ -410,3 +410,18 @@ def test_fej_takes_the_priors_variables_jacobians_at_its_linearization_point() -
     np.testing.assert_array_equal(observed[point.landmark_rows], p.landmarks[seen])
     np.testing.assert_array_equal(point.landmark_values, p.x_lin[: 2 * len(p.landmarks)].reshape(-1, 2)[seen])
     assert np.abs(point.pose_values[0] - w.poses[p.pose]).max() > 1e-6  # first estimates are not the current ones
+
+
+def test_final_estimate_carries_every_landmarks_marginal_covariance() -> None:
+    """``finish`` gives each landmark's 2x2 marginal at the final estimate (compare's landmark ANEES reads it):
+    symmetric positive definite, what :meth:`landmark_marginals` gives there, and honest on the square world."""
+    config = SmootherConfig(window=WindowConfig(size=5, distance=0.0))
+    fe, smoother, final, _, _, _ = run(square_world(), config)
+    covs = final.landmark_covs
+    assert covs is not None and covs.shape == (len(final.landmark_ids), 2, 2)
+    np.testing.assert_allclose(covs, covs.transpose(0, 2, 1))
+    assert np.all(np.linalg.eigvalsh(covs) > 0)
+    np.testing.assert_allclose(covs, smoother.landmark_marginals())
+    errors = final.landmarks - np.array([fe.truth.landmarks[lid] for lid in final.landmark_ids])
+    nees = np.einsum("ki,kij,kj->k", errors, np.linalg.inv(covs), errors)
+    assert 0.5 < nees.mean() < 6.0, nees.mean()

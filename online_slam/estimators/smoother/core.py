@@ -205,7 +205,8 @@ class SlidingWindowSmoother(SeveralRobots):
         )
 
     def finish(self) -> Estimate:
-        """Solve once more if anything arrived since the last solve; each pose's last estimate is final.
+        """Solve once more if anything arrived since the last solve; each pose's last estimate is final (with every
+        landmark's marginal covariance there).
 
         A global relinearization still running in the background is waited for and dropped: its hand-over
         step never came (the final estimate is what the regular schedule gave).
@@ -241,6 +242,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 "final_solve_s": time.perf_counter() - started,
                 **self.association.book.info(),
             },
+            landmark_covs=self.landmark_marginals(),
         )
 
     # -- covariances -----------------------------------------------------------------------------

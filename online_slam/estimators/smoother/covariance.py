@@ -164,7 +164,7 @@ def propagated_covariance(solved: Solved | None, window: Window, prior: Prior | 
     the solved one composed with it, and its joint covariance with the landmarks is the solved one carried
     through the composition's Jacobians. Marginalizing old poses since does not change the remaining
     variables' marginal (exact for the linearized system with the default re-centred marginalization; with
-    ``first_estimate_jacobians`` up to the prior's older linearization points). A landmark only the prior
+    ``linearization="fej"`` up to the prior's older linearization points). A landmark only the prior
     holds is, given the prior's part that the solve saw (its pose and solved landmarks), independent of the
     rest: its covariance is the prior's conditional plus that part's solved covariance carried through the
     regression. None when the state moved otherwise (the owner drops ``solved`` then: a sighting was added, a
