@@ -268,10 +268,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("global_delay", "hand each global solve (a background thread) over D steps later, or N/50 after "
                "step N if longer (0 = at once)", "smoother", "smoother", ("GlobalConfig", "delay"),
                metavar="D", lands=("smoother.global_solve.delay",)),
-    _estimator("smoother_linearization", "where the smoother's Jacobians of the variables its marginal prior "
-               "holds are evaluated: the current estimate (standard) or the prior's linearization point, re-anchored "
-               "at each global solve (fej: consistent, less accurate where first estimates are poor)", "smoother",
-               "smoother", ("SmootherConfig", "linearization"),
+    _estimator("smoother_linearization", "where the smoother takes the Jacobians of the variables its marginal "
+               "prior holds, once poses leave the window: the current estimate (standard) or the prior's "
+               "linearization point, re-anchored at each global solve, with window solves started undamped (fej: "
+               "honest covariances; steps up to 2x slower, less accurate where first estimates are poor)",
+               "smoother", "smoother", ("SmootherConfig", "linearization"),
                choices=CHOICES["smoother_linearization"], lands=("smoother.linearization",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "
                "at most L landmarks (0 = never)", "smoother", "smoother",

@@ -239,6 +239,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 **self._robot_info(),
                 "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
+                "linearization": self.config.linearization,
                 "final_solve_s": time.perf_counter() - started,
                 **self.association.book.info(),
             },
