@@ -1,5 +1,4 @@
-"""The circle world (esde's Monte Carlo protocol), the EKF's consistent linearizations (FEJ, OC) and the smoother's
-(FEJ)."""
+"""The circle world (esde's Monte Carlo protocol) and the EKF's consistent linearizations (FEJ, OC)."""
 
 from __future__ import annotations
 
@@ -12,7 +11,6 @@ from online_slam.compare import run_errors, summarise
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.linearization import heading_column, null_space, observable
-from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.frontend.steps import FrontEnd
 from online_slam.geometry.se2 import compose
 from online_slam.models.range_bearing import range_bearing_with_jacobians
@@ -179,34 +177,3 @@ def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc(
     mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
     low, high = mc.anees_bounds
     assert (low <= mc.anees["ekf"] <= high) == consistent and mc.anees["ekf"] >= low, mc.anees
-
-
-WINDOW = WindowConfig(size=20, distance=0.0)
-"""20 poses (by default the window spans 18 m, up to 72 poses here): a quarter of the cost, and more marginalized."""
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize(
-    "smoother, consistent",
-    [
-        (SmootherConfig(window=WINDOW), False),
-        (SmootherConfig(window=WINDOW, linearization="fej"), True),
-    ],
-    ids=["standard", "fej"],
-)
-def test_twenty_run_anees_of_the_smoother(smoother: SmootherConfig, consistent: bool) -> None:
-    """esde's world, 20 seeded runs, a 20-pose window (~30 s and ~60 s of CPU): the standard smoother is
-    overconfident (6.54); with First-Estimates Jacobians, and solves started undamped, it is inside the 95% band
-    (3.79; band 2.02 .. 4.16). With the standard linearization and every window solve run to convergence it is
-    still overconfident (11.69): the window and the prior linearize the same variables at different points."""
-    seeds = tuple(range(100, 120))
-    config = ReplayConfig(estimators=("smoother",), smoother=smoother)
-    outcomes = []
-    for seed in seeds:
-        results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
-        outcomes.append((results.rows(), run_errors(results)))
-    mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
-    low, high = mc.anees_bounds
-    (name,) = mc.anees
-    print(f"{name}: ANEES {mc.anees[name]:.2f}, band {low:.2f} .. {high:.2f}")
-    assert (low <= mc.anees[name] <= high) == consistent and mc.anees[name] >= low, mc.anees
