@@ -6,15 +6,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import circle_anees
 
-from online_slam.compare import run_errors, summarise
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.linearization import heading_column, null_space, observable
 from online_slam.frontend.steps import FrontEnd
 from online_slam.geometry.se2 import compose
 from online_slam.models.range_bearing import range_bearing_with_jacobians
-from online_slam.pipeline import ReplayConfig, replay
+from online_slam.pipeline import ReplayConfig
 from online_slam.sources.events import LandmarkTruth, Observation, Odometry, Start, Truth
 from online_slam.sources.worlds import WORLDS, CircleConfig, circle_landmarks, circle_world
 
@@ -168,12 +168,5 @@ def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc(
 ) -> None:
     """esde's world, 20 seeded runs (~8 s of CPU each linearization): the standard EKF is overconfident, FEJ and
     OC inside the 95% band (measured: 5.99, 3.43, 3.42; band 2.02 .. 4.16)."""
-    seeds = tuple(range(100, 120))
-    config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
-    outcomes = []
-    for seed in seeds:
-        results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
-        outcomes.append((results.rows(), run_errors(results)))
-    mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
-    low, high = mc.anees_bounds
-    assert (low <= mc.anees["ekf"] <= high) == consistent and mc.anees["ekf"] >= low, mc.anees
+    anees, low, high = circle_anees(ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization)))
+    assert (low <= anees <= high) == consistent and anees >= low, anees

@@ -6,11 +6,10 @@ Its own module so that the suite's workers, which take whole modules, share the 
 from __future__ import annotations
 
 import pytest
+from conftest import circle_anees
 
-from online_slam.compare import run_errors, summarise
 from online_slam.estimators.smoother import SmootherConfig, WindowConfig
-from online_slam.pipeline import ReplayConfig, replay
-from online_slam.sources.worlds import WORLDS, CircleConfig, circle_world
+from online_slam.pipeline import ReplayConfig
 
 WINDOW = WindowConfig(size=20, distance=0.0)
 """20 poses (by default the window spans 18 m, up to 72 poses here): a quarter of the cost, and more marginalized."""
@@ -30,14 +29,6 @@ def test_twenty_run_anees_of_the_smoother(smoother: SmootherConfig, consistent: 
     overconfident (6.54); with First-Estimates Jacobians, and solves started undamped, it is inside the 95% band
     (3.79; band 2.02 .. 4.16). With the standard linearization and every window solve run to convergence it is
     still overconfident (11.69): the window and the prior linearize the same variables at different points."""
-    seeds = tuple(range(100, 120))
-    config = ReplayConfig(estimators=("smoother",), smoother=smoother)
-    outcomes = []
-    for seed in seeds:
-        results = replay(circle_world(CircleConfig(seed=seed)), config, name="circle", validate=False)
-        outcomes.append((results.rows(), run_errors(results)))
-    mc = summarise(outcomes, seeds, WORLDS["circle"].scored)
-    low, high = mc.anees_bounds
-    (name,) = mc.anees
-    print(f"{name}: ANEES {mc.anees[name]:.2f}, band {low:.2f} .. {high:.2f}")
-    assert (low <= mc.anees[name] <= high) == consistent and mc.anees[name] >= low, mc.anees
+    anees, low, high = circle_anees(ReplayConfig(estimators=("smoother",), smoother=smoother))
+    print(f"smoother: ANEES {anees:.2f}, band {low:.2f} .. {high:.2f}")
+    assert (low <= anees <= high) == consistent and anees >= low, anees
