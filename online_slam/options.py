@@ -271,8 +271,7 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("smoother_linearization", "where the smoother takes the Jacobians of the variables its marginal "
                "prior holds, once poses leave the window: the current estimate (standard) or the prior's "
                "linearization point, re-anchored at each global solve, with window solves started undamped (fej: "
-               "honest covariances; steps up to 2x slower, less accurate where first estimates are poor, may diverge "
-               "under wrong data association)",
+               "honest covariances; steps up to 2x slower, less accurate where first estimates are poor)",
                "smoother", "smoother", ("SmootherConfig", "linearization"),
                choices=CHOICES["smoother_linearization"], lands=("smoother.linearization",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "

@@ -287,11 +287,16 @@ def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
 
 
 @pytest.mark.slow
-def test_background_global_relinearization_is_deterministic_and_survives_a_checkpoint(tmp_path: Path) -> None:
+@pytest.mark.parametrize("linearization", ["standard", "fej"])
+def test_background_global_relinearization_is_deterministic_and_survives_a_checkpoint(
+    tmp_path: Path, linearization: str
+) -> None:
     """The hand-over step is fixed, so results never depend on thread timing; a checkpoint taken while a global
     solve is pending carries its result (in memory, and through a file), and the run continues identically."""
     steps = list(FrontEnd().steps(grid_world(GridConfig(poses=400, seed=5))))
-    config = SmootherConfig(window=WindowConfig(size=10), global_solve=GlobalConfig(every=100, delay=30))
+    config = SmootherConfig(
+        window=WindowConfig(size=10), global_solve=GlobalConfig(every=100, delay=30), linearization=linearization
+    )
 
     def run_all(cut: int | None = None, through_file: bool = False) -> np.ndarray:
         smoother = SlidingWindowSmoother(config)
@@ -425,3 +430,17 @@ def test_final_estimate_carries_every_landmarks_marginal_covariance() -> None:
     errors = final.landmarks - np.array([fe.truth.landmarks[lid] for lid in final.landmark_ids])
     nees = np.einsum("ki,kij,kj->k", errors, np.linalg.inv(covs), errors)
     assert 0.5 < nees.mean() < 6.0, nees.mean()
+
+
+def test_fej_reanchors_a_background_hand_over_at_the_windows_landmarks() -> None:
+    """With FEJ, a solve handed over from the background re-anchors the prior at the window's current landmarks
+    (which it keeps), not at the solution's older ones; at once, and with the standard linearization, at the
+    solution's."""
+    from online_slam.estimators.smoother.global_solve import anchor_landmarks
+
+    _, smoother, _, _, _, _ = run(list(grid_world(GridConfig(poses=60, seed=5))), SmootherConfig())
+    w, solved = smoother.window, smoother.window.landmarks + 0.5
+    fej = SmootherConfig(linearization="fej")
+    assert anchor_landmarks(solved, False, w, fej) is w.landmarks
+    assert anchor_landmarks(solved, True, w, fej) is solved
+    assert anchor_landmarks(solved, False, w, SmootherConfig()) is solved

@@ -120,7 +120,7 @@ class SmootherConfig:
     ``global_solve.information_max``), so first estimates far off do not stay; and each window solve starts
     undamped (:attr:`window_solver`). ``fej`` is consistent where ``standard`` is overconfident (esde's circle:
     pose ANEES 3.55 against 13.3, 100 runs), and less accurate where first estimates are poor (MRCLAM robot 2:
-    online 0.467 m against 0.359 m) and can diverge under wrong associations, so it is not the default."""
+    online 0.467 m against 0.359 m), so it is not the default."""
     global_solve: GlobalConfig = field(default_factory=GlobalConfig)
     """The periodic re-solve of the whole history."""
     association: AssociationConfig = field(default_factory=AssociationConfig)

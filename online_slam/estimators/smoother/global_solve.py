@@ -197,7 +197,14 @@ def revise(
     if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
         values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.robust.loss)
         history = values[:-1]
-    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, information_max(config))
+    anchored = reanchored(
+        prior,
+        past,
+        values,
+        anchor_landmarks(landmarks, at_once, window, config),
+        config.robust.loss,
+        information_max(config),
+    )
     return None if anchored is None else Revision(history, landmarks, anchored)
 
 
@@ -206,6 +213,14 @@ def information_max(config: SmootherConfig) -> int:
     First-Estimates Jacobians (its linearization point moves, so its information must follow), else the
     setting."""
     return np.iinfo(np.int64).max if config.fej else config.global_solve.information_max
+
+
+def anchor_landmarks(landmarks: Array, at_once: bool, window: Window, config: SmootherConfig) -> Array:
+    """The landmark values the prior is re-anchored at: the solution's (``landmarks``), or with First-Estimates
+    Jacobians and a solve handed over from the background, the window's current ones. The window keeps its newer
+    landmark values then, and FEJ takes their Jacobians at the prior's point: at the solution's values, which wrong
+    sightings judged since may have left far behind, its solves diverged (``grid``, 10% wrong ids)."""
+    return window.landmarks if config.fej and not at_once else landmarks
 
 
 def followed(result: SolveResult, n_poses: int, at_once: bool, window: Window) -> tuple[Array, Array, Array]:
@@ -274,5 +289,12 @@ def revise_several(
     log = state.log
     graph = inlier_graph(log, state.decisions, state.robot_rejected)
     past = several_history_graph(graph, left, kept, robot_rows(log.seen, state.robot_folded))
-    anchored = reanchored(prior, past, values, landmarks, config.robust.loss, information_max(config))
+    anchored = reanchored(
+        prior,
+        past,
+        values,
+        anchor_landmarks(landmarks, at_once, window, config),
+        config.robust.loss,
+        information_max(config),
+    )
     return None if anchored is None else Revision(values[left], landmarks, anchored)
