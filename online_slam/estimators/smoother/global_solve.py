@@ -28,6 +28,7 @@ from online_slam.estimators.smoother.relinearize import (
     solve_all,
 )
 from online_slam.estimators.smoother.window import Window
+from online_slam.factors.graph import FactorGraph
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.se2 import between, compose, rotation
 from online_slam.solvers.least_squares import SolverConfig, SolveResult
@@ -197,15 +198,7 @@ def revise(
     if not at_once and oldest >= n_poses:  # bring the poses that left since to agree with the solution
         values, landmarks = refine_recent(past, n_poses, values, landmarks, global_solver(config), config.robust.loss)
         history = values[:-1]
-    anchored = reanchored(
-        prior,
-        past,
-        values,
-        anchor_landmarks(landmarks, at_once, window, config),
-        config.robust.loss,
-        information_max(config),
-    )
-    return None if anchored is None else Revision(history, landmarks, anchored)
+    return _revision(history, landmarks, prior, past, values, at_once, window, config)
 
 
 def information_max(config: SmootherConfig) -> int:
@@ -213,6 +206,22 @@ def information_max(config: SmootherConfig) -> int:
     First-Estimates Jacobians (its linearization point moves, so its information must follow), else the
     setting."""
     return np.iinfo(np.int64).max if config.fej else config.global_solve.information_max
+
+
+def _revision(
+    history: Array,
+    landmarks: Array,
+    prior: Prior,
+    past: FactorGraph,
+    values: Array,
+    at_once: bool,
+    window: Window,
+    config: SmootherConfig,
+) -> Revision | None:
+    """The revision with the prior re-anchored over the history's factors ``past`` at ``values`` (None: refused)."""
+    landmarks_at = anchor_landmarks(landmarks, at_once, window, config)
+    anchored = reanchored(prior, past, values, landmarks_at, config.robust.loss, information_max(config))
+    return None if anchored is None else Revision(history, landmarks, anchored)
 
 
 def anchor_landmarks(landmarks: Array, at_once: bool, window: Window, config: SmootherConfig) -> Array:
@@ -289,12 +298,4 @@ def revise_several(
     log = state.log
     graph = inlier_graph(log, state.decisions, state.robot_rejected)
     past = several_history_graph(graph, left, kept, robot_rows(log.seen, state.robot_folded))
-    anchored = reanchored(
-        prior,
-        past,
-        values,
-        anchor_landmarks(landmarks, at_once, window, config),
-        config.robust.loss,
-        information_max(config),
-    )
-    return None if anchored is None else Revision(values[left], landmarks, anchored)
+    return _revision(values[left], landmarks, prior, past, values, at_once, window, config)
