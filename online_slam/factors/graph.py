@@ -253,11 +253,12 @@ def _whiten(W: Array, e: Array) -> Array:
 
 
 def _errors(
-    graph: FactorGraph, poses: Array, landmarks: Array, at: JacobianPoint | None = None
+    graph: FactorGraph, poses: Array, landmarks: Array, at: tuple[Array, Array] | None = None
 ) -> tuple[Array, Array, Array, Array, Array, Array, Array]:
     """Unwhitened errors of every factor (angles wrapped) and the Jacobians of odometry and observations.
 
-    ``at``: where the Jacobians of some variables are evaluated (the errors stay at the given values).
+    ``at``: the (poses, landmarks) the Jacobians are evaluated at (:meth:`JacobianPoint.apply`); the errors stay
+    at the given values.
 
     Returns:
         (e_prior (P, 3), e_odo (K, 3), d e_odo/da and /db (K, 3, 3), e_obs (L, 2), d e_obs/dpose (L, 2, 3),
@@ -270,7 +271,7 @@ def _errors(
         z, J_p, J_l = predict_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
     else:
         z = predict(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
-        p, l = at.apply(poses, landmarks)
+        p, l = at
         _, J_a, J_b = odometry_residual_with_jacobians(p[graph.odo_from], p[graph.odo_to], graph.odo_delta)
         _, J_p, J_l = predict_with_jacobians(p[graph.obs_pose], l[graph.obs_landmark], graph.obs_model)
     e_obs = wrap_bearings(z - graph.obs_z, graph.obs_model)
@@ -456,7 +457,8 @@ def linearize(
     Returns:
         (r, J): residuals, shape (n_residuals,), and the Jacobian, sparse (n_residuals, n_columns).
     """
-    e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, at)
+    point = None if at is None else at.apply(poses, landmarks)
+    e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, point)
     W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
     if loss is not None and len(e_obs):
         s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
@@ -474,8 +476,7 @@ def linearize(
         (W_obs @ J_l).reshape(-1),
     ]
     if len(graph.rob_from):
-        at_poses = None if at is None else at.apply(poses, landmarks)[0]
-        r_rob, WJ_from, WJ_to, _ = _robot_rows(graph, poses, loss, at_poses)
+        r_rob, WJ_from, WJ_to, _ = _robot_rows(graph, poses, loss, None if point is None else point[0])
         r_parts.append(r_rob.reshape(-1))
         data_parts += [WJ_from.reshape(-1), WJ_to.reshape(-1)]
     r = np.concatenate(r_parts)
@@ -541,7 +542,8 @@ class DenseAssembler:
             at: Where some variables' Jacobians are evaluated (default: the given values).
         """
         graph, n = self.graph, self.n
-        e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, at)
+        point = None if at is None else at.apply(poses, landmarks)
+        e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, point)
         W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
         r_prior, r_odo, r_obs = _whiten(graph.prior_sqrt_info, e_prior), _whiten(W_odo, e_odo), _whiten(W_obs, e_obs)
         total = 0.5 * float(np.sum(r_prior**2) + np.sum(r_odo**2))
@@ -558,8 +560,7 @@ class DenseAssembler:
             "observation": (r_obs, W_obs @ np.concatenate([J_p, J_l], axis=2)),
         }
         if len(graph.rob_from):
-            at_poses = None if at is None else at.apply(poses, landmarks)[0]
-            r_rob, WJ_from, WJ_to, rob_cost = _robot_rows(graph, poses, loss, at_poses)
+            r_rob, WJ_from, WJ_to, rob_cost = _robot_rows(graph, poses, loss, None if point is None else point[0])
             factors["robot"] = (r_rob, np.concatenate([WJ_from, WJ_to], axis=2))
             total += rob_cost
         h_value, g_value = [], []
