@@ -82,3 +82,17 @@ def test_batch_keeps_exact_least_squares_on_a_clean_stream() -> None:
     np.testing.assert_array_equal(auto.estimates["batch"].poses, plain.estimates["batch"].poses)
     assert auto.estimators["batch"].details["robust_pass"] is False
     assert round(auto.estimators["batch"].final_rmse_m, 3) == 0.082  # the article's table
+
+
+def test_the_robustness_grid_divides_by_the_clean_batch_and_by_the_oracle_stream() -> None:
+    from benchmarks.robustness import GridTask, run_robustness_grid, run_task
+
+    args = ("grid", 1, "10% wrong ids", 0, False, 120)
+    dirty, oracle = run_task(GridTask(*args)), run_task(GridTask(*args, oracle=True))
+    clean = run_task(GridTask("grid", 1, None, 0, False, 120))
+    (cell,) = run_robustness_grid(("grid",), ("10% wrong ids",), (1,), (0,), poses=120, peer=False)
+    assert cell.runs == 1
+    assert cell.worst["smoother online"] == dirty["smoother online"] / clean["batch final"]
+    assert cell.worst["smoother online vs oracle"] == dirty["smoother online"] / oracle["smoother online"]
+    assert cell.worst["smoother final vs oracle"] == dirty["smoother final"] / oracle["batch final"]
+    assert oracle != dirty and oracle != clean  # the oracle stream lost the corrupted sightings, and only those

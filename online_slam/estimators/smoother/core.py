@@ -451,7 +451,9 @@ class SlidingWindowSmoother(SeveralRobots):
             started = time.perf_counter()
             finish_job(job)
             r.job = None
-            if job.result is not None:
+            if job.result is not None and job.released != p.released:  # consensus corrected the map since
+                report = {**report, **self.relinearize_globally(), "global_stale": 1.0}
+            elif job.result is not None:
                 report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
                 report["global_s"] = time.perf_counter() - started
         if is_due(self.config, r, p.steps, self.window):
@@ -459,7 +461,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 inputs = global_inputs(r, self.window)
                 r.since = 0
                 if inputs is not None:
-                    r.job = start_job(inputs, self.config, p.steps, self.name)
+                    r.job = start_job(inputs, self.config, p.steps, self.name, p.released)
             else:
                 r.since = 0
                 report = {**report, **self.relinearize_globally()}

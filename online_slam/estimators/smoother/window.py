@@ -424,8 +424,9 @@ def consensus(
 
     Only landmarks with a sighting beyond the rejection ``bound`` are examined (none, usually). A landmark
     with three or more window sightings whose positions (from the solved poses) cluster away from its
-    estimate — further than three times their median spread from their coordinate-wise median — was
-    placed by a wrong association (its first sighting, or one folded into the prior long ago): a landmark
+    estimate — further than three times their median spread from their coordinate-wise median, with at least
+    three of them agreeing with that median within ``bound`` — was placed by a wrong association (its first
+    sighting, or one folded into the prior long ago): a landmark
     only the window knows moves to that median; one the marginal prior holds (``held``) moves when two thirds
     of its sightings are outliers, and is to be released from the prior.
 
@@ -453,6 +454,16 @@ def consensus(
         points = landmark_from_sighting(poses[graph.obs_pose[mine]], graph.obs_z[mine], graph.obs_model[mine])
         median = np.median(points, axis=0)
         spread = np.median(np.linalg.norm(points - median, axis=1))
+        rows = np.flatnonzero(mine)
+        at_median = sighting_chi2(
+            poses[graph.obs_pose[rows]],
+            np.broadcast_to(median, (len(rows), 2)),
+            graph.obs_z[rows],
+            graph.obs_sqrt_info[rows],
+            graph.obs_model[rows],
+        )
+        if np.count_nonzero(at_median <= bound) < 3:
+            continue
         if np.linalg.norm(landmarks[j] - median) > 3.0 * spread + 1e-9:
             moves.append((int(j), median))
             if in_prior:
