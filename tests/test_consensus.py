@@ -49,7 +49,7 @@ def test_sightings_that_agree_move_a_held_landmark_and_release_it() -> None:
 def test_a_loose_cluster_of_wrong_sightings_does_not_move_a_landmark() -> None:
     # Found on issue 31's waypoint world: three wrong-id sightings of a held landmark, two of them about a metre
     # apart (different true landmarks) and one further off, moved it 12 m by the old rule (their median is within
-    # three median spreads of two of them); none of them agrees with that median within the rejection bound.
+    # three median spreads of two of them); only one of them agrees with that median within the rejection bound.
     points = np.array([[23.8, 10.6], [24.67, 9.89], [31.36, 10.2]])
     graph, poses = _graph(points)
     for held in (np.array([0]), np.zeros(0, dtype=np.int64)):

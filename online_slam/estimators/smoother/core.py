@@ -451,11 +451,12 @@ class SlidingWindowSmoother(SeveralRobots):
             started = time.perf_counter()
             finish_job(job)
             r.job = None
-            if job.result is not None and job.released != p.released:  # consensus corrected the map since
-                report = {**report, **self.relinearize_globally(), "global_stale": 1.0}
-            elif job.result is not None:
-                report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
-                report["global_s"] = time.perf_counter() - started
+            if job.result is not None:
+                if job.released != p.released:  # consensus corrected the map since it started
+                    report = {**report, **self.relinearize_globally(), "global_stale": 1.0}
+                else:
+                    report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
+                    report["global_s"] = time.perf_counter() - started
         if is_due(self.config, r, p.steps, self.window):
             if self.config.global_solve.delay:
                 inputs = global_inputs(r, self.window)

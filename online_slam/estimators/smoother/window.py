@@ -454,13 +454,12 @@ def consensus(
         points = landmark_from_sighting(poses[graph.obs_pose[mine]], graph.obs_z[mine], graph.obs_model[mine])
         median = np.median(points, axis=0)
         spread = np.median(np.linalg.norm(points - median, axis=1))
-        rows = np.flatnonzero(mine)
         at_median = sighting_chi2(
-            poses[graph.obs_pose[rows]],
-            np.broadcast_to(median, (len(rows), 2)),
-            graph.obs_z[rows],
-            graph.obs_sqrt_info[rows],
-            graph.obs_model[rows],
+            poses[graph.obs_pose[mine]],
+            np.broadcast_to(median, points.shape),
+            graph.obs_z[mine],
+            graph.obs_sqrt_info[mine],
+            graph.obs_model[mine],
         )
         if np.count_nonzero(at_median <= bound) < 3:
             continue
