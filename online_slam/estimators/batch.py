@@ -37,8 +37,7 @@ class BatchConfig:
     outliers: str = "auto"
     """``auto``: solve plain least squares, then test every observation's residual at the solution against a
     chi-square bound at a whole-stream false-alarm rate of ``outlier_false_alarm``; only if one exceeds it
-    (a contaminated stream) solve again with a Cauchy loss (``outlier_loss``) from the same initial values (each
-    landmark an estimator did not place at the median of its sightings: its first may be a wrong one), drop
+    (a contaminated stream) solve again with a Cauchy loss (``outlier_loss``) from the same initial values, drop
     the observations whose residual there exceeds the per-observation bound ``reject_false_alarm``, and finish
     with plain least squares on the rest. A clean stream keeps the exact least-squares solution. ``off``:
     plain least squares (or ``loss``) only."""
@@ -121,7 +120,6 @@ class BatchEstimator(LoggedEstimator):
         started: float,
     ) -> Estimate:
         """Levenberg-Marquardt on the graph (with the robust pass where the residuals call for one)."""
-        given = np.zeros(len(landmark_ids), dtype=bool)  # placed by the initial estimate, not a first sight
         if initial is not None:
             if len(initial.poses) != len(poses):
                 raise ValueError("initial estimate has a different number of poses")
@@ -130,7 +128,6 @@ class BatchEstimator(LoggedEstimator):
             for k, lid in enumerate(landmark_ids):
                 if lid in where:
                     landmarks[k] = initial.landmarks[where[lid]]
-                    given[k] = True
         cfg = self.config
         result = solve(graph, poses, landmarks, cfg.solver, loss=cfg.loss)
         rejected = np.zeros(len(graph.obs_pose), dtype=bool)
@@ -143,8 +140,7 @@ class BatchEstimator(LoggedEstimator):
             bound = outlier_threshold(cfg.outlier_false_alarm / len(chi2_values))
             if chi2_values.max() > bound:  # contaminated: robust pass, drop the outliers, least squares on the rest
                 robust_pass = True
-                # a first sight may be a wrong one; an estimator's landmark already weighed its sightings
-                start = np.where(given[:, None], landmarks, _median_landmarks(graph, poses, landmarks))
+                start = _median_landmarks(graph, poses, landmarks)  # a first sight may be a wrong one
                 robust = solve(graph, poses, start, cfg.solver, loss=cfg.outlier_loss)
                 reject_bound = outlier_threshold(cfg.reject_false_alarm)
                 rejected = observation_chi2(graph, robust.poses, robust.landmarks) > reject_bound
