@@ -317,8 +317,8 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
             beyond = nis > DRIFT_NIS  # no drift of the robot explains these: the landmark is off
             if drifted:  # the filter drifted: let the persistent sightings of confirmed landmarks in
                 accepted |= ~passed & ~beyond & confirmed & (streak >= self.config.gate_persistence - 1)
-            if self.config.reanchor:  # the scan agrees with the filter: the landmark, not the robot, is off
-                due = ~passed & (beyond if drifted else True) & (streak >= REANCHOR_AFTER - 1)
+            if self.config.reanchor:  # the scan agrees with the filter, or no drift explains it: the landmark is off
+                due = ~passed & (beyond | (not drifted)) & (streak >= REANCHOR_AFTER - 1)
                 if due.any():
                     reanchor = due & ekf_gating.recent_agree(self.state.recent, indices)
         self.state.agreement.append((int((confirmed & ~passed).sum()), int((confirmed & passed).sum())))
