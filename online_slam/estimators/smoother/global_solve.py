@@ -143,7 +143,7 @@ def solve_now(inputs: GlobalInputs, solver: SolverConfig, loss: RobustLoss | Non
     return solve_all(inputs.log, inputs.decisions, inputs.poses, inputs.landmarks, solver, loss, inputs.robot_rejected)
 
 
-def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: str, released: int = 0) -> GlobalJob:
+def start_job(inputs: GlobalInputs, config: SmootherConfig, steps: int, name: str, released: int) -> GlobalJob:
     """Solve every factor in a background thread; the result is to be handed over ``global_delay`` steps (or
     N / 50 after N steps) after step ``steps``; ``released``: landmarks released from the prior so far."""
     solver = global_solver(config)

@@ -426,9 +426,9 @@ def consensus(
     with three or more window sightings whose positions (from the solved poses) cluster away from its
     estimate — further than three times their median spread from their coordinate-wise median, with at least
     three of them agreeing with that median within ``bound`` — was placed by a wrong association (its first
-    sighting, or one folded into the prior long ago): a landmark
-    only the window knows moves to that median; one the marginal prior holds (``held``) moves when two thirds
-    of its sightings are outliers, and is to be released from the prior.
+    sighting, or one folded into the prior long ago): a landmark only the window knows moves to that median;
+    one the marginal prior holds (``held``) moves when two thirds of its sightings are outliers, and is to be
+    released from the prior.
 
     Args:
         graph: The solved window graph (:func:`window_graph`).
@@ -451,16 +451,11 @@ def consensus(
         in_prior = bool(np.isin(j, held))
         if mine.sum() < 3 or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
             continue
-        points = landmark_from_sighting(poses[graph.obs_pose[mine]], graph.obs_z[mine], graph.obs_model[mine])
+        seen_from, z, model = poses[graph.obs_pose[mine]], graph.obs_z[mine], graph.obs_model[mine]
+        points = landmark_from_sighting(seen_from, z, model)
         median = np.median(points, axis=0)
         spread = np.median(np.linalg.norm(points - median, axis=1))
-        at_median = sighting_chi2(
-            poses[graph.obs_pose[mine]],
-            np.broadcast_to(median, points.shape),
-            graph.obs_z[mine],
-            graph.obs_sqrt_info[mine],
-            graph.obs_model[mine],
-        )
+        at_median = sighting_chi2(seen_from, np.broadcast_to(median, points.shape), z, graph.obs_sqrt_info[mine], model)
         if np.count_nonzero(at_median <= bound) < 3:
             continue
         if np.linalg.norm(landmarks[j] - median) > 3.0 * spread + 1e-9:
