@@ -41,7 +41,7 @@ DEFAULTS: dict[str, object] = {
 CHOICES: dict[str, tuple[str, ...]] = {
     "association": ("known", "nn", "jcbb"),
     "robust": ("auto", "none", "huber", "cauchy"),
-    "ekf_linearization": ("standard", "fej", "oc"),
+    "ekf_linearization": ("standard", "fej", "oc", "invariant"),
     "smoother_linearization": ("standard", "fej"),
     "peer": ("isam2",),
 }

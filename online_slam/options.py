@@ -249,8 +249,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("ekf_update", "one update per step with all sightings (joint) or one per sighting", "EKF", "ekf",
                ("EkfConfig", "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
     _estimator("ekf_linearization", "where the EKF's Jacobians are evaluated: the current estimate (standard), "
-               "each variable's first estimate (fej) or the current one constrained to the unobservable directions "
-               "(oc); fej and oc are consistent", "EKF", "ekf", ("EkfConfig", "linearization"),
+               "each variable's first estimate (fej), the current one constrained to the unobservable directions "
+               "(oc), or the current one with the error on the group of the pose and map (invariant: one robot; "
+               "with several its updates are standard); fej, oc and invariant are consistent", "EKF", "ekf",
+               ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",

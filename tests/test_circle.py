@@ -1,4 +1,4 @@
-"""The circle world (esde's Monte Carlo protocol) and the EKF's consistent linearizations (FEJ, OC)."""
+"""The circle world (esde's Monte Carlo protocol) and the EKF's consistent linearizations (FEJ, OC, invariant)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,13 @@ from conftest import circle_anees
 
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
-from online_slam.estimators.linearization import heading_column, null_space, observable
+from online_slam.estimators.linearization import (
+    heading_column,
+    invariant_retraction,
+    null_space,
+    observable,
+    transport,
+)
 from online_slam.frontend.steps import FrontEnd
 from online_slam.geometry.se2 import compose
 from online_slam.models.range_bearing import range_bearing_with_jacobians
@@ -162,11 +168,68 @@ def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("linearization, consistent", [("standard", False), ("fej", True), ("oc", True)])
-def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_fej_and_oc(
+@pytest.mark.parametrize(
+    "linearization, consistent", [("standard", False), ("fej", True), ("oc", True), ("invariant", True)]
+)
+def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_the_consistent_ones(
     linearization: str, consistent: bool
 ) -> None:
     """esde's world, 20 seeded runs (~8 s of CPU each linearization): the standard EKF is overconfident, FEJ and
     OC inside the 95% band (measured: 5.99, 3.43, 3.42; band 2.02 .. 4.16)."""
     anees, low, high = circle_anees(ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization)))
     assert (low <= anees <= high) == consistent and anees >= low, anees
+
+
+def _group_error_to_ours(x: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """``exp(xi) X_hat - X_hat`` in our coordinates (heading wrapped): the invariant EKF's error as ours see it."""
+    moved, _ = invariant_retraction(x, xi + np.r_[heading_column(x[:2], 0.0) * xi[2], 0.0,
+                                                  (heading_column(x[3:].reshape(-1, 2), 0.0) * xi[2]).ravel()])
+    d = moved - x
+    d[2] = np.angle(np.exp(1j * d[2]))
+    return d
+
+
+def _D(x: np.ndarray) -> np.ndarray:
+    """d (our error) / d (group error xi) at x: I, with ``J p`` in the heading's column for each position."""
+    D = np.eye(len(x))
+    D[:2, 2] = heading_column(x[:2], 0.0)
+    D[3:, 2] = heading_column(x[3:].reshape(-1, 2), 0.0).ravel()
+    return D
+
+
+def test_invariant_retraction_is_the_groups_exponential() -> None:
+    rng = np.random.default_rng(4)
+    x = np.r_[1.0, -2.0, 0.4, rng.normal(size=6) * 3.0]
+    # a pure turn of the group error turns every position (robot and landmarks) about the origin
+    turn = np.zeros(9)
+    turn[2] = 0.3
+    xi_as_ours = _D(x) @ turn  # the same correction, in our coordinates
+    moved, _ = invariant_retraction(x, xi_as_ours)
+    R = np.array([[np.cos(0.3), -np.sin(0.3)], [np.sin(0.3), np.cos(0.3)]])
+    points = np.r_[x[:2], x[3:]].reshape(-1, 2)
+    assert np.r_[moved[:2], moved[3:]].reshape(-1, 2) == pytest.approx(points @ R.T, abs=1e-12)
+    assert moved[2] == pytest.approx(0.7)
+    # to first order the correction is additive: d (result) / d (dx) at 0 is the identity (numerically)
+    eps = 1e-7
+    numeric = np.array([(invariant_retraction(x, eps * e)[0] - invariant_retraction(x, -eps * e)[0]) / (2 * eps)
+                        for e in np.eye(9)]).T
+    assert numeric == pytest.approx(np.eye(9), abs=1e-6)
+
+
+def test_invariant_transport_is_the_change_of_linearization_point() -> None:
+    """The transport T carries a covariance in our coordinates at x to one at the corrected x+ with the same group
+    covariance: ``T = D(x+) D(x)^-1``, D the Jacobian of our error in the group error (checked numerically)."""
+    rng = np.random.default_rng(5)
+    x = np.r_[0.5, 1.5, -0.2, rng.normal(size=4) * 4.0]
+    eps = 1e-7
+    numeric = np.array([(_group_error_to_ours(x, eps * e) - _group_error_to_ours(x, -eps * e)) / (2 * eps)
+                        for e in np.eye(7)]).T
+    assert numeric == pytest.approx(_D(x), abs=1e-6)
+    dx = rng.normal(size=7) * 0.2
+    moved, column = invariant_retraction(x, dx)
+    A = rng.normal(size=(7, 7))
+    P = A @ A.T
+    carried = P.copy()
+    transport(carried, column)
+    T = _D(moved) @ np.linalg.inv(_D(x))
+    assert carried == pytest.approx(T @ P @ T.T, rel=1e-10, abs=1e-12)

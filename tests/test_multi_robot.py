@@ -183,6 +183,29 @@ def test_replay_meet_runs_every_estimator() -> None:
     assert "ekf  robot 3" in done.stderr and "smoother  robot 3" in done.stderr
 
 
-def test_the_ekf_refuses_its_consistent_linearizations_for_several_robots() -> None:
+def test_the_ekf_refuses_first_estimates_for_several_robots() -> None:
     with pytest.raises(OnlineSlamError, match="^several robots: the EKF's fej and oc linearizations take one robot"):
         replay("meet-apart", ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization="fej")))
+
+
+def test_the_invariant_ekf_updates_as_the_standard_one_once_a_second_robot_begins() -> None:
+    """Its group has one heading: with several robots the updates are the standard ones (the covariance is in the
+    same coordinates either way); with one robot they are not."""
+    import copy
+    import dataclasses
+
+    from online_slam.estimators.ekf import EkfSlam
+    from online_slam.frontend.steps import FrontEnd
+    from online_slam.sources.worlds import WORLDS
+
+    for world, same in (("square", False), ("meet-apart", True)):
+        steps = list(FrontEnd().steps(WORLDS[world].events(0)))
+        invariant = EkfSlam(EkfConfig(linearization="invariant"))
+        for step in steps[:5]:  # meet-apart: both robots have begun
+            invariant.step(step)
+        standard = EkfSlam(dataclasses.replace(invariant.config, linearization="standard"))
+        standard.load_state(copy.deepcopy(invariant.state_dict()))
+        for step in steps[5:40]:
+            invariant.step(step)
+            standard.step(step)
+        assert (np.array_equal(invariant.x, standard.x) and np.array_equal(invariant.P, standard.P)) == same

@@ -26,7 +26,10 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
 - ``linearization``: the standard EKF evaluates its Jacobians at the current estimate and grows overconfident;
   ``fej`` (First-Estimates Jacobians) and ``oc`` (observability-constrained) keep the unobservable directions
   unobserved (:mod:`~online_slam.estimators.linearization`). They need the newest pose as predicted and each
-  landmark's first estimate, which the state keeps.
+  landmark's first estimate, which the state keeps. ``invariant`` takes the error on the group SE_{1+M}(2):
+  the same Jacobians as ``standard``, but each correction turns the whole map with the heading's and the
+  covariance is carried to the corrected estimate. Its group has one heading, so with several robots its
+  updates are the standard ones (the covariance is in the same coordinates either way).
 
 ``x_prior``/``P_prior``/``x_post``/``P_post`` are not maintained (copying P every step would cost O(n^2) for
 nothing); ``dim_x``, ``_I``, ``F`` and ``Q`` follow the state size so that stock filterpy calls stay valid.
@@ -55,7 +58,7 @@ from online_slam.estimators.ekf_robots import SeveralRobots, landmark_columns
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import LandmarkBook
-from online_slam.estimators.linearization import heading_column, observable
+from online_slam.estimators.linearization import FIRST_ESTIMATES, heading_column, invariant_retraction, observable, transport
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians
@@ -196,7 +199,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         """
         Q = self.state.Q if Q is None else np.asarray(Q, dtype=float)
         pose, F, G = compose_with_jacobians(self.x[:3, 0], u)
-        if self.config.linearization != "standard":  # at the poses as predicted: p_k+1|k - p_k|k-1, not - p_k|k
+        if self.config.linearization in FIRST_ESTIMATES:  # at the poses as predicted: p_k+1|k - p_k|k-1, not - p_k|k
             F[:2, 2] = heading_column(pose[:2], self.state.predicted[:2])
         self.state.predicted = pose.copy()
         self.x[:3, 0] = pose
@@ -228,7 +231,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         """A landmark placed from sighting z (2,) at the robot's estimate: (position (2,), d/drobot (2, 3),
         d/dz (2, 2)); fej and oc take d/drobot at the newest pose as predicted (``[I, J (l - p_k|k-1)]``)."""
         position, G_r, G_z = landmark_from_sighting_with_jacobians(self.x[:3, 0], z, model)
-        if self.config.linearization != "standard":
+        if self.config.linearization in FIRST_ESTIMATES:
             G_r[:, 2] = heading_column(position, self.state.predicted[:2])
         return position, G_r, G_z
 
@@ -379,7 +382,11 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
     def _apply(self, PHt: Array, S: Array, y: Array) -> None:
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
         dx, W, L_inv = apply_update(self.P, PHt, S, y)
-        self.x[:, 0] += dx
+        if self.config.linearization == "invariant" and len(self.state.robots) == 1:  # the map turns with it
+            self.x[:, 0], column = invariant_retraction(self.x[:, 0], dx)
+            transport(self.P, column)
+        else:
+            self.x[:, 0] += dx
         self._wrap_headings()
         # filterpy's view of the last update
         self.S, self.y = S, y.reshape(-1, 1)
@@ -403,9 +410,9 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         if self.state.waiting:
             self._sightings_before(step.t)
         if step.odometry is None and step.index > 0:  # another robot begins
-            if self.config.linearization != "standard":
+            if self.config.linearization in FIRST_ESTIMATES:
                 raise OnlineSlamError(
-                    "several robots: the EKF's fej and oc linearizations take one robot; use standard"
+                    "several robots: the EKF's fej and oc linearizations take one robot; use invariant or standard"
                 )
             self._add_robot(step)
         elif step.odometry is None:

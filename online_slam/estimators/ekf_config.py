@@ -30,8 +30,10 @@ class EkfConfig:
     relinearized after each."""
     linearization: str = "standard"
     """Where the Jacobians are evaluated: ``standard`` at the current estimate; ``fej`` at each variable's first
-    estimate; ``oc``: the standard ones constrained to see nothing of the unobservable directions (both
-    consistent: :mod:`~online_slam.estimators.linearization`)."""
+    estimate; ``oc``: the standard ones constrained to see nothing of the unobservable directions; ``invariant``:
+    the standard ones, with the error on the group SE_{1+M}(2) (corrections turn the map with the heading; one
+    robot: with several its updates are standard). The last three are consistent
+    (:mod:`~online_slam.estimators.linearization`)."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     filter's own mean and covariance (with tentative landmarks)."""

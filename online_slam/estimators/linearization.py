@@ -17,18 +17,30 @@ maps the robot's block of N onto a new landmark's, with the same points througho
   placement, but each sighting's Jacobian is the standard one (at the current estimate, more accurate than a
   first estimate far from it) projected onto the nearest one with ``H N = 0``: ``H - H N (N^T N)^-1 N^T``.
 
+- ``invariant`` (the invariant EKF of Barrau & Bonnabel, as Brossard et al. apply it to SLAM, IEEE Sensors J.
+  19(4), 2019): the error of the pose and map is taken on the group SE_{1+M}(2) (one heading, the robot's and
+  every landmark's position), ``X = exp(xi) X_hat``. Its prediction and sighting Jacobians, expressed in our
+  coordinates, are the standard ones; what differs is after each update: the correction moves the state
+  through the group's exponential (the whole map turns with the heading's correction), and the covariance is
+  carried to the new estimate (``P <- T P T^T``, ``T = I + c e_theta^T``, ``c = J (point_new - point_old)``
+  per position). Its unobservable directions do not depend on the estimate, so no first estimate is needed.
+
 Both hold for any point-landmark sighting model (range-bearing, position in the robot frame): the constraints
 involve only the positions. The innovation always uses the current estimate.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
-LINEARIZATIONS = ("standard", "fej", "oc")
+LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
+FIRST_ESTIMATES = ("fej", "oc")
+"""The linearizations that need the newest pose as predicted and each landmark's first estimate."""
 """Where the EKF evaluates its Jacobians (see the module docstring)."""
 PERP = np.array([[0.0, -1.0], [1.0, 0.0]])
 """Rotation by +90 degrees, ``J``: ``d (R(theta) v) / d theta = J R(theta) v``."""
@@ -74,3 +86,38 @@ def observable(J_pose: Array, J_landmark: Array, robot: Array, landmarks: Array)
     HN = H @ N
     H = H - HN @ np.linalg.solve(N.transpose(0, 2, 1) @ N, N.transpose(0, 2, 1))
     return H[..., :3], H[..., 3:]
+
+
+def invariant_retraction(x: Array, dx: Array) -> tuple[Array, Array]:
+    """Apply a correction ``dx`` (our coordinates) to ``x = [x, y, theta, l1x, l1y, ...]`` on SE_{1+M}(2).
+
+    ``dx`` is read as the group error ``xi`` (``xi_p = dx_p - J p theta_dx`` for the robot and each landmark) and
+    applied as ``exp(xi) X``: every position turns by the heading's correction about the origin.
+
+    Args:
+        x: State, shape (3 + 2M,).
+        dx: Correction, shape (3 + 2M,).
+
+    Returns:
+        (the corrected state (3 + 2M,), the column ``c`` (3 + 2M,) of the covariance's transport
+        ``T = I + c e_theta^T``: ``c = J (point_new - point_old)`` per position, 0 at the heading).
+    """
+    a = float(dx[2])
+    points = np.r_[x[:2], x[3:]].reshape(-1, 2)
+    xi = np.r_[dx[:2], dx[3:]].reshape(-1, 2) - a * heading_column(points, 0.0)
+    c, s = math.cos(a), math.sin(a)
+    if abs(a) > 1e-9:
+        V = np.array([[s / a, -(1.0 - c) / a], [(1.0 - c) / a, s / a]])
+    else:
+        V = np.array([[1.0, -a / 2.0], [a / 2.0, 1.0]])
+    moved = points @ np.array([[c, s], [-s, c]]) + xi @ V.T
+    new = np.r_[moved[0], x[2] + a, moved[1:].ravel()]
+    turn = heading_column(moved - points, 0.0).ravel()
+    column = np.r_[turn[:2], 0.0, turn[2:]]
+    return new, column
+
+
+def transport(P: Array, column: Array, heading: int = 2) -> None:
+    """``P <- T P T^T`` in place with ``T = I + column e_heading^T``; O(n^2)."""
+    p = P[:, heading].copy()
+    P += np.outer(column, p) + np.outer(p, column) + P[heading, heading] * np.outer(column, column)
