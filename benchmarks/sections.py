@@ -301,6 +301,15 @@ def _circle(args: argparse.Namespace, world: GridConfig) -> None:
     print("; ".join(f"{name}: {what}" for name, what in CIRCLE_WORLDS.items()))
     for label, (anees, rmse) in ESDE.items():
         print(f"{'circle':<11}{'esde ' + label + ' (100 runs)':<34}{anees:>7.2f}{'':>25}{rmse:>17.4f}")
+    from benchmarks.esde_port import run as port
+
+    for at, label in (("estimate", "port of esde's standard EKF"), ("truth", "EKF with Jacobians at the truth")):
+        p = port(range(args.circle_runs), jacobians_at=at)
+        print(f"{'circle':<11}{label:<34}{p.anees:>7.2f}{p.in_band:>9.0%}{'-':>16}{p.position_rmse_m:>17.4f}")
+    print(
+        "(the port: esde's simulation and EKF written from its Matlab code, on the same draws as `circle`; at the "
+        "truth: consistent by construction, the accuracy no EKF can expect to beat on these streams)"
+    )
 
 
 Section = Callable[[argparse.Namespace, GridConfig], None]

@@ -22,7 +22,7 @@ DEFAULTS: dict[str, object] = {
     "gate_probability": 0.9999,
     "gate_persistence": 8,
     "ekf_update": "joint",
-    "ekf_linearization": "standard",
+    "ekf_linearization": "invariant",
     "window": 20,
     "window_distance": 18.0,
     "window_max": 120,

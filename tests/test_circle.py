@@ -182,8 +182,11 @@ def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_the_consiste
 
 def _group_error_to_ours(x: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """``exp(xi) X_hat - X_hat`` in our coordinates (heading wrapped): the invariant EKF's error as ours see it."""
-    moved, _ = invariant_retraction(x, xi + np.r_[heading_column(x[:2], 0.0) * xi[2], 0.0,
-                                                  (heading_column(x[3:].reshape(-1, 2), 0.0) * xi[2]).ravel()])
+    moved, _ = invariant_retraction(
+        x,
+        xi
+        + np.r_[heading_column(x[:2], 0.0) * xi[2], 0.0, (heading_column(x[3:].reshape(-1, 2), 0.0) * xi[2]).ravel()],
+    )
     d = moved - x
     d[2] = np.angle(np.exp(1j * d[2]))
     return d
@@ -211,8 +214,9 @@ def test_invariant_retraction_is_the_groups_exponential() -> None:
     assert moved[2] == pytest.approx(0.7)
     # to first order the correction is additive: d (result) / d (dx) at 0 is the identity (numerically)
     eps = 1e-7
-    numeric = np.array([(invariant_retraction(x, eps * e)[0] - invariant_retraction(x, -eps * e)[0]) / (2 * eps)
-                        for e in np.eye(9)]).T
+    numeric = np.array(
+        [(invariant_retraction(x, eps * e)[0] - invariant_retraction(x, -eps * e)[0]) / (2 * eps) for e in np.eye(9)]
+    ).T
     assert numeric == pytest.approx(np.eye(9), abs=1e-6)
 
 
@@ -222,8 +226,9 @@ def test_invariant_transport_is_the_change_of_linearization_point() -> None:
     rng = np.random.default_rng(5)
     x = np.r_[0.5, 1.5, -0.2, rng.normal(size=4) * 4.0]
     eps = 1e-7
-    numeric = np.array([(_group_error_to_ours(x, eps * e) - _group_error_to_ours(x, -eps * e)) / (2 * eps)
-                        for e in np.eye(7)]).T
+    numeric = np.array(
+        [(_group_error_to_ours(x, eps * e) - _group_error_to_ours(x, -eps * e)) / (2 * eps) for e in np.eye(7)]
+    ).T
     assert numeric == pytest.approx(_D(x), abs=1e-6)
     dx = rng.normal(size=7) * 0.2
     moved, column = invariant_retraction(x, dx)

@@ -12,6 +12,7 @@ from scipy.stats import chi2
 import online_slam
 from benchmarks.ekf import random_state
 from online_slam.estimators import EkfConfig, EkfSlam
+from online_slam.estimators.linearization import invariant_retraction, transport
 from online_slam.frontend import FrontEnd, Step
 from online_slam.geometry import compose, compose_with_jacobians, wrap
 from online_slam.models import landmark_from_observation, range_bearing, range_bearing_with_jacobians
@@ -19,10 +20,10 @@ from online_slam.pipeline import ReplayConfig
 from online_slam.sources import GridConfig, grid_world, square_world
 
 
-def random_filter(rng: np.random.Generator, m: int) -> EkfSlam:
+def random_filter(rng: np.random.Generator, m: int, linearization: str = "standard") -> EkfSlam:
     """A filter holding m landmarks with a random dense SPD covariance."""
     x, P = random_state(rng, m)
-    return EkfSlam.from_state(x, P, list(range(m)), EkfConfig(gate_probability=1.0))
+    return EkfSlam.from_state(x, P, list(range(m)), EkfConfig(gate_probability=1.0, linearization=linearization))
 
 
 def dense_H(x: np.ndarray, indices: np.ndarray) -> np.ndarray:
@@ -41,10 +42,13 @@ def wrapped_residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return y
 
 
+@pytest.mark.parametrize("linearization", ["standard", "invariant"])
 @pytest.mark.parametrize(("m", "k"), [(50, 1), (60, 5), (80, 13)])
-def test_structured_update_equals_filterpy_stock_update(m: int, k: int) -> None:
+def test_structured_update_equals_filterpy_stock_update(m: int, k: int, linearization: str) -> None:
+    """The standard update is filterpy's; the invariant one is filterpy's correction applied on the group, with
+    the covariance carried to the corrected estimate."""
     rng = np.random.default_rng(m * 100 + k)
-    ekf = random_filter(rng, m)
+    ekf = random_filter(rng, m, linearization)
     indices = rng.choice(m, size=k, replace=False)
     x0 = ekf.x[:, 0].copy()
     z = range_bearing(x0[:3], x0[3:].reshape(-1, 2)[indices]) + rng.normal(size=(k, 2)) * [0.1, 0.05]
@@ -62,6 +66,10 @@ def test_structured_update_equals_filterpy_stock_update(m: int, k: int) -> None:
         R=la.block_diag(*R),
         residual=wrapped_residual,
     )
+    if linearization == "invariant":
+        moved, column = invariant_retraction(x0, stock.x[:, 0] - x0)
+        stock.x[:, 0] = moved
+        transport(stock.P, column)
     stock.x[2, 0] = wrap(stock.x[2, 0])
 
     nis, accepted = ekf.update_structured(indices, z, R)

@@ -58,7 +58,13 @@ from online_slam.estimators.ekf_robots import SeveralRobots, landmark_columns
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
 from online_slam.estimators.landmark_book import LandmarkBook
-from online_slam.estimators.linearization import FIRST_ESTIMATES, heading_column, invariant_retraction, observable, transport
+from online_slam.estimators.linearization import (
+    FIRST_ESTIMATES,
+    heading_column,
+    invariant_retraction,
+    observable,
+    transport,
+)
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians

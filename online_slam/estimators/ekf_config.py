@@ -28,7 +28,7 @@ class EkfConfig:
     update: str = "joint"
     """``joint``: one update with all of a step's observations (fastest); ``sequential``: one at a time,
     relinearized after each."""
-    linearization: str = "standard"
+    linearization: str = "invariant"
     """Where the Jacobians are evaluated: ``standard`` at the current estimate; ``fej`` at each variable's first
     estimate; ``oc``: the standard ones constrained to see nothing of the unobservable directions; ``invariant``:
     the standard ones, with the error on the group SE_{1+M}(2) (corrections turn the map with the heading; one
