@@ -248,11 +248,12 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                lands=("ekf.gate_persistence",)),
     _estimator("ekf_update", "one update per step with all sightings (joint) or one per sighting", "EKF", "ekf",
                ("EkfConfig", "update"), choices=("joint", "sequential"), lands=("ekf.update",)),
-    _estimator("ekf_linearization", "where the EKF's Jacobians are evaluated: the current estimate (standard), "
-               "each variable's first estimate (fej), the current one constrained to the unobservable directions "
-               "(oc), or the current one with the error on the group of the pose and map (invariant: one robot; "
-               "with several its updates are standard); fej, oc and invariant are consistent", "EKF", "ekf",
-               ("EkfConfig", "linearization"),
+    _estimator("ekf_linearization", "where the EKF's Jacobians are evaluated: the current estimate (standard: the "
+               "textbook EKF, overconfident), each variable's first estimate (fej), fej's prediction with the "
+               "standard sighting Jacobians projected to see nothing of the unobservable directions (oc), or the "
+               "standard ones with the error taken on the group of the pose and map (invariant). fej, oc and "
+               "invariant are consistent on esde's circle protocol. fej and oc take one robot; invariant's updates "
+               "are standard from a second robot's start on", "EKF", "ekf", ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",

@@ -168,8 +168,8 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
     assert results.to_json()["odometry"]["robots"]["2"]["rmse_m"] == odometry.robots["2"].rmse_m
     ekf = results.estimators["ekf"]
     assert ekf.online_rmse_m < 0.1 and results.estimators["batch"].final_rmse_m < ekf.final_rmse_m
-    assert set(ekf.robots["1"].to_json()) == {k for k in ekf.to_json() if not k.startswith(("gated", "landmarks_",
-                                              "state_", "robot", "association", "outliers"))}  # fmt: skip
+    whole_run = ("gated", "landmarks_", "state_", "robot", "association", "outliers", "linearization")
+    assert set(ekf.robots["1"].to_json()) == {k for k in ekf.to_json() if not k.startswith(whole_run)}
 
 
 def test_replay_meet_runs_every_estimator() -> None:
@@ -209,3 +209,12 @@ def test_the_invariant_ekf_updates_as_the_standard_one_once_a_second_robot_begin
             invariant.step(step)
             standard.step(step)
         assert (np.array_equal(invariant.x, standard.x) and np.array_equal(invariant.P, standard.P)) == same
+
+
+def test_the_table_says_which_linearization_the_ekf_ran() -> None:
+    from online_slam.reports.table import format_results
+
+    one = format_results(replay("square", ReplayConfig(estimators=("ekf",))))
+    several = format_results(replay("meet-apart", ReplayConfig(estimators=("ekf",))))
+    assert "\nekf: invariant linearization\n" in one + "\n"
+    assert "\nekf: invariant linearization (standard updates: several robots)" in several

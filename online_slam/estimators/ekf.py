@@ -564,6 +564,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
                 "gated_observations": self.state.gated_total,
                 "landmarks_reanchored": self.state.reanchored,
                 "state_size": self.dim_x,
+                "linearization": self.config.linearization,
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),
                 **self.book.info(),
                 **self._robot_info(),
