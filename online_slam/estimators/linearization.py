@@ -40,9 +40,9 @@ from scipy.linalg import blas
 Array = NDArray[np.float64]
 
 LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
+"""Where the EKF evaluates its Jacobians (see the module docstring)."""
 FIRST_ESTIMATES = ("fej", "oc")
 """The linearizations that need the newest pose as predicted and each landmark's first estimate."""
-"""Where the EKF evaluates its Jacobians (see the module docstring)."""
 PERP = np.array([[0.0, -1.0], [1.0, 0.0]])
 """Rotation by +90 degrees, ``J``: ``d (R(theta) v) / d theta = J R(theta) v``."""
 
