@@ -4,6 +4,8 @@ test_smoother_robots.py)."""
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -14,7 +16,7 @@ import pytest
 
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import BatchEstimator
-from online_slam.estimators.ekf import EkfConfig
+from online_slam.estimators.ekf import EkfConfig, EkfSlam
 from online_slam.factors.graph import (
     DenseAssembler,
     FactorGraph,
@@ -26,6 +28,7 @@ from online_slam.factors.graph import (
 from online_slam.frontend import FrontEnd
 from online_slam.geometry.angles import wrap
 from online_slam.pipeline import ReplayConfig, replay
+from online_slam.reports.table import format_results
 from online_slam.sources import WORLDS, MeetConfig, Observation, Odometry, Start, meet_world
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -191,13 +194,6 @@ def test_the_ekf_refuses_first_estimates_for_several_robots() -> None:
 def test_the_invariant_ekf_updates_as_the_standard_one_once_a_second_robot_begins() -> None:
     """Its group has one heading: with several robots the updates are the standard ones (the covariance is in the
     same coordinates either way); with one robot they are not."""
-    import copy
-    import dataclasses
-
-    from online_slam.estimators.ekf import EkfSlam
-    from online_slam.frontend.steps import FrontEnd
-    from online_slam.sources.worlds import WORLDS
-
     for world, same in (("square", False), ("meet-apart", True)):
         steps = list(FrontEnd().steps(WORLDS[world].events(0)))
         invariant = EkfSlam(EkfConfig(linearization="invariant"))
@@ -212,8 +208,6 @@ def test_the_invariant_ekf_updates_as_the_standard_one_once_a_second_robot_begin
 
 
 def test_the_table_says_which_linearization_the_ekf_ran() -> None:
-    from online_slam.reports.table import format_results
-
     one = format_results(replay("square", ReplayConfig(estimators=("ekf",))))
     several = format_results(replay("meet-apart", ReplayConfig(estimators=("ekf",))))
     assert "\nekf: invariant linearization\n" in one + "\n"
