@@ -42,7 +42,7 @@ CHOICES: dict[str, tuple[str, ...]] = {
     "association": ("known", "nn", "jcbb"),
     "robust": ("auto", "none", "huber", "cauchy"),
     "ekf_linearization": ("standard", "fej", "oc", "invariant"),
-    "smoother_linearization": ("standard", "fej"),
+    "smoother_linearization": ("standard", "fej", "invariant"),
     "peer": ("isam2",),
 }
 """Allowed values of the options whose choices the estimators define."""

@@ -203,11 +203,12 @@ def test_snapshots_report_the_window_and_solves() -> None:
     assert [s.index for s in snapshots if s.info["relinearized"]][:3] == [2, 5, 8]  # K alone: 4, 9, 14
 
 
-@pytest.mark.parametrize("linearization", ["standard", "fej"])
+@pytest.mark.parametrize("linearization", ["standard", "fej", "invariant"])
 def test_global_relinearization_puts_the_window_solve_at_the_full_solution(linearization: str) -> None:
     """After a converged global solve the re-anchored prior balances the window's factors exactly: the window
     solve stays at the full problem's solution, and every pose (history included) is the batch's. With FEJ too:
-    re-anchoring moves the first estimates to the solution and relinearizes the prior's covariance there."""
+    re-anchoring moves the first estimates to the solution and relinearizes the prior's covariance there; and
+    with the invariant prior, whose covariance is carried there."""
     from online_slam.solvers import SolverConfig
 
     config = SmootherConfig(
@@ -287,7 +288,7 @@ def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("linearization", ["standard", "fej"])
+@pytest.mark.parametrize("linearization", ["standard", "fej", "invariant"])
 def test_background_global_relinearization_is_deterministic_and_survives_a_checkpoint(
     tmp_path: Path, linearization: str
 ) -> None:
@@ -415,6 +416,63 @@ def test_fej_takes_the_priors_variables_jacobians_at_its_linearization_point() -
     np.testing.assert_array_equal(observed[point.landmark_rows], p.landmarks[seen])
     np.testing.assert_array_equal(point.landmark_values, p.x_lin[: 2 * len(p.landmarks)].reshape(-1, 2)[seen])
     assert np.abs(point.pose_values[0] - w.poses[p.pose]).max() > 1e-6  # first estimates are not the current ones
+
+
+def test_carrying_the_prior_maps_a_turn_at_the_old_point_onto_a_turn_at_the_new() -> None:
+    """``carry`` is ``Sigma <- D(x_to)^-1 D(x_from) Sigma (...)^T`` with D our error's Jacobian in the group error
+    (``xi_theta = d_theta``, ``xi_t = d_t - d_theta J t`` for the pose's position and every landmark), written here
+    as matrices; it maps the unobservable turn about the origin at the old point onto the one at the new."""
+    from online_slam.estimators.smoother.prior import carry
+
+    rng = np.random.default_rng(3)
+    landmarks = 4
+    n = 2 * landmarks + 3
+    x_from = rng.normal(0.0, 5.0, n)
+    x_to = x_from + rng.normal(0.0, 0.3, n)
+    A = rng.normal(size=(n, n))
+    Sigma = A @ A.T + n * np.eye(n)
+
+    def group(x: np.ndarray) -> np.ndarray:
+        D = np.eye(n)
+        points = x[: n - 1].reshape(-1, 2)
+        D[: n - 1, n - 1] = -np.c_[-points[:, 1], points[:, 0]].reshape(-1)  # -J t
+        return D
+
+    def turn(x: np.ndarray) -> np.ndarray:
+        points = x[: n - 1].reshape(-1, 2)
+        return np.r_[np.c_[-points[:, 1], points[:, 0]].reshape(-1), 1.0]
+
+    T = np.linalg.inv(group(x_to)) @ group(x_from)
+    carried = Sigma.copy()
+    carry(carried, x_from, x_to)
+    np.testing.assert_allclose(carried, T @ Sigma @ T.T, rtol=1e-12, atol=1e-9)
+    assert np.array_equal(carried, carried.T)
+    np.testing.assert_allclose(T @ turn(x_from), turn(x_to), atol=1e-12)
+    assert np.abs(turn(x_from) - turn(x_to)).max() > 0.1
+
+
+def test_invariant_reanchoring_carries_the_covariance_it_does_not_relinearize() -> None:
+    """Re-anchoring that keeps the fold-in covariance (``global_information_max`` 0) carries it to the new point
+    with the invariant prior; the window's prior is left as it was until the revision is taken."""
+    from online_slam.estimators.smoother.prior import carry, reanchored
+    from online_slam.estimators.smoother.relinearize import history_graph, inlier_graph
+
+    config = SmootherConfig(window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=10**6))
+    _, smoother, _, _, _, _ = run(list(grid_world(GridConfig(poses=60, seed=5)))[:-30], config)
+    p, w, r = smoother.prior, smoother.window, smoother.relinearization
+    past = history_graph(inlier_graph(r.log, r.decisions), p.pose)
+    rng = np.random.default_rng(0)
+    values = np.vstack([w.history.view(), w.poses[p.pose][None]]) + rng.normal(0.0, 1e-3, (p.pose + 1, 3))
+    landmarks = w.landmarks + rng.normal(0.0, 1e-3, w.landmarks.shape)
+    before = p.Sigma.copy()
+    kept = reanchored(p, past, values, landmarks, None, 0)
+    carried = reanchored(p, past, values, landmarks, None, 0, carried=True)
+    assert kept is not None and carried is not None
+    assert np.array_equal(p.Sigma, before) and kept.Sigma is p.Sigma
+    expected = before.copy()
+    carry(expected, p.x_lin, carried.x_lin)
+    np.testing.assert_array_equal(carried.Sigma, expected)
+    assert np.abs(carried.Sigma - before).max() > 1e-6 * np.abs(before).max()
 
 
 def test_final_estimate_carries_every_landmarks_marginal_covariance() -> None:

@@ -9,7 +9,7 @@ from online_slam.estimators.landmark_book import AssociationConfig
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.solvers.least_squares import SolverConfig
 
-LINEARIZATIONS = ("standard", "fej")
+LINEARIZATIONS = ("standard", "fej", "invariant")
 """Where the smoother may evaluate the Jacobians of the prior's variables (:attr:`SmootherConfig.linearization`)."""
 GLOBAL_GROWTH = 20
 """Global relinearizations start at most every N / 20 steps after N steps: each costs O(N), so this keeps their
@@ -120,9 +120,14 @@ class SmootherConfig:
     information along the unobservable directions (Dong-Si & Mourikis, ICRA 2011); each global relinearization
     re-anchors those first estimates at its solution and relinearizes the prior's covariance there (whatever
     ``global_solve.information_max``), so first estimates far off do not stay; and each window solve starts
-    undamped (:attr:`window_solver`). ``fej`` is consistent where ``standard`` is overconfident (esde's circle:
-    pose ANEES 3.55 against 13.3, 100 runs), and less accurate where first estimates are poor (MRCLAM robot 2:
-    online 0.467 m against 0.359 m), so it is not the default."""
+    undamped (:attr:`window_solver`). ``invariant``: at the current estimate, as ``standard``, but the prior's
+    covariance is carried to each new linearization point as the invariant EKF carries its own after an update
+    (:func:`~online_slam.estimators.linearization.transport`; re-centring before a fold-in, and re-anchoring that
+    keeps the fold-in covariance), so its weak directions follow the estimate's unobservable ones; window solves
+    start undamped; with several robots it re-centres exactly, as ``standard``. ``fej`` and ``invariant`` are
+    consistent where ``standard`` is overconfident (esde's circle, 100 runs: pose ANEES 3.55 and 3.57 against
+    13.3) and less accurate on MRCLAM robot 2, whose noise model is far from its data (online 0.467 and 0.460 m
+    against 0.359 m), so neither is the default (benchmarks/RESULTS.md)."""
     global_solve: GlobalConfig = field(default_factory=GlobalConfig)
     """The periodic re-solve of the whole history."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
@@ -137,17 +142,25 @@ class SmootherConfig:
             raise ValueError(f"smoother linearization must be one of {', '.join(LINEARIZATIONS)}")
 
     @property
+    def carried(self) -> bool:
+        """The prior's covariance is carried to each new linearization point (``linearization == "invariant"``)."""
+        return self.linearization == "invariant"
+
+    @property
     def fej(self) -> bool:
         """First-Estimates Jacobians (``linearization == "fej"``)."""
         return self.linearization == "fej"
 
     @property
     def window_solver(self) -> SolverConfig:
-        """The settings of each window solve during the stream: ``solver``, started undamped with ``fej``.
+        """The settings of each window solve during the stream: ``solver``, started undamped with ``fej`` and
+        ``invariant``.
 
         Levenberg-Marquardt's first damping is relative to the diagonal of the normal equations, which a stiff
         odometry (a near-zero lateral variance) makes huge: the damped step then barely moves along the weakly
         observed directions, its quadratic model holds, and ``model_tolerance`` ends the solve short of the
-        optimum, overconfident. FEJ starts with a Gauss-Newton step (damping only after a step that fails).
+        optimum, overconfident. FEJ and the invariant prior start with a Gauss-Newton step (damping only after a
+        step that fails). The standard smoother keeps the damped start: undamped, it is less overconfident on the
+        circle (ANEES 4.00 against 13.3) but its online error grows 16% on MRCLAM robot 3 (benchmarks/RESULTS.md).
         """
-        return replace(self.solver, initial_lambda=0.0) if self.fej else self.solver
+        return self.solver if self.linearization == "standard" else replace(self.solver, initial_lambda=0.0)

@@ -419,9 +419,15 @@ class SlidingWindowSmoother(SeveralRobots):
         assert p.pose == o
         sightings = self._sightings_to_fold(o)
         delta, _, W = w.odometry[n1]
-        recentre = not self.config.fej
         self.prior = marginalize(
-            p, w.poses[o], w.landmarks, sightings, (delta, W), (n1, w.poses[n1]), self.config.robust.loss, recentre
+            p,
+            w.poses[o],
+            w.landmarks,
+            sightings,
+            (delta, W),
+            (n1, w.poses[n1]),
+            self.config.robust.loss,
+            self.config.linearization,
         )
         w.drop_oldest()
         self.progress.marginalized += 1

@@ -224,7 +224,9 @@ def _revision(
 ) -> Revision | None:
     """The revision with the prior re-anchored over the history's factors ``past`` at ``values`` (None: refused)."""
     landmarks_at = anchor_landmarks(landmarks, at_once, window, config)
-    anchored = reanchored(prior, past, values, landmarks_at, config.robust.loss, information_max(config))
+    anchored = reanchored(
+        prior, past, values, landmarks_at, config.robust.loss, information_max(config), config.carried
+    )
     return None if anchored is None else Revision(history, landmarks, anchored)
 
 

@@ -5,7 +5,8 @@ and every landmark it has touched, kept in covariance form: folding a factor in 
 update (the next pose and new landmarks are appended through their factor, the other observations update it
 like a Kalman filter), and eliminating a pose is dropping its rows — the same result as a Schur complement of
 the information matrix, at O(n^2) per factor. Its quadratic is never relinearized: by default it is re-centred
-(exactly) at the current estimate before new factors are folded in, and those are linearized there.
+(exactly) at the current estimate before new factors are folded in, and those are linearized there; the
+invariant option also carries its covariance there (:func:`carry`).
 
 A window solve sees only the prior's marginal on its pose and the landmarks the window observes
 (:func:`reduced`); the others are recovered from their conditional mean afterwards.
@@ -23,6 +24,7 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
+from online_slam.estimators.linearization import heading_column, transport
 from online_slam.estimators.smoother.config import GLOBAL_FALSE_ALARM
 from online_slam.estimators.smoother.relinearize import prior_covariance, prior_marginal
 from online_slam.factors.graph import FactorGraph, robot_sighting_residual_with_jacobians, sqrt_information
@@ -147,6 +149,26 @@ def fuse_repeats(
     return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c), np.array(keep_m, dtype=np.int8)
 
 
+def carry(Sigma: Array, x_from: Array, x_to: Array) -> None:
+    """Carry a one-pose prior's covariance (over ``[landmarks..., pose]``) from ``x_from`` to ``x_to`` in place.
+
+    As the invariant EKF after an update (:func:`~online_slam.estimators.linearization.transport`): the error is
+    read on SE_{1+L}(2) (the pose's heading; its position and every landmark's as translations), whose
+    unobservable directions do not depend on the estimate, and mapped back to our coordinates at ``x_to``:
+    ``Sigma <- T Sigma T^T``, ``T = I + c e_theta^T``, ``c = J (point_to - point_from)`` per position. A turn about
+    the origin at ``x_from`` (``[J l..., J p, 1]``) becomes the same turn at ``x_to``.
+
+    Args:
+        Sigma: Covariance of ``[landmarks..., pose]``, contiguous, shape (2 L + 3, 2 L + 3).
+        x_from: The linearization point it was built at, shape (2 L + 3,).
+        x_to: The new linearization point, shape (2 L + 3,).
+    """
+    n = len(x_to)
+    column = np.zeros(n)
+    column[: n - 1] = heading_column(x_to[: n - 1].reshape(-1, 2), x_from[: n - 1].reshape(-1, 2)).reshape(-1)
+    transport(Sigma, column, heading=n - 1)
+
+
 def split(prior: Prior, active: Index) -> PriorSplit:
     """The prior's state split by the landmarks a window solve sees (``active``, sorted)."""
     n = len(prior.mu)
@@ -210,7 +232,7 @@ def marginalize(
     odometry: tuple[Array, Array],
     next_pose: tuple[int, Array],
     loss: RobustLoss | None,
-    recentre: bool = True,
+    linearization: str = "standard",
     robots: RobotFold | None = None,
 ) -> Prior:
     """Fold the prior pose o's factors into the prior ``[landmarks..., others..., o]``, then eliminate o.
@@ -230,19 +252,22 @@ def marginalize(
         odometry: (delta, square-root information) of the odometry from o to n1.
         next_pose: (n1, its current estimate (3,)).
         loss: The robust loss on sightings (IRLS weights at the linearization point).
-        recentre: Re-centre the prior at the current estimate first and linearize there (else at the prior's
-            first estimates: FEJ).
+        linearization: ``standard``: re-centre the prior at the current estimate first and linearize there;
+            ``invariant``: the same, its covariance carried there (:func:`carry`; one pose held, else exactly
+            re-centred); ``fej``: linearize at the prior's first estimates.
         robots: o's robot sightings of (or by) the other poses the prior holds, or None.
     """
     x_lin, mu, Sigma = prior.x_lin, prior.mu, prior.Sigma
     n = len(mu)
-    if recentre:
+    if linearization != "fej":
         current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
         shift = current - x_lin
         if len(prior.others):
             shift[2 * len(prior.landmarks) + 2 :: 3] = wrap(shift[2 * len(prior.landmarks) + 2 :: 3])
         else:
             shift[-1] = wrap(shift[-1])
+            if linearization == "invariant":
+                carry(Sigma, x_lin, current)
         x_lin, mu = current, mu - shift
     lin_o = x_lin[n - 3 :]
     held = list(prior.landmarks)
@@ -389,6 +414,7 @@ def reanchored(
     landmarks: Array,
     loss: RobustLoss | None,
     information_max: int,
+    carried: bool = False,
 ) -> Prior | None:
     """The prior moved to revised values of the history (see :mod:`~online_slam.estimators.smoother.relinearize`).
 
@@ -403,6 +429,8 @@ def reanchored(
         landmarks: Revised values of every landmark, shape (M, 2).
         loss: The robust loss on sightings.
         information_max: Most landmarks the prior may hold for its covariance to be relinearized.
+        carried: A covariance that is not relinearized is carried to the new point (:func:`carry`; one pose
+            held), as the invariant option does.
 
     Returns:
         The re-anchored prior, or None when the history's pull on the prior's variables, in its own metric,
@@ -412,8 +440,11 @@ def reanchored(
     relinearized = len(prior.landmarks) <= information_max
     kept = None if not len(prior.others) else prior.poses
     g_k, H_k = prior_marginal(past, values, landmarks, prior.landmarks, loss, relinearized, kept)
+    x_lin = np.r_[landmarks[prior.landmarks].reshape(-1), values[-1] if kept is None else values[kept].reshape(-1)]
     Sigma = prior.Sigma if H_k is None else prior_covariance(H_k, prior.Sigma)
+    if H_k is None and carried and kept is None:
+        Sigma = Sigma.copy()  # the window's prior keeps its own until the revision is taken
+        carry(Sigma, prior.x_lin, x_lin)
     if float(g_k @ Sigma @ g_k) > chi2.isf(GLOBAL_FALSE_ALARM, len(g_k)):
         return None
-    x_lin = np.r_[landmarks[prior.landmarks].reshape(-1), values[-1] if kept is None else values[kept].reshape(-1)]
     return Prior(prior.pose, prior.landmarks, x_lin, -(Sigma @ g_k), Sigma, prior.others)

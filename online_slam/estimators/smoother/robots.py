@@ -131,7 +131,7 @@ class SeveralRobots:
             (delta, W),
             (n1, w.poses[n1]),
             self.config.robust.loss,
-            not self.config.fej,
+            self.config.linearization,
             fold,
         )
         w.drop(o, n1)
