@@ -46,7 +46,7 @@ def run_circle(
     worlds: tuple[str, ...] = tuple(CIRCLE_WORLDS),
 ) -> tuple[tuple[float, float], list[CircleRow]]:
     """The EKF with every linearization, the default smoother, the smoother with First-Estimates Jacobians and
-    iSAM2 (when GTSAM is installed) over seeds 0..runs-1 of each world.
+    with the invariant prior, and iSAM2 (when GTSAM is installed) over seeds 0..runs-1 of each world.
 
     Returns:
         (the 95% band of the ANEES for ``runs`` runs, one row per world and estimator).
@@ -65,14 +65,14 @@ def run_circle(
             assert mc is not None
             band = mc.anees_bounds
             rows += _rows(world, mc, linearization)
-        if smoother:
-            fej = SmootherConfig(linearization="fej")
-            replay = ReplayConfig(estimators=("smoother",), smoother=fej)
-            windows, every = (fej.window.size,), (fej.relinearize_every,)
+        for name in ("fej", "invariant") if smoother else ():
+            chosen = SmootherConfig(linearization=name)
+            replay = ReplayConfig(estimators=("smoother",), smoother=chosen)
+            windows, every = (chosen.window.size,), (chosen.relinearize_every,)
             config = CompareConfig(replay=replay, runs=runs, workers=workers, windows=windows, relinearize_every=every)
             mc = compare(world, config).monte_carlo
             assert mc is not None
-            rows += _rows(world, mc, "fej")
+            rows += _rows(world, mc, name)
     return band, rows
 
 

@@ -16,8 +16,10 @@ alike — that variable's Jacobian at the prior's linearization point, so each v
 the window cannot gain information along the directions no sighting observes (global position and heading;
 Dong-Si & Mourikis, ICRA 2011); each global relinearization re-anchors those first estimates at its solution and
 relinearizes the prior's covariance there, so first estimates far off do not stay, and window solves start
-undamped. It is consistent where the standard smoother is overconfident, and less accurate where first estimates
-are poor, so it is not the default (benchmarks/RESULTS.md). Landmarks are never marginalized, so a
+undamped. ``linearization="invariant"`` keeps every Jacobian at the current estimate and carries the prior's
+covariance to each new linearization point, as the invariant EKF carries its own (:func:`.prior.carry`), with
+window solves started undamped. Both are consistent where the standard smoother is overconfident, and less
+accurate on MRCLAM robot 2, so neither is the default (benchmarks/RESULTS.md). Landmarks are never marginalized, so a
 re-observation long after the poses that saw a landmark left the window (a loop closure) still corrects the map
 and the current pose.
 
