@@ -17,6 +17,7 @@ import pytest
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import BatchEstimator
 from online_slam.estimators.ekf import EkfConfig, EkfSlam
+from online_slam.estimators.smoother import SmootherConfig
 from online_slam.factors.graph import (
     DenseAssembler,
     FactorGraph,
@@ -211,7 +212,7 @@ def test_the_invariant_smoother_recentres_its_prior_exactly_with_several_robots(
     """With several robots the prior holds several headings: it is re-centred exactly, as the standard one (with
     solves started undamped as the invariant option starts them, the runs are the same bit for bit); with one
     robot its covariance is carried and the runs differ."""
-    from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig, WindowConfig
+    from online_slam.estimators.smoother import SlidingWindowSmoother, WindowConfig
 
     window = WindowConfig(size=5, distance=0.0)
     solver = dataclasses.replace(SmootherConfig().solver, initial_lambda=0.0)
@@ -228,8 +229,14 @@ def test_the_invariant_smoother_recentres_its_prior_exactly_with_several_robots(
         assert np.array_equal(runs[0], runs[1]) == same
 
 
-def test_the_table_says_which_linearization_the_ekf_ran() -> None:
+def test_the_table_says_which_linearization_the_ekf_and_the_smoother_ran() -> None:
     one = format_results(replay("square", ReplayConfig(estimators=("ekf",))))
     several = format_results(replay("meet-apart", ReplayConfig(estimators=("ekf",))))
     assert "\nekf: invariant linearization\n" in one + "\n"
     assert "\nekf: invariant linearization (standard updates: several robots)" in several
+    smoothers = [
+        format_results(replay(world, ReplayConfig(estimators=("smoother",), smoother=SmootherConfig(linearization=l))))
+        for world, l in (("square", "standard"), ("meet-apart", "invariant"))
+    ]
+    assert "\nsmoother: standard linearization\n" in smoothers[0] + "\n"
+    assert "\nsmoother: invariant linearization (re-centred: several robots)" in smoothers[1]

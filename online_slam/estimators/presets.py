@@ -39,12 +39,11 @@ def smoother_label(config: SmootherConfig) -> str:
     ``smoother W=20..120 D=18 K=1``: at least W=20 poses, more until the window's path is 18 m long, at most 120,
     solved every K=1 steps; ``smoother W=5 K=1``: exactly 5 poses (``window_distance`` 0, or a ``window_max``
     that is no more than W); `` FEJ`` ends it with First-Estimates Jacobians, `` invariant`` with the carried
-    prior (:attr:`SmootherConfig.linearization`). A row so named keeps its meaning
-    whatever the defaults are.
+    prior (:attr:`SmootherConfig.linearization`). A row so named keeps its meaning whatever the defaults are.
     """
     window, every = config.window, config.relinearize_every
     most = max(window.size, window.max_poses)
-    fej = {"standard": "", "fej": " FEJ"}.get(config.linearization, f" {config.linearization}")
+    suffix = {"standard": "", "fej": " FEJ"}.get(config.linearization, f" {config.linearization}")
     if window.distance == 0 or most == window.size:
-        return f"smoother W={window.size} K={every}{fej}"
-    return f"smoother W={window.size}..{most} D={window.distance:g} K={every}{fej}"
+        return f"smoother W={window.size} K={every}{suffix}"
+    return f"smoother W={window.size}..{most} D={window.distance:g} K={every}{suffix}"

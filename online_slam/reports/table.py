@@ -162,11 +162,11 @@ def notes(results: Results) -> list[str]:
         out.append(f"errors after {results.alignment} alignment")
     for name, result in results.estimators.items():
         d = result.details
-        if name == "ekf" and "linearization" in d:  # the smoothers' rows name theirs (`` FEJ``)
-            several = (
-                " (standard updates: several robots)" if d["linearization"] == "invariant" and result.robots else ""
-            )
-            out.append(f"ekf: {d['linearization']} linearization{several}")
+        if name in ("ekf", "smoother") and "linearization" in d:  # compare's smoother rows name theirs (`` FEJ``)
+            several = ""
+            if d["linearization"] == "invariant" and result.robots:
+                several = " (standard updates: several robots)" if name == "ekf" else " (re-centred: several robots)"
+            out.append(f"{name}: {d['linearization']} linearization{several}")
         if "iterations" in d:
             state = "converged" if d.get("converged") else "NOT converged"
             out.append(

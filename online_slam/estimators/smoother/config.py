@@ -126,7 +126,7 @@ class SmootherConfig:
     keeps the fold-in covariance), so its weak directions follow the estimate's unobservable ones; window solves
     start undamped; with several robots it re-centres exactly, as ``standard``. ``fej`` and ``invariant`` are
     consistent where ``standard`` is overconfident (esde's circle, 100 runs: pose ANEES 3.55 and 3.57 against
-    13.3) and less accurate on MRCLAM robot 2, whose noise model is far from its data (online 0.467 and 0.460 m
+    13.3) and less accurate on MRCLAM robot 2, whose noise model is far from its data (online 0.467 and 0.462 m
     against 0.359 m), so neither is the default (benchmarks/RESULTS.md)."""
     global_solve: GlobalConfig = field(default_factory=GlobalConfig)
     """The periodic re-solve of the whole history."""
