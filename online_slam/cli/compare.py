@@ -19,7 +19,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "compare",
         help="compare EKF, smoother configurations and batch on one stream: table, figures, Monte Carlo",
-        description="Run the EKF, every smoother (W, K) and the batch solver on the same stream; print one table. "
+        description="Run the estimators (--estimators: by default the EKF, every smoother (W, K) and the batch "
+        "solver) on the same stream; print one table. "
         "With --runs N (simulated worlds), Monte Carlo over N noise seeds: ANEES, share of steps in its 95% band, "
         "RMSE per online estimator, and with --peer isam2 GTSAM's iSAM2 beside them.",
     )

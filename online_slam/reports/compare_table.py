@@ -17,6 +17,9 @@ def format_comparison(comparison: Comparison) -> str:
         Lines of text, ending without a newline.
     """
     out = table_lines(comparison.results, robot_rows(comparison.results, comparison.rows))
+    mc = comparison.monte_carlo
+    if mc is not None:  # the table above the Monte Carlo figures is one run of them
+        out.insert(0, f"seed {mc.seeds[0]}, the first of the {counted(mc.runs, 'Monte Carlo run')} summed up below:")
     extra = [*notes(comparison.results), *_same_smoothers(comparison)]
     if extra:
         out += ["", *extra]
