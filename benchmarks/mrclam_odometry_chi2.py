@@ -26,6 +26,7 @@ from online_slam.importers.mrclam import (
     _interpolate_truth,
     increment_covariances,
     load_robot,
+    pieces,
     read_mrclam,
 )
 from online_slam.sources.events import Odometry, Start, Truth
@@ -62,20 +63,9 @@ def chi2_by_span(folder: str, robot: int) -> list[tuple[int, float]]:
 def heading_levers(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per increment between ``times``, the covariance that unit heading noise per second and per radian turned,
     spread over its commands, causes at its end in the earlier pose's frame, each shape (len(times) - 1, 3, 3)."""
-    t_cmd, v, w = commands[:, 0], commands[:, 1], commands[:, 2]
-    grid = np.unique(np.concatenate([t_cmd[(t_cmd > times[0]) & (t_cmd < times[-1])], times]))
-    k = np.searchsorted(t_cmd, grid[:-1], side="right") - 1
-    vi, wi = np.where(k >= 0, v[np.maximum(k, 0)], 0.0), np.where(k >= 0, w[np.maximum(k, 0)], 0.0)
-    dt = np.diff(grid)
-    turn = wi * dt
-    heading = np.concatenate([[0.0], np.cumsum(turn)])
-    h0, small = heading[:-1], np.abs(wi) < 1e-9
-    safe = np.where(small, 1.0, wi)
-    dx = np.where(small, vi * dt * np.cos(h0), (vi / safe) * (np.sin(h0 + turn) - np.sin(h0)))
-    dy = np.where(small, vi * dt * np.sin(h0), (vi / safe) * (np.cos(h0) - np.cos(h0 + turn)))
-    x, y = np.concatenate([[0.0], np.cumsum(dx)]), np.concatenate([[0.0], np.cumsum(dy)])
-    at = np.searchsorted(grid, times)
-    piece = np.searchsorted(at, np.arange(len(dt)), side="right") - 1  # the increment each piece belongs to
+    p = pieces(commands, times)
+    at, (x, y, heading) = p.at, p.poses.T
+    piece = np.searchsorted(at, np.arange(len(p.dt)), side="right") - 1  # the increment each piece belongs to
     inside = (piece >= 0) & (piece < len(times) - 1)
     end = at[np.minimum(piece + 1, len(at) - 1)]
     start_heading = heading[at[np.clip(piece, 0, len(at) - 1)]]
@@ -84,7 +74,7 @@ def heading_levers(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray,
     jr = np.stack([-(-s * rx + c * ry), c * rx + s * ry, np.ones_like(rx)], -1)  # [J r; 1], earlier frame
     outer = jr[:, :, None] * jr[:, None, :]
     levers = []
-    for q in (dt, np.abs(turn)):
+    for q in (p.dt, np.abs(p.turn)):
         total = np.zeros((len(times) - 1, 3, 3))
         np.add.at(total, piece[inside], (q[:, None, None] * outer)[inside])
         levers.append(total)

@@ -88,16 +88,28 @@ def _table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
     return np.array(rows)
 
 
-def _dead_reckoning(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact unicycle integration of piecewise-constant commands, sampled at (sorted) times.
+@dataclass(frozen=True)
+class Pieces:
+    """Piecewise-constant commands integrated exactly between breakpoints (every command and sample time)."""
+
+    at: np.ndarray
+    """Breakpoint index of each sample time, shape (N,)."""
+    dt: np.ndarray
+    """Duration of each piece, shape (B - 1,)."""
+    speed: np.ndarray
+    """Commanded speed over each piece, shape (B - 1,)."""
+    turn: np.ndarray
+    """Commanded turn over each piece (signed), shape (B - 1,)."""
+    poses: np.ndarray
+    """Pose at each breakpoint relative to the state at times[0], shape (B, 3)."""
+
+
+def pieces(commands: np.ndarray, times: np.ndarray) -> Pieces:
+    """Exact unicycle integration of piecewise-constant commands, from times[0] to times[-1] (sorted).
 
     Args:
         commands: (t, v, w) rows sorted by t, shape (C, 3).
         times: Sample times, shape (N,).
-
-    Returns:
-        (poses relative to the state at times[0], shape (N, 3); commanded path length and |turn| accumulated
-        since times[0], each shape (N,)).
     """
     t_cmd, v, w = commands[:, 0], commands[:, 1], commands[:, 2]
     # Breakpoints: every command time and every sample time, from times[0] on.
@@ -116,10 +128,24 @@ def _dead_reckoning(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray
     dy = np.where(small, vi * dt * np.sin(h0), (vi / safe_w) * (np.cos(h0) - np.cos(h0 + dth)))
     x = np.concatenate([[0.0], np.cumsum(dx)])
     y = np.concatenate([[0.0], np.cumsum(dy)])
-    path = np.concatenate([[0.0], np.cumsum(np.abs(vi) * dt)])
-    turn = np.concatenate([[0.0], np.cumsum(np.abs(dth))])
-    at = np.searchsorted(grid, times)
-    return np.stack([x[at], y[at], heading[at]], -1), path[at], turn[at]
+    return Pieces(np.searchsorted(grid, times), dt, vi, dth, np.stack([x, y, heading], -1))
+
+
+def _dead_reckoning(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact unicycle integration of piecewise-constant commands (:func:`pieces`), sampled at (sorted) times.
+
+    Args:
+        commands: (t, v, w) rows sorted by t, shape (C, 3).
+        times: Sample times, shape (N,).
+
+    Returns:
+        (poses relative to the state at times[0], shape (N, 3); commanded path length and |turn| accumulated
+        since times[0], each shape (N,)).
+    """
+    p = pieces(commands, times)
+    path = np.concatenate([[0.0], np.cumsum(np.abs(p.speed) * p.dt)])
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(p.turn))])
+    return p.poses[p.at], path[p.at], turn[p.at]
 
 
 def _interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
