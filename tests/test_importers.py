@@ -15,8 +15,22 @@ from conftest import SHARED_DATA
 from online_slam.errors import InputError
 from online_slam.importers import open_dataset
 from online_slam.importers.g2o import read_g2o, write_g2o
-from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning
-from online_slam.importers.mrclam_noise import fit_mrclam_noise, fit_sighting_sigma, fit_variance
+from online_slam.importers.mrclam import (
+    MrclamNoise,
+    _dead_reckoning,
+    calibrated,
+    correlation,
+    heading_levers,
+    odometry_increments,
+    sighting_sigmas,
+)
+from online_slam.importers.mrclam_noise import (
+    IncrementErrors,
+    fit_increment_terms,
+    fit_mrclam_noise,
+    fit_sighting_correlation,
+    fit_sighting_sigma,
+)
 from online_slam.sources import LandmarkTruth, Observation, Odometry, Truth, read_stream, square_world, write_stream
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
@@ -172,17 +186,111 @@ def test_shipped_streams_read(tmp_path: Path) -> None:
         assert sum(1 for _ in read_stream(path)) > 10
 
 
-def test_variance_fit_recovers_the_coefficients_of_simulated_increments() -> None:
+def _increments(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Piecewise-constant (t, v, w) commands at 5 Hz and pose times every 1-20 commands."""
+    t = np.arange(n) * 0.2
+    turning = rng.random(n) < 0.5  # half of the commands go straight, so that time and turn are told apart
+    commands = np.stack([t, rng.uniform(0.0, 0.2, n), np.where(turning, rng.uniform(-1.0, 1.0, n), 0.0)], -1)
+    at = np.concatenate([[0], np.cumsum(rng.integers(1, 20, n // 10))])
+    return commands, t[at[at < n]], t
+
+
+def test_heading_noise_along_the_commands_is_the_propagated_covariance() -> None:
+    """One increment of two pieces: straight 1 m, then 1 m more. Heading noise q accrued over the first piece
+    turns the second piece's metre: the end's lateral variance gains q * 1^2 and its cross term q * 1."""
+    commands = np.array([[0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    per_s, per_rad = heading_levers(commands, np.array([0.0, 2.0]))
+    # the first second's unit heading variance: lever [J r; 1] = [0, 1, 1]; the second's: [0, 0, 1]
+    assert per_s[0] == pytest.approx(np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 1.0], [0.0, 1.0, 2.0]]), abs=1e-12)
+    assert per_rad[0] == pytest.approx(np.zeros((3, 3)), abs=1e-12)  # no turn
+    noise = MrclamNoise(command_lag_s=0.0, speed_scale=1.0, turn_scale=1.0)
+    _, cov = odometry_increments(commands, np.array([0.0, 2.0]), noise)
+    assert cov[0, 1, 2] == pytest.approx(noise.theta_per_s * 1.0, rel=1e-9)
+    assert cov[0, 2, 2] == pytest.approx(2.0 * noise.theta_per_s + noise.floor, rel=1e-9)
+
+
+def test_heading_noise_along_the_commands_matches_monte_carlo_on_a_turning_path() -> None:
+    rng = np.random.default_rng(5)
+    commands = np.stack([np.arange(10) * 0.5, np.full(10, 0.3), np.linspace(-0.6, 0.6, 10)], -1)
+    times = np.array([0.0, 5.0])
+    per_s, per_rad = heading_levers(commands, times)
+    q = 0.002  # heading variance per second, accrued as a random walk along the commands
+    fine = 200  # sub-steps per command
+    dt = 0.5 / fine
+    w = np.repeat(commands[:, 2], fine)
+    v = np.repeat(commands[:, 1], fine)
+    ends = []
+    for _ in range(4000):
+        heading = np.cumsum(w * dt) - w * dt + np.cumsum(rng.normal(0.0, np.sqrt(q * dt), len(w)))
+        x, y = np.sum(v * dt * np.cos(heading)), np.sum(v * dt * np.sin(heading))
+        ends.append([x, y, heading[-1] + w[-1] * dt])
+    sample = np.cov(np.array(ends).T)
+    assert q * per_s[0] == pytest.approx(sample, abs=0.08 * np.max(np.abs(sample)))
+
+
+def test_calibrated_commands_are_delayed_and_scaled() -> None:
+    commands = np.array([[0.0, 0.2, 0.1], [1.0, 0.1, -0.3]])
+    out = calibrated(commands, MrclamNoise(command_lag_s=0.25, speed_scale=0.9, turn_scale=0.8))
+    assert out == pytest.approx(np.array([[0.25, 0.18, 0.08], [1.25, 0.09, -0.24]]))
+    assert commands[0, 0] == 0.0  # the input is left alone
+
+
+def test_increment_terms_fit_recovers_the_terms_of_simulated_increments() -> None:
     rng = np.random.default_rng(3)
-    dt = rng.uniform(0.01, 5.0, 20_000)
-    size = rng.uniform(0.0, 1.0, 20_000)
-    errors = rng.normal(0.0, np.sqrt(3e-4 * dt + 0.05 * size**2 + 1e-6))
-    a, b, c = fit_variance(errors, dt, size, 1e-6)
-    assert a == pytest.approx(3e-4, rel=0.06) and c == pytest.approx(0.05, rel=0.06) and b < 1e-3
-    # a random walk in the size (variance linear in it), as MRCLAM's heading
-    errors = rng.normal(0.0, np.sqrt(3e-4 * dt + 0.02 * size + 1e-6))
-    a, b, c = fit_variance(errors, dt, size, 1e-6)
-    assert a == pytest.approx(3e-4, rel=0.15) and b == pytest.approx(0.02, rel=0.1) and c < 2e-3
+    commands, times, _ = _increments(rng, 20_000)
+    truth = MrclamNoise(
+        x_per_s=2e-5,
+        x_per_m2=0.02,
+        y_per_s=1e-6,
+        y_per_m2=1e-3,
+        theta_per_s=2e-4,
+        theta_per_rad=0.01,
+        command_lag_s=0.0,
+        speed_scale=1.0,
+        turn_scale=1.0,
+    )
+    increments, cov = odometry_increments(commands, times, truth)
+    errors = np.einsum("kij,kj->ki", np.linalg.cholesky(cov), rng.standard_normal(increments.shape))
+    poses, path, turn = _dead_reckoning(commands, times)
+    per_s, per_rad = heading_levers(commands, times)
+    data = IncrementErrors(errors, increments, np.diff(times), np.diff(path), np.diff(turn), per_s, per_rad)
+    fitted = fit_increment_terms(data, MrclamNoise())
+    for name, rel in (("x_per_m2", 0.1), ("y_per_m2", 0.15), ("theta_per_s", 0.25), ("theta_per_rad", 0.25)):
+        assert getattr(fitted, name) == pytest.approx(getattr(truth, name), rel=rel), name
+
+
+def test_sightings_of_one_landmark_are_widened_by_their_correlation_with_the_last() -> None:
+    noise = MrclamNoise(range_correlation=(0.5, 2.0, 0.3, 30.0), bearing_correlation=(0.0, 1.0, 0.0, 1.0))
+    times = np.array([0.0, 0.0, 0.2, 10.0, 10.0])
+    subjects = np.array([6, 7, 6, 6, 8])
+    sigmas = sighting_sigmas(noise, times, subjects, np.full(5, 2.0))
+    first = [0, 1, 4]  # each landmark's first sighting keeps its sigma
+    assert sigmas[first] == pytest.approx(np.tile([noise.range_sigma, noise.bearing_sigma], (3, 1)))
+    for row, dt in ((2, 0.2), (3, 9.8)):
+        rho = 0.5 * np.exp(-dt / 2.0) + 0.3 * np.exp(-dt / 30.0)
+        assert sigmas[row, 0] == pytest.approx(noise.range_sigma * np.sqrt((1 + rho) / (1 - rho)))
+        assert sigmas[row, 1] == pytest.approx(noise.bearing_sigma)  # no bearing correlation
+    assert correlation((0.5, 2.0, 0.3, 30.0), np.array([np.inf]))[0] == 0.0
+
+
+def test_sighting_correlation_fit_recovers_two_time_scales() -> None:
+    """Residuals of three landmarks as a sum of two Ornstein-Uhlenbeck processes and white noise, sampled at
+    irregular times: the fit finds the weights and time constants."""
+    rng = np.random.default_rng(11)
+    times, subjects, residuals = [], [], []
+    for subject in (6, 7, 8):
+        t = np.cumsum(rng.exponential(0.5, 6000))
+        slow = fast = 0.0
+        out = []
+        for gap in np.diff(t, prepend=t[0]):
+            a, b = np.exp(-gap / 1.5), np.exp(-gap / 40.0)
+            fast = a * fast + np.sqrt(1 - a**2) * rng.normal(0.0, np.sqrt(0.5))
+            slow = b * slow + np.sqrt(1 - b**2) * rng.normal(0.0, np.sqrt(0.3))
+            out.append(fast + slow + rng.normal(0.0, np.sqrt(0.2)))
+        times.append(t), subjects.append(np.full(len(t), subject)), residuals.append(np.array(out))
+    c1, tau1, c2, tau2 = fit_sighting_correlation(*(np.concatenate(x) for x in (times, subjects, residuals)))
+    assert c1 == pytest.approx(0.5, abs=0.08) and tau1 == pytest.approx(1.5, rel=0.3)
+    assert c2 == pytest.approx(0.3, abs=0.08) and tau2 == pytest.approx(40.0, rel=0.4)
 
 
 def test_the_sighting_sigma_fit_recovers_a_range_dependent_sigma_beside_outliers() -> None:
@@ -203,10 +311,15 @@ def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path:
     fit = fit_mrclam_noise(MRCLAM)
     builtin = MrclamNoise()
     assert fit.increments > 8000 and fit.measurements > 15000
-    for name in ("x_per_s", "x_per_m2", "theta_per_s", "theta_per_rad"):
-        assert getattr(fit.noise, name) == pytest.approx(getattr(builtin, name), rel=0.1), name
-    # the data pick the form per axis: heading variance linear in the turn, path variance in its square
-    assert fit.noise.theta_per_rad2 < 1e-4 and fit.noise.x_per_m < 1e-5 and fit.noise.y_per_m < 1e-5
+    names = ("x_per_s", "x_per_m2", "y_per_m2", "theta_per_s", "theta_per_rad", "command_lag_s", "speed_scale")
+    for name in (*names, "turn_scale"):
+        assert getattr(fit.noise, name) == pytest.approx(getattr(builtin, name), rel=0.02), name
+    assert fit.noise.range_correlation == pytest.approx(builtin.range_correlation, rel=0.02)
+    assert fit.noise.bearing_correlation == pytest.approx(builtin.bearing_correlation, rel=0.02)
+    # the robots move 4-5% less than commanded, a quarter second late; one landmark's range errors 0.2 s apart
+    # correlate at about 0.85
+    assert 0.2 <= fit.noise.command_lag_s <= 0.3 and 0.9 < fit.noise.speed_scale < 0.99
+    assert 0.8 < float(correlation(fit.noise.range_correlation, np.array([0.2]))[0]) < 0.9
     # sightings: the range sigma grows with the range (about 0.06 m at 1 m, 0.19 m at 4 m); bearing as built in
     assert fit.noise.range_sigma < 0.05 and 0.03 < fit.noise.range_sigma_per_m < 0.06
     assert fit.noise.bearing_sigma == pytest.approx(builtin.bearing_sigma, rel=0.1)

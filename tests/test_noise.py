@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -16,7 +17,7 @@ from online_slam.frontend.noise import scaled_event
 from online_slam.options import replay_config
 from online_slam.pipeline import replay
 from online_slam.sources import square_world, write_stream
-from online_slam.sources.events import Observation, Odometry, Scan, Truth
+from online_slam.sources.events import Header, Observation, Odometry, Scan, Truth
 from online_slam.sources.worlds import WORLDS
 from tests.test_cli import cli
 
@@ -109,6 +110,24 @@ def test_noise_fit_replays_with_the_fitted_scales() -> None:
         {"estimators": "ekf", "odometry_noise_scale": fit.odometry_scale, "sensor_noise_scale": fit.sensor_scale}
     )
     assert fitted.estimators["ekf"].nees_mean == replay("square", given).estimators["ekf"].nees_mean
+
+
+def test_noise_fit_leaves_sightings_the_source_declares_correlated_as_they_are() -> None:
+    """A header ``sightings_correlated`` (MRCLAM's conversion: sigmas widened for repeated sightings' correlation):
+    the sensor scale is measured and shown, the replay keeps the declared sigmas, the odometry scale applies."""
+    events = [scaled_event(e, 1.0, 1 / 9) for e in square_world()]
+    header, *rest = events
+    assert isinstance(header, Header)
+    marked = [dataclasses.replace(header, meta={**header.meta, "sightings_correlated": True}), *rest]
+    told: list = []
+    fitted = replay(marked, replay_config({"noise": "fit", "estimators": "ekf"}), on_noise_fit=told.append)
+    (fit,) = told
+    plain = fit_noise(*_steps(events))
+    assert fit.sightings_correlated and fit.sensor_scale == pytest.approx(plain.sensor_scale, rel=1e-12)
+    assert fit.applied_sensor_scale == 1.0 and fit.flags().endswith("--sensor-noise-scale 1")
+    assert "sensor scale not applied" in describe(fit)
+    given = replay_config({"estimators": "ekf", "odometry_noise_scale": fit.odometry_scale})
+    assert fitted.estimators["ekf"].nees_mean == replay(events, given).estimators["ekf"].nees_mean
 
 
 def test_cli_scales_and_noise_fit(tmp_path: Path) -> None:

@@ -81,10 +81,19 @@ class NoiseFit:
     """Robust scale of the sighting covariances (1 without sightings)."""
     landmark_bias: tuple[float, float]
     """Root mean square over landmarks of each one's median range and bearing residual (m, rad)."""
+    sightings_correlated: bool = False
+    """The source declares (header ``sightings_correlated``) that its sighting sigmas allow for the correlation of
+    repeated sightings, so they are wider than one sighting's spread on purpose: the sensor scale is measured and
+    shown, not applied."""
+
+    @property
+    def applied_sensor_scale(self) -> float:
+        """The sensor scale a replay applies: :attr:`sensor_scale`, or 1 for correlated sightings."""
+        return 1.0 if self.sightings_correlated else self.sensor_scale
 
     def flags(self) -> str:
         """The options that replay with these scales."""
-        return f"--odometry-noise-scale {self.odometry_scale:.4g} --sensor-noise-scale {self.sensor_scale:.4g}"
+        return f"--odometry-noise-scale {self.odometry_scale:.4g} --sensor-noise-scale {self.applied_sensor_scale:.4g}"
 
 
 def fit_noise(steps: Iterable[Step], truth: GroundTruth) -> NoiseFit:
@@ -209,5 +218,10 @@ def describe(fit: NoiseFit) -> str:
         lines.append(
             f"  sensor scale {fit.sensor_scale:.3g} (robust); per-landmark bias {bias_r:.3g} m, {bias_b:.3g} rad"
         )
+        if fit.sightings_correlated:
+            lines.append(
+                "  sensor scale not applied: the source's sighting sigmas allow for the correlation of repeated "
+                "sightings (wider than one sighting's spread on purpose)"
+            )
     lines.append(f"replaying with {fit.flags()}")
     return "\n".join(lines)

@@ -1,34 +1,48 @@
-"""Choosing the MRCLAM noise model from data: a maximum-likelihood fit against the Vicon ground truth.
+"""Choosing the MRCLAM noise model from data: maximum-likelihood fits against the Vicon ground truth.
 
-The conversion (:mod:`online_slam.importers.mrclam`) models each odometry increment's error as independent
-Gaussians per axis with variance ``a * dt + b * |s| + c * s^2 + floor`` (dt elapsed seconds, s the commanded
-path length or turned angle). This module measures, for every robot of a dataset folder, the error of each commanded
-increment against the increment between the interpolated Vicon poses at the same two times (in the frame the
-commanded increment reaches, as the conversion models it), and fits ``a``, ``b`` and
-``c`` per axis by maximum likelihood (``scipy.optimize.minimize`` over the logarithms, so both stay positive).
-Range and bearing sigmas are maximum-likelihood fits of the measurement residuals against the Vicon pose and
-the surveyed landmark positions, as a Gaussian beside a uniform share of outliers (a few rows carry another
-landmark's barcode and would dominate a plain standard deviation); the range's sigma grows linearly with the
-measured range (it does: about 0.06 m at 1 m, 0.19 m at 4 m on Dataset 6).
+The conversion (:mod:`online_slam.importers.mrclam`) models the data in three parts, each fitted here over every
+robot of a dataset folder:
 
-Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data. This fit
-builds the conversion's model from the raw commands (elapsed time, path, turn); :mod:`online_slam.evaluation.noise_fit`
-then checks any stream, this one included, against its truth and scales its covariances (``--noise fit`` does both).
+- **the commands' calibration**: motion follows a command ``command_lag_s`` after its timestamp (the lag that
+  minimizes the heading error of 1 s windows), and covers ``speed_scale`` and ``turn_scale`` of the commanded
+  distance and turn (least squares over 5 s windows, long beside the lag);
+- **the increments' noise**: per increment, forward and lateral variances ``a dt + c s^2`` along the axes of the
+  pose it reaches, and heading variance ``a dt + b |turn|`` accrued along its commands (each piece's heading
+  noise turning the rest of its path); the six terms by maximum likelihood of the full 3x3 covariances
+  (``scipy.optimize.minimize`` over their logarithms) against the Vicon increments;
+- **the sightings' noise**: range and bearing sigmas as a Gaussian beside a uniform share of outliers (a few rows
+  carry another landmark's barcode), the range's growing with the measured range, and the correlation of one
+  landmark's errors with time apart (two exponentials fitted to the binned products of residual pairs).
+
+Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data.
+:mod:`online_slam.evaluation.noise_fit` then checks any stream, this one included, against its truth and scales
+its covariances (``--noise fit`` does both).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
+from scipy.optimize import curve_fit, minimize
 
 from online_slam.evaluation.noise_fit import MAD_TO_SIGMA
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import MrclamNoise, _dead_reckoning, _interpolate_truth, _table, load_robot
+from online_slam.importers.mrclam import (
+    MrclamNoise,
+    RobotData,
+    _dead_reckoning,
+    _interpolate_truth,
+    _table,
+    calibrated,
+    correlation,
+    heading_levers,
+    increment_covariances,
+    load_robot,
+)
 
 Array = NDArray[np.float64]
 
@@ -38,7 +52,7 @@ class MrclamNoiseFit:
     """A fitted MRCLAM noise model and the evidence behind it."""
 
     noise: MrclamNoise
-    """The fitted coefficients (floor and start sigma kept from the defaults)."""
+    """The fitted model (floor and start sigma kept from the defaults)."""
     increments: int
     """Odometry increments used (both ends covered by Vicon)."""
     measurements: int
@@ -47,65 +61,170 @@ class MrclamNoiseFit:
     """Median range residual (measured - true), metres."""
     bearing_bias_rad: float
     """Median bearing residual (measured - true), radians."""
+    log_likelihood: float
+    """Log-likelihood of the used increments' errors under the fitted odometry model."""
 
 
-def fit_variance(errors: Array, dt: Array, size: Array, floor: float) -> tuple[float, float, float]:
-    """Maximum-likelihood ``(a, b, c)`` of ``errors ~ N(0, a * dt + b * |size| + c * size^2 + floor)``.
+LAGS = np.arange(0.0, 0.505, 0.01)
+"""Command lags tried, seconds."""
+CORRELATION_BINS = np.array([0.0, 0.3, 0.6, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 100.0])
+"""Edges (seconds apart) of the bins over which residual pairs are averaged to fit the correlation."""
+
+
+def _windows(data: RobotData, commands: np.ndarray, width: float, lag: float) -> tuple[Array, Array]:
+    """Commanded and Vicon increments over consecutive windows of ``width`` seconds that Vicon covers."""
+    t = np.arange(max(data.truth[0, 0], commands[0, 0]) + 1.0, data.truth[-1, 0] - 1.0, width)
+    poses, _, _ = _dead_reckoning(commands, t - lag)
+    commanded = between(poses[:-1], poses[1:])
+    truth, covered = _interpolate_truth(data.truth, t)
+    actual = between(truth[:-1], truth[1:])
+    actual[:, 2] = wrap(actual[:, 2])
+    both = covered[:-1] & covered[1:]
+    return commanded[both], actual[both]
+
+
+def fit_command_calibration(datas: list[RobotData]) -> tuple[float, float, float]:
+    """``(command_lag_s, speed_scale, turn_scale)`` of the robots' commands against Vicon.
+
+    The lag minimizes the RMS heading error of 1 s windows over :data:`LAGS`; the scales are the least-squares
+    ratios of Vicon's forward motion and turn to the commanded ones over 5 s windows at that lag.
+    """
+    rms = []
+    for lag in LAGS:
+        parts = [_windows(d, d.odometry, 1.0, lag) for d in datas]
+        error = np.concatenate([actual[:, 2] - commanded[:, 2] for commanded, actual in parts])
+        rms.append(float(np.sqrt(np.mean(error**2))))
+    lag = float(LAGS[int(np.argmin(rms))])
+    commanded, actual = (np.concatenate(a) for a in zip(*[_windows(d, d.odometry, 5.0, lag) for d in datas]))
+    speed = float(commanded[:, 0] @ actual[:, 0] / (commanded[:, 0] @ commanded[:, 0]))
+    turn = float(commanded[:, 2] @ actual[:, 2] / (commanded[:, 2] @ commanded[:, 2]))
+    return lag, speed, turn
+
+
+@dataclass(frozen=True)
+class IncrementErrors:
+    """Odometry increments whose two ends Vicon covers, with what the noise model needs of each (K of them)."""
+
+    errors: Array
+    """Commanded minus Vicon increment ``[dx, dy, dtheta]`` (earlier pose's frame), shape (K, 3)."""
+    commanded: Array
+    """Commanded increments, shape (K, 3)."""
+    dt: Array
+    """Seconds spanned, shape (K,)."""
+    path: Array
+    """Commanded path length, m, shape (K,)."""
+    turn: Array
+    """Commanded turn, summed in absolute value, rad, shape (K,)."""
+    per_s: Array
+    """Covariance of unit heading variance per second accrued along the commands, shape (K, 3, 3)."""
+    per_rad: Array
+    """The same per radian turned, shape (K, 3, 3)."""
+
+    @classmethod
+    def pooled(cls, parts: list[IncrementErrors]) -> IncrementErrors:
+        """Several robots' increments as one set."""
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.__dataclass_fields__))
+
+
+def increment_errors(data: RobotData, commands: Array) -> IncrementErrors:
+    """One robot's increments between its pose times from the given (calibrated) commands, against Vicon."""
+    times = data.times
+    poses, path, turn = _dead_reckoning(commands, times)
+    commanded = between(poses[:-1], poses[1:])
+    truth, covered = _interpolate_truth(data.truth, times)
+    errors = commanded - between(truth[:-1], truth[1:])
+    errors[:, 2] = wrap(errors[:, 2])
+    both = covered[:-1] & covered[1:]
+    per_s, per_rad = heading_levers(commands, times)
+    return IncrementErrors(
+        errors[both],
+        commanded[both],
+        np.diff(times)[both],
+        np.diff(path)[both],
+        np.diff(turn)[both],
+        per_s[both],
+        per_rad[both],
+    )
+
+
+TERMS = ("x_per_s", "x_per_m2", "y_per_s", "y_per_m2", "theta_per_s", "theta_per_rad")
+"""The odometry model's terms that the fit estimates (the others are zero in it)."""
+
+
+def increment_log_likelihood(noise: MrclamNoise, e: IncrementErrors) -> float:
+    """Log-likelihood (up to a constant) of the increments' errors under the noise model's covariances."""
+    heading = noise.theta_per_s * e.dt + noise.theta_per_rad * e.turn + noise.theta_per_rad2 * e.turn**2
+    variances = (
+        np.stack(
+            [
+                noise.x_per_s * e.dt + noise.x_per_m * e.path + noise.x_per_m2 * e.path**2,
+                noise.y_per_s * e.dt + noise.y_per_m * e.path + noise.y_per_m2 * e.path**2,
+                noise.theta_per_rad2 * e.turn**2 if noise.heading_along_path else heading,
+            ],
+            -1,
+        )
+        + noise.floor
+    )
+    cov = increment_covariances(e.commanded, variances)
+    if noise.heading_along_path:
+        cov = cov + noise.theta_per_s * e.per_s + noise.theta_per_rad * e.per_rad
+    _, log_det = np.linalg.slogdet(cov)
+    chi2 = np.einsum("ki,ki->k", e.errors, np.linalg.solve(cov, e.errors[..., None])[..., 0])
+    return -0.5 * float(np.sum(log_det + chi2))
+
+
+def fit_increment_terms(e: IncrementErrors, start: MrclamNoise) -> MrclamNoise:
+    """Maximum-likelihood :data:`TERMS` (the others zero), from ``start``'s values, bounded to ``[e^-40, e^10]``."""
+    zero = {"x_per_m": 0.0, "y_per_m": 0.0, "theta_per_rad2": 0.0}
+
+    def model(log_terms: Array) -> MrclamNoise:
+        return replace(start, **zero, **dict(zip(TERMS, map(float, np.exp(log_terms)))))
+
+    first = np.log([max(getattr(start, name), 1e-12) for name in TERMS])
+    best = minimize(
+        lambda q: -increment_log_likelihood(model(q), e), first, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 6
+    )
+    return model(best.x)
+
+
+def fit_sighting_correlation(times: Array, subjects: Array, residuals: Array) -> tuple[float, float, float, float]:
+    """``(c1, tau1, c2, tau2)`` of ``rho(dt) = c1 exp(-dt / tau1) + c2 exp(-dt / tau2)``, the correlation of
+    one landmark's residuals ``dt`` apart (one robot's sightings; concatenate robots with their times offset by
+    more than the last bin so that no pair spans two). Pairs up to 100 s apart are averaged in
+    :data:`CORRELATION_BINS` and the curve is fitted to the bins' means at their pairs' mean time apart, every
+    bin weighted alike (pairs from one stretch are far from independent, so their count is no weight).
 
     Args:
-        errors: Increment errors of one axis, shape (N,).
-        dt: Elapsed seconds per increment, shape (N,).
-        size: Commanded path length (m) or turned angle (rad) per increment, shape (N,).
-        floor: Variance added to every increment.
-
-    Returns:
-        The coefficients (a per second, b per unit of size, c per squared unit of size); a term the data do not
-        support comes out near zero (the lower bound, e^-40).
+        times: Sighting times, shape (N,).
+        subjects: Landmark of each sighting, shape (N,).
+        residuals: Residuals against the truth with the bias removed, shape (N,).
     """
-    e2 = errors**2
-    features = np.stack([dt, np.abs(size), size**2], -1)  # (N, 3)
+    edges = CORRELATION_BINS
+    sums, counts, spans = np.zeros(len(edges) - 1), np.zeros(len(edges) - 1), np.zeros(len(edges) - 1)
+    for subject in np.unique(subjects):
+        at = np.flatnonzero(subjects == subject)
+        t, r = times[at], residuals[at]
+        apart = t[None, :] - t[:, None]
+        i, j = np.nonzero((apart > 0.0) & (apart < edges[-1]))
+        k = np.searchsorted(edges, apart[i, j], side="right") - 1
+        np.add.at(sums, k, r[i] * r[j])
+        np.add.at(counts, k, 1.0)
+        np.add.at(spans, k, apart[i, j])
+    used = counts > 0
+    mid = spans[used] / counts[used]
+    rho = sums[used] / counts[used] / float(np.mean(residuals**2))
 
-    def negative_log_likelihood(log_abc: Array) -> tuple[float, Array]:
-        coefficients = np.exp(log_abc)
-        var = features @ coefficients + floor
-        value = 0.5 * float(np.sum(np.log(var) + e2 / var))
-        d_var = 0.5 * (1.0 / var - e2 / var**2)
-        return value, coefficients * (d_var @ features)
+    def curve(dt: Array, c1: float, tau1: float, c2: float, tau2: float) -> Array:
+        return correlation((c1, tau1, c2, tau2), dt)
 
-    mean_e2 = float(np.mean(e2))
-    scale = np.maximum(features.mean(axis=0), 1e-9)
-    start = np.log(np.maximum(mean_e2 / (3.0 * scale), 1e-12))
-    result = minimize(negative_log_likelihood, start, jac=True, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 3)
-    a, b, c = np.exp(result.x)
-    return float(a), float(b), float(c)
-
-
-def _robot_residuals(root: Path, robot: int, landmark_xy: dict[int, Array]):
-    """Odometry increment errors (with dt, path, turn) and measurement residuals of one robot."""
-    data = load_robot(root, robot)
-    times, kept, kept_subjects = data.times, data.measurements, data.subjects
-    poses, path, turn = _dead_reckoning(data.odometry, times)
-    commanded = between(poses[:-1], poses[1:])
-    true_poses, covered = _interpolate_truth(data.truth, times)
-    actual = between(true_poses[:-1], true_poses[1:])
-    both = covered[:-1] & covered[1:]
-    errors = actual - commanded
-    errors[:, 2] = wrap(errors[:, 2])
-    # in the frame the commanded increment reaches (the conversion's model: d = d_commanded * Exp(e))
-    c, s = np.cos(commanded[:, 2]), np.sin(commanded[:, 2])
-    errors[:, 0], errors[:, 1] = c * errors[:, 0] + s * errors[:, 1], -s * errors[:, 0] + c * errors[:, 1]
-    odo = (errors[both], np.diff(times)[both], np.diff(path)[both], np.diff(turn)[both])
-    # measurement residuals at covered times, surveyed landmarks only
-    at, inside = _interpolate_truth(data.truth, kept[:, 0])
-    known = np.array([int(s) in landmark_xy for s in kept_subjects], dtype=bool)
-    use = inside & known
-    pose = at[use]
-    xy = np.array([landmark_xy[int(s)] for s in kept_subjects[use]]).reshape(-1, 2)
-    d = xy - pose[:, :2]
-    true_range = np.hypot(d[:, 0], d[:, 1])
-    true_bearing = np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]
-    rows = kept[use]
-    return odo, rows[:, 2] - true_range, wrap(rows[:, 3] - true_bearing), rows[:, 2]
+    (c1, tau1, c2, tau2), _ = curve_fit(
+        curve,
+        mid,
+        rho,
+        p0=(0.5, 2.0, 0.3, 30.0),
+        bounds=([0.0, 0.05, 0.0, 5.0], [1.0, 5.0, 1.0, 500.0]),
+    )
+    return float(c1), float(tau1), float(c2), float(tau2)
 
 
 def fit_sighting_sigma(residuals: Array, ranges: Array | None = None) -> tuple[float, float]:
@@ -142,8 +261,22 @@ def fit_sighting_sigma(residuals: Array, ranges: Array | None = None) -> tuple[f
     return float(np.exp(best.x[0])), float(np.exp(best.x[1]))
 
 
+def _sighting_residuals(root: Path, data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, ...]:
+    """Times, subjects, range and bearing residuals and measured ranges of the sightings Vicon covers."""
+    rows, subjects = data.measurements, data.subjects
+    at, inside = _interpolate_truth(data.truth, rows[:, 0])
+    use = inside & np.array([int(s) in landmark_xy for s in subjects], dtype=bool)
+    pose = at[use]
+    xy = np.array([landmark_xy[int(s)] for s in subjects[use]]).reshape(-1, 2)
+    d = xy - pose[:, :2]
+    kept = rows[use]
+    range_residuals = kept[:, 2] - np.hypot(d[:, 0], d[:, 1])
+    bearing_residuals = wrap(kept[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))
+    return kept[:, 0], subjects[use], range_residuals, bearing_residuals, kept[:, 2]
+
+
 def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> MrclamNoiseFit:
-    """Fit the MRCLAM noise model against Vicon over the given robots of a dataset folder.
+    """Fit the MRCLAM model (calibration, increments' noise, sightings' noise) against Vicon over the given robots.
 
     Args:
         folder: The dataset folder (as for :func:`online_slam.importers.mrclam.read_mrclam`).
@@ -156,33 +289,33 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     defaults = MrclamNoise()
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     landmark_xy = {int(row[0]): row[1:3] for row in landmarks}
-    parts = [_robot_residuals(root, r, landmark_xy) for r in robots]
-    errors = np.concatenate([p[0][0] for p in parts])
-    dt, path, turn = (np.concatenate([p[0][k] for p in parts]) for k in (1, 2, 3))
-    range_residuals = np.concatenate([p[1] for p in parts])
-    bearing_residuals = np.concatenate([p[2] for p in parts])
-    ranges = np.concatenate([p[3] for p in parts])
-    floor = defaults.floor
-    x_a, x_b, x_c = fit_variance(errors[:, 0], dt, path, floor)
-    y_a, y_b, y_c = fit_variance(errors[:, 1], dt, path, floor)
-    t_a, t_b, t_c = fit_variance(errors[:, 2], dt, turn, floor)
+    datas = [load_robot(root, r) for r in robots]
+    lag, speed, turn = fit_command_calibration(datas)
+    noise = replace(defaults, command_lag_s=lag, speed_scale=speed, turn_scale=turn)
+    errors = IncrementErrors.pooled([increment_errors(d, calibrated(d.odometry, noise)) for d in datas])
+    noise = fit_increment_terms(errors, noise)
+    sightings = [_sighting_residuals(root, d, landmark_xy) for d in datas]
+    # one time line for all robots, 1000 s apart, so that no residual pair spans two robots
+    offset = np.cumsum([0.0] + [float(np.ptp(s[0])) + 1000.0 for s in sightings[:-1]])
+    times = np.concatenate([s[0] - s[0][0] + o for s, o in zip(sightings, offset)])
+    subjects, range_residuals, bearing_residuals, ranges = (
+        np.concatenate([s[k] for s in sightings]) for k in (1, 2, 3, 4)
+    )
     range_bias, bearing_bias = float(np.median(range_residuals)), float(np.median(bearing_residuals))
     range_sigma, range_sigma_per_m = fit_sighting_sigma(range_residuals - range_bias, ranges)
     bearing_sigma, _ = fit_sighting_sigma(bearing_residuals - bearing_bias)
-    noise = MrclamNoise(
-        x_per_s=x_a,
-        x_per_m=x_b,
-        x_per_m2=x_c,
-        y_per_s=y_a,
-        y_per_m=y_b,
-        y_per_m2=y_c,
-        theta_per_s=t_a,
-        theta_per_rad=t_b,
-        theta_per_rad2=t_c,
-        floor=floor,
+    # correlations of the inliers, each robot's own bias removed
+    centred = [(s[2] - np.median(s[2]), s[3] - np.median(s[3])) for s in sightings]
+    r_c, b_c = (np.concatenate([c[k] for c in centred]) for k in (0, 1))
+    inlier = (np.abs(r_c) < 0.6) & (np.abs(b_c) < 0.2)
+    noise = replace(
+        noise,
         range_sigma=range_sigma,
         range_sigma_per_m=range_sigma_per_m,
         bearing_sigma=bearing_sigma,
-        start_sigma=defaults.start_sigma,
+        range_correlation=fit_sighting_correlation(times[inlier], subjects[inlier], r_c[inlier]),
+        bearing_correlation=fit_sighting_correlation(times[inlier], subjects[inlier], b_c[inlier]),
     )
-    return MrclamNoiseFit(noise, len(errors), len(range_residuals), range_bias, bearing_bias)
+    return MrclamNoiseFit(
+        noise, len(errors.dt), len(range_residuals), range_bias, bearing_bias, increment_log_likelihood(noise, errors)
+    )

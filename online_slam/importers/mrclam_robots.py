@@ -7,6 +7,8 @@ model, odometry integrated exactly from its commands), with these differences:
   the robots); a row of its own barcode, or of an unknown one, is dropped and counted in the header.
 - Its poses are at the times of all of its own sightings (landmarks and robots) and at the times another robot
   sights it, so that a robot sighting links two poses of the same time.
+- Its sightings of other robots keep independent errors (:func:`~online_slam.importers.mrclam.sighting_sigma`);
+  its landmark sightings are widened for their correlation as when it is converted alone.
 - Its start is its Vicon pose at its first pose time, with the conversion's small prior (``start_sigma``): the
   anchor's convention (every robot starts at its Vicon pose; the anchor's prior is zero).
 
@@ -26,9 +28,12 @@ from online_slam.importers.mrclam import (
     RobotData,
     _interpolate_truth,
     _table,
+    correlates,
     load_robot,
+    noise_meta,
     odometry_increments,
     sighting_sigma,
+    sighting_sigmas,
 )
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
@@ -68,13 +73,15 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Truth(t=float(times[k]), pose=tuple(map(float, true_poses[k])), robot=robot),
         )
-    for row, subject in zip(data.measurements, data.subjects):
+    rows = data.measurements
+    sigmas = sighting_sigmas(cfg, rows[:, 0], data.subjects, rows[:, 2])
+    for row, subject, sigma in zip(rows, data.subjects, sigmas):
         t = float(row[0])
         yield (
             t,
             _SIGHTING,
             robot,
-            Observation(t, int(subject), float(row[2]), float(row[3]), sighting_sigma(cfg, row[2]), robot=robot),
+            Observation(t, int(subject), float(row[2]), float(row[3]), (float(sigma[0]), float(sigma[1])), robot=robot),
         )
     for row, seen in zip(data.robot_rows, data.robots_seen):
         t = float(row[0])
@@ -116,7 +123,8 @@ def read_mrclam_robots(folder: str | Path, noise: MrclamNoise | None = None) -> 
             "dropped_unknown_barcodes": sum(d.dropped_unknown for d in data.values()),
             "dropped_own_barcode": sum(d.dropped_self for d in data.values()),
             "start": "each robot's Vicon pose at its first pose time",
-            "noise": cfg.__dict__,
+            "noise": noise_meta(cfg),
+            "sightings_correlated": correlates(cfg),
         },
     )
     for subject, x, y, _, _ in landmarks:
