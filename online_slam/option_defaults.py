@@ -29,7 +29,7 @@ DEFAULTS: dict[str, object] = {
     "relinearize_every": 1,
     "global_every": 200,
     "global_delay": 50,
-    "smoother_linearization": "standard",
+    "smoother_linearization": "invariant",
     "global_information_max": 0,
     "association": "auto",
     "new_density": 0.0,

@@ -276,7 +276,7 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "point, re-anchored at each global solve (fej); or at the current estimate, with the prior's "
                "covariance carried there as the invariant EKF carries its own (invariant). fej and invariant "
                "start window solves undamped; on the circle world their ANEES is near the 95% band (3.55, 3.57; "
-               "standard 13.3) and their steps up to 2.5x slower; both are less accurate on MRCLAM robot 2",
+               "standard 13.3) and their steps up to 2.5x slower",
                "smoother", "smoother", ("SmootherConfig", "linearization"),
                choices=CHOICES["smoother_linearization"], lands=("smoother.linearization",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "
@@ -536,8 +536,9 @@ def markdown() -> str:
         'and, for the estimator options, a keyword of `Slam` (`Slam("smoother", window_distance=10.0)`) and a',
         "comma-separated list of `sweep` (every combination runs). `compare --window` and",
         "`compare --relinearize-every` take lists too: one smoother per (W, K), each row labelled with what ran",
-        "(`smoother W=20..120 D=18 K=1`: at least 20 poses, more until the window's path is 18 m, at most 120;",
-        "`smoother W=5 K=1` with `--window-distance 0`: exactly 5 poses).",
+        "(`smoother W=20..120 D=18 K=1 invariant`: at least 20 poses, more until the window's path is 18 m, at",
+        "most 120, with the invariant prior; `smoother W=5 K=1` with",
+        "`--window-distance 0 --smoother-linearization standard`: exactly 5 poses, the standard prior).",
         "",
         "Owners: `ekf`, `smoother`, `batch`, `front-end` (how events become steps) and `association` configure the",
         "estimators (a `Slam` takes those of its estimator, the front-end's and the association's); `dataset`",

@@ -20,7 +20,7 @@ WINDOW = WindowConfig(size=20, distance=0.0)
 @pytest.mark.parametrize(
     "smoother, consistent",
     [
-        (SmootherConfig(window=WINDOW), False),
+        (SmootherConfig(window=WINDOW, linearization="standard"), False),
         (SmootherConfig(window=WINDOW, linearization="fej"), True),
         (SmootherConfig(window=WINDOW, linearization="invariant"), True),
     ],

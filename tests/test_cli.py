@@ -62,19 +62,19 @@ def test_json_to_stdout_keeps_stdout_pure_and_the_table_on_stderr() -> None:
     assert parse_table(done.stderr)["odometry"]["final RMSE m"] == "1.338"
     done = cli("compare", "square", "--window", "5", "--json", "-")
     assert done.returncode == 0, done.stderr
-    assert "smoother W=5..120 D=18 K=1" in json.loads(done.stdout)["estimators"]
-    assert "smoother W=5..120 D=18 K=1" in done.stderr
+    assert "smoother W=5..120 D=18 K=1 invariant" in json.loads(done.stdout)["estimators"]
+    assert "smoother W=5..120 D=18 K=1 invariant" in done.stderr
 
 
 @pytest.mark.slow
 def test_compare_rows_say_what_ran() -> None:
     """A window kept longer by --window-distance is labelled so; with distance 0 each W is exactly W poses."""
     sized = parse_compare(cli("compare", "square", "--window", "5,20", "--estimators", "smoother").stdout)
-    assert set(sized) == {"odometry", "smoother W=5..120 D=18 K=1", "smoother W=20..120 D=18 K=1"}
+    assert set(sized) == {"odometry", "smoother W=5..120 D=18 K=1 invariant", "smoother W=20..120 D=18 K=1 invariant"}
     exact = cli("compare", "square", "--window", "5,20", "--window-distance", "0", "--estimators", "smoother")
     rows = parse_compare(exact.stdout)
-    assert set(rows) == {"odometry", "smoother W=5 K=1", "smoother W=20 K=1"}
-    assert rows["smoother W=5 K=1"] != rows["smoother W=20 K=1"]
+    assert set(rows) == {"odometry", "smoother W=5 K=1 invariant", "smoother W=20 K=1 invariant"}
+    assert rows["smoother W=5 K=1 invariant"] != rows["smoother W=20 K=1 invariant"]
 
 
 def parse_compare(text: str) -> dict[str, list[str]]:

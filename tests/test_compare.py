@@ -36,7 +36,7 @@ def test_square_table_has_the_article_figures_beside_ekf_and_smoothers() -> None
         if line.strip()
     }
     assert rows["odometry"][0] == "1.338" and rows["batch"][1] == "0.082"
-    grid = {f"smoother W={w}..120 D=18 K={k}" for w in (10, 20) for k in (1, 5)}
+    grid = {f"smoother W={w}..120 D=18 K={k} invariant" for w in (10, 20) for k in (1, 5)}
     assert set(rows) >= {"ekf", *grid}
 
 

@@ -221,7 +221,7 @@ def test_the_invariant_smoother_recentres_its_prior_exactly_with_several_robots(
         runs = []
         for config in (
             SmootherConfig(window=window, linearization="invariant"),
-            SmootherConfig(window=window, solver=solver),
+            SmootherConfig(window=window, solver=solver, linearization="standard"),
         ):
             smoother = SlidingWindowSmoother(config)
             runs.append(np.array([smoother.step(step).pose for step in steps]))

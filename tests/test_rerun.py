@@ -101,7 +101,7 @@ def compare_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, d
     return rrd, json.loads(out.read_text()), done.stdout
 
 
-CONFIGS = ("ekf", "smoother W=10..120 D=18 K=1", "smoother W=20..120 D=18 K=1", "batch")
+CONFIGS = ("ekf", "smoother W=10..120 D=18 K=1 invariant", "smoother W=20..120 D=18 K=1 invariant", "batch")
 
 
 @pytest.mark.slow
@@ -113,7 +113,8 @@ def test_compare_recording_holds_every_configuration_with_the_tables_figures(com
         paths = set(recording.entity_paths())
     assert summary.estimators == CONFIGS
     entities = summary.layout.entities
-    assert entities[CONFIGS[1]] == "smoother_W10..120_D18_K1" and entities[CONFIGS[2]] == "smoother_W20..120_D18_K1"
+    assert entities[CONFIGS[1]] == "smoother_W10..120_D18_K1_invariant"
+    assert entities[CONFIGS[2]] == "smoother_W20..120_D18_K1_invariant"
     assert len(set(summary.layout.to_json()["colors"].values())) == len(summary.layout.names)  # one colour each
     for name in CONFIGS:
         row, stored = table["estimators"][name], summary.results["estimators"][name]

@@ -402,7 +402,9 @@ def test_fej_takes_the_priors_variables_jacobians_at_its_linearization_point() -
     estimate; the standard linearization takes all at the current estimate."""
     from online_slam.estimators.smoother.window import active, system
 
-    config = SmootherConfig(window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=0))
+    config = SmootherConfig(
+        window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=0), linearization="standard"
+    )
     _, smoother, _, _, _, _ = run(list(grid_world(GridConfig(poses=60, seed=5)))[:-30], config)
     p, w = smoother.prior, smoother.window
     observed = active(w)

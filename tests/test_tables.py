@@ -51,13 +51,13 @@ def legend(text: str) -> list[str]:
 
 
 def test_an_open_path_shows_no_end_gap_and_says_why(mrclam: Results) -> None:
-    """MRCLAM robot 1 ends 6.8 m from its start: the EKF's 6.95 m gap is right, not worse than odometry's 3.36 m."""
+    """MRCLAM robot 1 ends 6.8 m from its start: the EKF's 6.86 m gap is right, not worse than odometry's 4.55 m."""
     closure = path_closure(mrclam)
     assert closure is not None and not closure.closed and closure.gap_m == pytest.approx(6.822, abs=1e-3)
     text = format_results(mrclam)
     labels, rows = table(text)
     assert not any("gap" in label for label in labels)
-    assert rows["odometry"]["final RMSE m"] == "2.873" and rows["ekf"]["final RMSE m"] == "0.213"
+    assert rows["odometry"]["final RMSE m"] == "1.947" and rows["ekf"]["final RMSE m"] == "0.199"
     (line,) = [line for line in legend(text) if line.startswith("end gap")]
     assert "not shown" in line and "6.822 m" in line and "1%" in line
 
@@ -108,7 +108,7 @@ def test_compare_and_replay_print_one_layout(square: Results) -> None:
     replayed, compared = table(format_results(square)), table(format_comparison(comparison))
     assert replayed[0] == compared[0]  # the same columns, with the same labels
     assert {"NEES in band", "NIS"} <= set(compared[0])
-    assert set(compared[1]) == {"odometry", "ekf", "smoother W=20..120 D=18 K=1", "batch"}
+    assert set(compared[1]) == {"odometry", "ekf", "smoother W=20..120 D=18 K=1 invariant", "batch"}
     for name in ("odometry", "ekf", "batch"):
         same = {k: v for k, v in compared[1][name].items() if not k.startswith(("step", "total"))}
         assert same == {k: v for k, v in replayed[1][name].items() if not k.startswith(("step", "total"))}
@@ -132,7 +132,7 @@ def test_the_readme_shows_the_table_as_replay_prints_it(square: Results) -> None
 @pytest.mark.slow
 def test_compare_says_when_smoother_configurations_ran_identically() -> None:
     same = format_comparison(compare("square", CompareConfig(windows=(10, 20))))
-    assert "identical figures: smoother W=10..120 D=18 K=1, smoother W=20..120 D=18 K=1" in same
+    assert "identical figures: smoother W=10..120 D=18 K=1 invariant, smoother W=20..120 D=18 K=1 invariant" in same
     exact = ReplayConfig(estimators=("ekf",), smoother=SmootherConfig(window=WindowConfig(distance=0.0)))
     distinct = format_comparison(compare("square", CompareConfig(windows=(5, 20), replay=exact)))
     assert "identical figures" not in distinct and "smoother W=5 K=1" in distinct

@@ -39,7 +39,7 @@ FLAGS = [
     "--enable-unsafe-swiftshader",
 ]
 SIZE = (1400, 900)
-CONFIGS = ("odometry", "ekf", "smoother W=10..120 D=18 K=1", "smoother W=20..120 D=18 K=1", "batch")
+CONFIGS = ("odometry", "ekf", "smoother W=10..120 D=18 K=1 invariant", "smoother W=20..120 D=18 K=1 invariant", "batch")
 
 
 def _free_port() -> int:

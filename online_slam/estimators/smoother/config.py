@@ -112,22 +112,22 @@ class SmootherConfig:
     """Settings of the last solve, at the end of the stream (tight by default: it gives the final estimate)."""
     robust: RobustConfig = field(default_factory=RobustConfig)
     """Robust loss, consensus moves and the rejection of outliers at marginalization."""
-    linearization: str = "standard"
-    """Where the Jacobians of the variables the marginal prior holds are evaluated. ``standard`` (default): at the
+    linearization: str = "invariant"
+    """Where the Jacobians of the variables the marginal prior holds are evaluated. ``standard``: at the
     current estimate, like every other variable; the prior is re-centred (exactly) at the current estimate before
     new factors are folded in. ``fej`` (First-Estimates Jacobians): at the prior's linearization point, in the
     window's solves and in fold-ins alike, so that each variable has one linearization and the smoother gains no
     information along the unobservable directions (Dong-Si & Mourikis, ICRA 2011); each global relinearization
     re-anchors those first estimates at its solution and relinearizes the prior's covariance there (whatever
     ``global_solve.information_max``), so first estimates far off do not stay; and each window solve starts
-    undamped (:attr:`window_solver`). ``invariant``: at the current estimate, as ``standard``, but the prior's
+    undamped (:attr:`window_solver`). ``invariant`` (default): at the current estimate, as ``standard``, but the prior's
     covariance is carried to each new linearization point as the invariant EKF carries its own after an update
     (:func:`~online_slam.estimators.linearization.transport`; re-centring before a fold-in, and re-anchoring that
     keeps the fold-in covariance), so its weak directions follow the estimate's unobservable ones; window solves
     start undamped; with several robots it re-centres exactly, as ``standard``. ``fej`` and ``invariant`` are
     consistent where ``standard`` is overconfident (esde's circle, 100 runs: pose ANEES 3.55 and 3.57 against
-    13.3) and less accurate on MRCLAM robot 2, whose noise model is far from its data (online 0.467 and 0.462 m
-    against 0.359 m), so neither is the default (benchmarks/RESULTS.md)."""
+    13.3); ``invariant`` is the default since MRCLAM's conversion models its data (2026-12-04), where it is also
+    the more accurate (robot 2 online 0.395 against 0.450 m; benchmarks/RESULTS.md)."""
     global_solve: GlobalConfig = field(default_factory=GlobalConfig)
     """The periodic re-solve of the whole history."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
