@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from conftest import SHARED_DATA
 
 import online_slam
 from online_slam.estimators import BatchConfig, SmootherConfig
@@ -16,6 +17,19 @@ from online_slam.sources import read_stream, square_world, write_stream
 
 REPLAY = Path(__file__).resolve().parents[1] / "replay"
 STREAMS = sorted(p for p in REPLAY.iterdir() if p.name.endswith((".jsonl", ".jsonl.gz")))
+
+
+MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
+
+
+@pytest.mark.skipif(not MRCLAM.is_dir(), reason="../shared/data/MRCLAM_Dataset6 is not present")
+def test_the_shipped_mrclam_stream_is_what_the_conversion_writes() -> None:
+    """The shipped robot-1 stream is today's conversion, header included (``--noise fit`` reads it)."""
+    from online_slam.importers.mrclam import read_mrclam
+
+    shipped = list(read_stream(REPLAY / "mrclam6_robot1.jsonl.gz"))
+    assert shipped == list(read_mrclam(MRCLAM, 1))
+    assert shipped[0].meta["sightings_correlated"] is True
 
 
 def test_square_is_the_simulators_output() -> None:

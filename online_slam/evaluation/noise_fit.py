@@ -220,8 +220,8 @@ def describe(fit: NoiseFit) -> str:
         )
         if fit.sightings_correlated:
             lines.append(
-                "  sensor scale not applied: the source's sighting sigmas allow for the correlation of repeated "
-                "sightings (wider than one sighting's spread on purpose)"
+                "  sensor scale not applied: the source's header says sightings_correlated (its sigmas are widened "
+                "on purpose for the correlation of repeated sightings)"
             )
     lines.append(f"replaying with {fit.flags()}")
     return "\n".join(lines)

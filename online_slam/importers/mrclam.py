@@ -10,20 +10,24 @@ robots in one stream: :mod:`online_slam.importers.mrclam_robots`).
 - Start pose: Vicon ground truth interpolated at the first pose time, with a small prior. Truth interpolated at
   pose times where Vicon covers them; landmark truth from ``Landmark_Groundtruth.dat``.
 
-Noise model (``MrclamNoise``): per-increment variances ``var = a * dt + b * |s| + c * s^2 + floor`` with dt
-the elapsed time, s the commanded path length (x, y) or turned angle (theta), of a perturbation at the end of the
-increment (forward and lateral along the axes of the pose it reaches, as GTSAM's between factor has it; written
-to the stream as a full covariance in the earlier pose's frame, see :func:`increment_covariances`); range and
-bearing sigmas, the range's optionally growing with the measured range (``--noise fit`` finds 0.011 m + 0.044 m
-per metre on Dataset 6; the default stays a constant 0.178 m: the growing one helps all five robots together,
-batch 0.117 -> 0.106 m, but costs the EKF on robots 3 and 4 alone, see benchmarks/RESULTS.md). The end-frame
-axes are chosen because they fit Dataset 6's Vicon data better than the earlier pose's axes. The default
-coefficients are maximum-likelihood fits against Vicon over Dataset 6; the floor keeps 1-ms-apart poses well
-conditioned. The data choose the form per axis: forward and lateral variances grow with the
-squared path, the heading variance with the angle turned (a random walk in the angle). An earlier squared-turn
-heading term is not used: it predicted far too wide a heading after long turns, which let association pair a
-cluster of tubes with another cluster a large turn away. :mod:`online_slam.importers.mrclam_noise` repeats the fit
-on a folder (``--noise fit``). The figures behind these choices are in benchmarks/RESULTS.md ("MRCLAM Dataset 6").
+The model (``MrclamNoise``), every part fitted against Vicon over Dataset 6 by
+:mod:`online_slam.importers.mrclam_noise` (``--noise fit`` repeats the fit on a folder; the figures behind each
+choice are in benchmarks/RESULTS.md, "MRCLAM Dataset 6"):
+
+- the commands are integrated as the robot carries them out: ``command_lag_s`` late, their speed and turn rate
+  scaled by ``speed_scale`` and ``turn_scale`` (:func:`calibrated`);
+- each increment's forward and lateral variances are ``a * dt + c * s^2 + floor`` (dt the elapsed time, s the
+  commanded path) along the axes of the pose it reaches (GTSAM's between factor; written to the stream as a full
+  covariance in the earlier pose's frame, :func:`increment_covariances`); its heading variance
+  ``a * dt + b * |turn|`` accrues along its commands, each piece's heading noise turning the rest of its path
+  (:func:`heading_levers`; ``heading_along_path``), so that a long stretch without sightings, one increment, is
+  as uncertain at its end as its commands make it;
+- range and bearing sigmas, the range's optionally growing with the measured range (``--noise fit`` finds
+  0.011 m + 0.044 m per metre; the default stays a constant 0.178 m, chosen under the earlier model,
+  where the growing one cost robots 3 and 4 alone), each
+  widened for the correlation of one landmark's errors over time (:func:`sighting_sigmas`): range errors 0.2 s
+  apart correlate at about 0.85, so a landmark seen for a while is not counted as many independent sightings.
+  The header then says ``sightings_correlated``.
 """
 
 from __future__ import annotations
