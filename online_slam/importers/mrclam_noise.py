@@ -261,7 +261,7 @@ def fit_sighting_sigma(residuals: Array, ranges: Array | None = None) -> tuple[f
     return float(np.exp(best.x[0])), float(np.exp(best.x[1]))
 
 
-def _sighting_residuals(root: Path, data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, ...]:
+def _sighting_residuals(data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, ...]:
     """Times, subjects, range and bearing residuals and measured ranges of the sightings Vicon covers."""
     rows, subjects = data.measurements, data.subjects
     at, inside = _interpolate_truth(data.truth, rows[:, 0])
@@ -294,7 +294,7 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     noise = replace(defaults, command_lag_s=lag, speed_scale=speed, turn_scale=turn)
     errors = IncrementErrors.pooled([increment_errors(d, calibrated(d.odometry, noise)) for d in datas])
     noise = fit_increment_terms(errors, noise)
-    sightings = [_sighting_residuals(root, d, landmark_xy) for d in datas]
+    sightings = [_sighting_residuals(d, landmark_xy) for d in datas]
     # one time line for all robots, 1000 s apart, so that no residual pair spans two robots
     offset = np.cumsum([0.0] + [float(np.ptp(s[0])) + 1000.0 for s in sightings[:-1]])
     times = np.concatenate([s[0] - s[0][0] + o for s, o in zip(sightings, offset)])
@@ -304,7 +304,7 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     range_bias, bearing_bias = float(np.median(range_residuals)), float(np.median(bearing_residuals))
     range_sigma, range_sigma_per_m = fit_sighting_sigma(range_residuals - range_bias, ranges)
     bearing_sigma, _ = fit_sighting_sigma(bearing_residuals - bearing_bias)
-    # correlations of the inliers, each robot's own bias removed
+    # correlations of the inliers (a few rows carry another landmark's barcode), each robot's own bias removed
     centred = [(s[2] - np.median(s[2]), s[3] - np.median(s[3])) for s in sightings]
     r_c, b_c = (np.concatenate([c[k] for c in centred]) for k in (0, 1))
     inlier = (np.abs(r_c) < 0.6) & (np.abs(b_c) < 0.2)
