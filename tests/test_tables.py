@@ -136,3 +136,7 @@ def test_compare_says_when_smoother_configurations_ran_identically() -> None:
     exact = ReplayConfig(estimators=("ekf",), smoother=SmootherConfig(window=WindowConfig(distance=0.0)))
     distinct = format_comparison(compare("square", CompareConfig(windows=(5, 20), replay=exact)))
     assert "identical figures" not in distinct and "smoother W=5 K=1" in distinct
+    # the rows' names are read once, under the legend; without a smoother row there is nothing to read
+    assert "\nsmoother W=a..b D=d K=k: at least a poses" in same and "docs/estimators.md#smoother" in same
+    no_smoother = ReplayConfig(estimators=("ekf", "batch"))
+    assert "W=a..b" not in format_comparison(compare("square", CompareConfig(windows=(), replay=no_smoother)))

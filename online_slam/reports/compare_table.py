@@ -20,12 +20,24 @@ def format_comparison(comparison: Comparison) -> str:
     mc = comparison.monte_carlo
     if mc is not None:  # the table above the Monte Carlo figures is one run of them
         out.insert(0, f"seed {mc.seeds[0]}, the first of the {counted(mc.runs, 'Monte Carlo run')} summed up below:")
-    extra = [*notes(comparison.results), *_same_smoothers(comparison)]
+    extra = [*_smoother_names(comparison), *notes(comparison.results), *_same_smoothers(comparison)]
     if extra:
         out += ["", *extra]
     if comparison.monte_carlo is not None:
         out += ["", *_monte_carlo(comparison.monte_carlo)]
     return "\n".join(out)
+
+
+def _smoother_names(comparison: Comparison) -> list[str]:
+    """How a smoother row's name reads, once, when the table has one."""
+    if not any(name.startswith("smoother W=") for name in comparison.rows):
+        return []
+    return [
+        "smoother W=a..b D=d K=k: at least a poses, more until their path spans d m, at most b; solved every k steps"
+        " (W=a alone: exactly a poses).",
+        "  a last word names the prior's --smoother-linearization (FEJ, invariant; none: standard); see"
+        " docs/estimators.md#smoother.",
+    ]
 
 
 def _same_smoothers(comparison: Comparison) -> list[str]:
