@@ -209,6 +209,14 @@ def pieces(commands: np.ndarray, times: np.ndarray) -> Pieces:
     return Pieces(np.searchsorted(grid, times), dt, vi, dth, np.stack([x, y, heading], -1))
 
 
+def sampled(p: Pieces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The poses of :func:`pieces` at its sample times, and the commanded path length and |turn| accumulated since
+    the first, shapes (N, 3), (N,), (N,)."""
+    path = np.concatenate([[0.0], np.cumsum(np.abs(p.speed) * p.dt)])
+    turn = np.concatenate([[0.0], np.cumsum(np.abs(p.turn))])
+    return p.poses[p.at], path[p.at], turn[p.at]
+
+
 def _dead_reckoning(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact unicycle integration of piecewise-constant commands (:func:`pieces`), sampled at (sorted) times.
 
@@ -220,10 +228,7 @@ def _dead_reckoning(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray
         (poses relative to the state at times[0], shape (N, 3); commanded path length and |turn| accumulated
         since times[0], each shape (N,)).
     """
-    p = pieces(commands, times)
-    path = np.concatenate([[0.0], np.cumsum(np.abs(p.speed) * p.dt)])
-    turn = np.concatenate([[0.0], np.cumsum(np.abs(p.turn))])
-    return p.poses[p.at], path[p.at], turn[p.at]
+    return sampled(pieces(commands, times))
 
 
 def _interpolate_truth(gt: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -356,10 +361,15 @@ def heading_levers(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray,
     Returns:
         (per second, per radian turned), each shape (P - 1, 3, 3).
     """
-    p = pieces(commands, times)
+    return levers_of(pieces(commands, times))
+
+
+def levers_of(p: Pieces) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`heading_levers` of commands already integrated by :func:`pieces`."""
     at, (x, y, heading) = p.at, p.poses.T
+    increments = len(at) - 1
     piece = np.searchsorted(at, np.arange(len(p.dt)), side="right") - 1  # the increment each piece belongs to
-    inside = (piece >= 0) & (piece < len(times) - 1)
+    inside = (piece >= 0) & (piece < increments)
     end = at[np.minimum(piece + 1, len(at) - 1)]
     start_heading = heading[at[np.clip(piece, 0, len(at) - 1)]]
     c, s = np.cos(start_heading), np.sin(start_heading)
@@ -368,10 +378,47 @@ def heading_levers(commands: np.ndarray, times: np.ndarray) -> tuple[np.ndarray,
     outer = jr[:, :, None] * jr[:, None, :]
     levers = []
     for q in (p.dt, np.abs(p.turn)):
-        total = np.zeros((len(times) - 1, 3, 3))
+        total = np.zeros((increments, 3, 3))
         np.add.at(total, piece[inside], (q[:, None, None] * outer)[inside])
         levers.append(total)
     return levers[0], levers[1]
+
+
+def model_covariances(
+    cfg: MrclamNoise,
+    increments: np.ndarray,
+    spans: tuple[np.ndarray, np.ndarray, np.ndarray],
+    levers: tuple[np.ndarray, np.ndarray] | None,
+) -> np.ndarray:
+    """The noise model's covariances of increments (the earlier pose's frame).
+
+    Args:
+        cfg: The noise model.
+        increments: ``[dx, dy, dtheta]``, shape (K, 3).
+        spans: Seconds, commanded path length and |turn| of each increment, each shape (K,).
+        levers: :func:`levers_of` the increments' commands; needed when ``cfg.heading_along_path``.
+
+    Returns:
+        Covariances, shape (K, 3, 3).
+    """
+    dt, ds, da = spans
+    heading = cfg.theta_per_s * dt + cfg.theta_per_rad * np.abs(da)
+    variances = np.stack(
+        [
+            cfg.x_per_s * dt + cfg.x_per_m * np.abs(ds) + cfg.x_per_m2 * ds**2 + cfg.floor,
+            cfg.y_per_s * dt + cfg.y_per_m * np.abs(ds) + cfg.y_per_m2 * ds**2 + cfg.floor,
+            cfg.theta_per_rad2 * da**2 + (0.0 if cfg.heading_along_path else heading) + cfg.floor,
+        ],
+        -1,
+    )
+    covariances = increment_covariances(increments, variances)
+    if not cfg.heading_along_path:
+        return covariances
+    if levers is None:
+        raise ValueError("heading noise along the commands needs the increments' levers")
+    per_s, per_rad = levers
+    covariances = covariances + cfg.theta_per_s * per_s + cfg.theta_per_rad * per_rad
+    return 0.5 * (covariances + np.swapaxes(covariances, 1, 2))
 
 
 def odometry_increments(commands: np.ndarray, times: np.ndarray, cfg: MrclamNoise) -> tuple[np.ndarray, np.ndarray]:
@@ -386,25 +433,11 @@ def odometry_increments(commands: np.ndarray, times: np.ndarray, cfg: MrclamNois
         (increments ``[dx, dy, dtheta]`` in the earlier pose's frame, shape (P - 1, 3); covariances, shape
         (P - 1, 3, 3)).
     """
-    commands = calibrated(commands, cfg)
-    poses, path, turn = _dead_reckoning(commands, times)
+    p = pieces(calibrated(commands, cfg), times)
+    poses, path, turn = sampled(p)
     increments = between(poses[:-1], poses[1:])
-    dt, ds, da = np.diff(times), np.diff(path), np.diff(turn)
-    heading = cfg.theta_per_s * dt + cfg.theta_per_rad * np.abs(da) + cfg.theta_per_rad2 * da**2
-    variances = np.stack(
-        [
-            cfg.x_per_s * dt + cfg.x_per_m * np.abs(ds) + cfg.x_per_m2 * ds**2 + cfg.floor,
-            cfg.y_per_s * dt + cfg.y_per_m * np.abs(ds) + cfg.y_per_m2 * ds**2 + cfg.floor,
-            (cfg.theta_per_rad2 * da**2 if cfg.heading_along_path else heading) + cfg.floor,
-        ],
-        -1,
-    )
-    covariances = increment_covariances(increments, variances)
-    if cfg.heading_along_path:
-        per_s, per_rad = heading_levers(commands, times)
-        covariances = covariances + cfg.theta_per_s * per_s + cfg.theta_per_rad * per_rad
-        covariances = 0.5 * (covariances + np.swapaxes(covariances, 1, 2))
-    return increments, covariances
+    spans = (np.diff(times), np.diff(path), np.diff(turn))
+    return increments, model_covariances(cfg, increments, spans, levers_of(p) if cfg.heading_along_path else None)
 
 
 def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None) -> Iterator[Event]:

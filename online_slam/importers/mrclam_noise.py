@@ -39,9 +39,11 @@ from online_slam.importers.mrclam import (
     _table,
     calibrated,
     correlation,
-    heading_levers,
-    increment_covariances,
+    levers_of,
     load_robot,
+    model_covariances,
+    pieces,
+    sampled,
 )
 
 Array = NDArray[np.float64]
@@ -129,13 +131,14 @@ class IncrementErrors:
 def increment_errors(data: RobotData, commands: Array) -> IncrementErrors:
     """One robot's increments between its pose times from the given (calibrated) commands, against Vicon."""
     times = data.times
-    poses, path, turn = _dead_reckoning(commands, times)
+    p = pieces(commands, times)
+    poses, path, turn = sampled(p)
     commanded = between(poses[:-1], poses[1:])
     truth, covered = _interpolate_truth(data.truth, times)
     errors = commanded - between(truth[:-1], truth[1:])
     errors[:, 2] = wrap(errors[:, 2])
     both = covered[:-1] & covered[1:]
-    per_s, per_rad = heading_levers(commands, times)
+    per_s, per_rad = levers_of(p)
     return IncrementErrors(
         errors[both],
         commanded[both],
@@ -153,21 +156,7 @@ TERMS = ("x_per_s", "x_per_m2", "y_per_s", "y_per_m2", "theta_per_s", "theta_per
 
 def increment_log_likelihood(noise: MrclamNoise, e: IncrementErrors) -> float:
     """Log-likelihood (up to a constant) of the increments' errors under the noise model's covariances."""
-    heading = noise.theta_per_s * e.dt + noise.theta_per_rad * e.turn + noise.theta_per_rad2 * e.turn**2
-    variances = (
-        np.stack(
-            [
-                noise.x_per_s * e.dt + noise.x_per_m * e.path + noise.x_per_m2 * e.path**2,
-                noise.y_per_s * e.dt + noise.y_per_m * e.path + noise.y_per_m2 * e.path**2,
-                noise.theta_per_rad2 * e.turn**2 if noise.heading_along_path else heading,
-            ],
-            -1,
-        )
-        + noise.floor
-    )
-    cov = increment_covariances(e.commanded, variances)
-    if noise.heading_along_path:
-        cov = cov + noise.theta_per_s * e.per_s + noise.theta_per_rad * e.per_rad
+    cov = model_covariances(noise, e.commanded, (e.dt, e.path, e.turn), (e.per_s, e.per_rad))
     _, log_det = np.linalg.slogdet(cov)
     chi2 = np.einsum("ki,ki->k", e.errors, np.linalg.solve(cov, e.errors[..., None])[..., 0])
     return -0.5 * float(np.sum(log_det + chi2))

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from pathlib import Path
 
 from online_slam.errors import OnlineSlamError
@@ -12,7 +12,7 @@ from online_slam.evaluation.noise_fit import NoiseFit, fit_noise
 from online_slam.frontend.steps import FrontEnd
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.source import open_events
-from online_slam.sources.events import Event, Header
+from online_slam.sources.events import Event
 
 
 def fits_noise(config: ReplayConfig) -> bool:
@@ -40,16 +40,8 @@ def fit_source_noise(
     plain = dataclasses.replace(config.frontend, odometry_noise_scale=1.0, sensor_noise_scale=1.0)
     opened = open_events(source, dataclasses.replace(config, frontend=plain, association="known"))
     frontend = FrontEnd(plain)
-    headers: list[Header] = []
-
-    def watched(events: Iterable[Event]) -> Iterator[Event]:
-        for event in events:
-            if isinstance(event, Header):
-                headers.append(event)
-            yield event
-
-    fit = fit_noise(frontend.steps(watched(opened.events)), frontend.truth)
-    correlated = bool(headers and headers[0].meta.get("sightings_correlated"))
+    fit = fit_noise(frontend.steps(opened.events), frontend.truth)
+    correlated = frontend.header is not None and bool(frontend.header.meta.get("sightings_correlated"))
     return dataclasses.replace(fit, sightings_correlated=correlated), source
 
 
