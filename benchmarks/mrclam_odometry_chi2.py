@@ -5,9 +5,10 @@ increment, ``e^T C^-1 e`` (3 if consistent), averaged per robot over increments 
 ``python -m benchmarks.mrclam_odometry_chi2 [FOLDER]`` (default ``../shared/data/MRCLAM_Dataset6``).
 
 It then compares, by log-likelihood over every robot's covered increments, the model before 2026-12-04 (commands
-as logged, each increment perturbed once at its end), the calibrated commands with that end-only noise, and the
-conversion's model (calibrated commands, heading noise accrued along them, each piece's turning the rest of the
-path): each with its own terms and refitted (:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`).
+as logged, each increment perturbed once at its end), the commands calibrated with one speed scale with that
+end-only noise and with the heading noise accrued along them (each piece's turning the rest of the path), and the
+conversion's model (the speed also slowed by turning): each with its own terms and refitted
+(:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`).
 """
 
 from __future__ import annotations
@@ -70,8 +71,11 @@ EARLIER = MrclamNoise(
     command_lag_s=0.0,
     speed_scale=1.0,
     turn_scale=1.0,
+    speed_per_turn=0.0,
 )
 """The conversion's model before 2026-12-04: commands as logged, heading noise at each increment's end."""
+WITHOUT_TURN_LOSS = {"speed_scale": 0.955, "speed_per_turn": 0.0}
+"""The first calibration (2026-12-04): one speed scale, turning or not."""
 
 
 def compare_models(folder: str) -> None:
@@ -80,8 +84,12 @@ def compare_models(folder: str) -> None:
     now = MrclamNoise()
     models = (
         ("commands as logged, heading noise at the end (before 2026-12-04)", EARLIER),
-        ("calibrated commands, heading noise at the end", replace(now, heading_along_path=False)),
-        ("calibrated commands, heading noise along them (the conversion's)", now),
+        (
+            "calibrated, no turn loss, heading noise at the end",
+            replace(now, heading_along_path=False, **WITHOUT_TURN_LOSS),
+        ),
+        ("calibrated, no turn loss, heading noise along the commands", replace(now, **WITHOUT_TURN_LOSS)),
+        ("calibrated with the speed lost turning, heading noise along (the conversion's)", now),
     )
     print(f"log-likelihood of the increments Vicon covers (terms: {', '.join(TERMS)})")
     for name, model in models:

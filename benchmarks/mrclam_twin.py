@@ -22,7 +22,8 @@ import numpy as np
 
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import MrclamNoise, read_mrclam, sighting_sigma
+from online_slam.importers.mrclam import MrclamNoise, read_mrclam
+from online_slam.importers.mrclam_sightings import camera_of, sighting_sigma
 from online_slam.pipeline import replay
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.sources.events import Event, LandmarkTruth, Observation, Odometry, Start, Truth
@@ -80,7 +81,7 @@ def twin(folder: str, robot: int, seed: int, noise: MrclamNoise | None = None) -
             pose = truth[e.t]
             dx, dy = landmarks[e.landmark] - pose[:2]
             true_range = float(np.hypot(dx, dy))
-            sr, sb = sighting_sigma(cfg, e.range)
+            sr, sb = sighting_sigma(cfg, e.range, camera_of(cfg, robot))
             er, eb = errors[e.landmark][0][k], errors[e.landmark][1][k]
             bearing = wrap(np.arctan2(dy, dx) - pose[2] + sb * eb)
             e = dataclasses.replace(e, range=max(true_range + sr * er, 1e-3), bearing=float(bearing))

@@ -15,19 +15,20 @@ The model (``MrclamNoise``), every part fitted against Vicon over Dataset 6 by
 choice are in benchmarks/RESULTS.md, "MRCLAM Dataset 6"):
 
 - the commands are integrated as the robot carries them out: ``command_lag_s`` late, their speed and turn rate
-  scaled by ``speed_scale`` and ``turn_scale`` (:func:`calibrated`);
+  scaled by ``speed_scale`` and ``turn_scale``, and the speed slowed by turning (``speed_per_turn``:
+  :func:`calibrated`);
 - each increment's forward and lateral variances are ``a * dt + c * s^2 + floor`` (dt the elapsed time, s the
   commanded path) along the axes of the pose it reaches (GTSAM's between factor; written to the stream as a full
   covariance in the earlier pose's frame, :func:`increment_covariances`); its heading variance
   ``a * dt + b * |turn|`` accrues along its commands, each piece's heading noise turning the rest of its path
   (:func:`heading_levers`; ``heading_along_path``), so that a long stretch without sightings, one increment, is
   as uncertain at its end as its commands make it;
-- range and bearing sigmas, the range's optionally growing with the measured range (``--noise fit`` finds
-  0.011 m + 0.044 m per metre; the default stays a constant 0.178 m, chosen under the earlier model,
-  where the growing one cost robots 3 and 4 alone), each
-  widened for the correlation of one landmark's errors over time (:func:`sighting_sigmas`): range errors 0.2 s
-  apart correlate at about 0.85, so a landmark seen for a while is not counted as many independent sightings.
-  The header then says ``sightings_correlated``.
+- a logged range is the barcode's depth along the camera's axis, not its distance: each robot's camera
+  (:class:`Camera`) puts a sighting at a point of the robot's frame, and the stream carries that point's range and
+  bearing (:func:`through_camera`), with the camera's sigmas (the range's growing with the range);
+- each sighting's variance is widened for the errors it shares with the earlier sightings of its landmark
+  (:func:`sighting_sigmas`): range errors 0.2 s apart correlate at about 0.55, so a landmark seen for a while is not
+  counted as many independent sightings. The header then says ``sightings_correlated``.
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, rotation
 from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers.mrclam_sightings import CAMERAS, Camera, camera_of, sighting_sigmas, through_camera
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 
@@ -49,21 +51,21 @@ from online_slam.sources.events import Event, Header, LandmarkTruth, Observation
 class MrclamNoise:
     """Noise model of the MRCLAM conversion."""
 
-    x_per_s: float = 6.1e-6
+    x_per_s: float = 1.01e-5
     """Forward variance per second elapsed, m^2/s."""
     x_per_m: float = 0.0
     """Forward variance per metre of commanded path, m^2/m."""
-    x_per_m2: float = 0.0257
+    x_per_m2: float = 0.00228
     """Forward variance per squared metre of commanded path."""
-    y_per_s: float = 9.7e-8
+    y_per_s: float = 2.95e-7
     """Lateral variance per second, m^2/s."""
     y_per_m: float = 0.0
     """Lateral variance per metre of commanded path, m^2/m."""
-    y_per_m2: float = 4.45e-4
+    y_per_m2: float = 1.95e-4
     """Lateral variance per squared metre of commanded path."""
-    theta_per_s: float = 1.46e-4
+    theta_per_s: float = 1.49e-4
     """Heading variance per second, rad^2/s."""
-    theta_per_rad: float = 0.0095
+    theta_per_rad: float = 0.00804
     """Heading variance per radian of commanded turn, rad^2/rad (a random walk in the angle turned)."""
     theta_per_rad2: float = 0.0
     """Heading variance per squared radian of commanded turn."""
@@ -76,34 +78,39 @@ class MrclamNoise:
     without this its end position is far more certain than the commands make it."""
     command_lag_s: float = 0.24
     """Seconds between a command's timestamp and the motion it causes (calibrated on Vicon)."""
-    speed_scale: float = 0.955
+    speed_scale: float = 1.041
     """Distance moved per commanded distance (calibrated on Vicon)."""
     turn_scale: float = 0.948
     """Angle turned per commanded angle (calibrated on Vicon)."""
-    range_correlation: tuple[float, float, float, float] = (0.61, 2.87, 0.295, 59.0)
+    speed_per_turn: float = 1.0
+    """Share of the commanded speed lost per rad/s of commanded turn rate, s/rad: a command ``(v, w)`` moves the
+    robot at ``speed_scale * v * max(0, 1 - speed_per_turn * |w|)`` (calibrated on Vicon: turning at 0.35 rad/s,
+    the robots cover about 60% of the distance commanded)."""
+    range_correlation: tuple[float, float, float, float] = (0.236, 2.9, 0.336, 23.1)
     """Correlation of range errors of one landmark seen twice ``dt`` apart by one robot,
     ``c1 exp(-dt / tau1) + c2 exp(-dt / tau2)`` as ``(c1, tau1, c2, tau2)`` (seconds); all zero: independent."""
-    bearing_correlation: tuple[float, float, float, float] = (0.176, 1.17, 0.356, 16.1)
+    bearing_correlation: tuple[float, float, float, float] = (0.158, 1.02, 0.417, 13.0)
     """The same for bearing errors."""
-    range_sigma: float = 0.178
+    range_sigma: float = 0.0
     """Range standard deviation at zero range, m (the sigma of a sighting is this plus ``range_sigma_per_m``
-    times its measured range)."""
-    range_sigma_per_m: float = 0.0
+    times its measured range), pooled over the robots: a robot with a camera (``cameras``) uses the camera's."""
+    range_sigma_per_m: float = 0.00978
     """Growth of the range standard deviation per metre of measured range, m/m."""
-    bearing_sigma: float = 0.0125
+    bearing_sigma: float = 0.0112
     """Bearing standard deviation, rad."""
+    cameras: tuple[Camera, ...] = CAMERAS
+    """Each robot's camera, robots 1..5 in order (:class:`Camera`): the stream carries the range and bearing of
+    the point the robot's camera puts a sighting at, with the camera's sigmas. Empty: the logged columns as they
+    are, with the sigmas above."""
     start_sigma: float = 0.01
     """Standard deviation of the start prior (x, y in m, theta in rad)."""
 
 
-def sighting_sigma(noise: MrclamNoise, measured_range: float) -> tuple[float, float]:
-    """Range and bearing standard deviations of a sighting at its measured range (m, rad), errors independent."""
-    return (noise.range_sigma + noise.range_sigma_per_m * float(measured_range), noise.bearing_sigma)
-
-
 def noise_meta(noise: MrclamNoise) -> dict:
-    """The noise model as a stream header records it (JSON types: tuples as lists)."""
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in noise.__dict__.items()}
+    """The noise model as a stream header records it (JSON types: tuples as lists, cameras as objects)."""
+    meta = {k: list(v) if isinstance(v, tuple) else v for k, v in noise.__dict__.items()}
+    meta["cameras"] = [dict(camera.__dict__) for camera in noise.cameras]
+    return meta
 
 
 def correlates(noise: MrclamNoise) -> bool:
@@ -116,47 +123,6 @@ def correlates(noise: MrclamNoise) -> bool:
         + noise.bearing_correlation[2]
         > 0.0
     )
-
-
-def correlation(terms: tuple[float, float, float, float], dt: np.ndarray) -> np.ndarray:
-    """``c1 exp(-dt / tau1) + c2 exp(-dt / tau2)`` for ``terms = (c1, tau1, c2, tau2)``; 0 where dt is infinite."""
-    c1, tau1, c2, tau2 = terms
-    dt = np.asarray(dt, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        one = np.where(c1 > 0.0, c1 * np.exp(-dt / max(tau1, 1e-12)), 0.0)
-        two = np.where(c2 > 0.0, c2 * np.exp(-dt / max(tau2, 1e-12)), 0.0)
-    return np.nan_to_num(one + two, nan=0.0)
-
-
-def sighting_sigmas(noise: MrclamNoise, times: np.ndarray, subjects: np.ndarray, ranges: np.ndarray) -> np.ndarray:
-    """Range and bearing sigmas of one robot's sightings, widened for the errors they share with the last sighting
-    of the same landmark.
-
-    Consecutive sightings of one landmark err alike (range errors 0.2 s apart correlate at 0.86 on Dataset 6,
-    30 s apart at 0.17), so counting each as independent multiplies what a landmark seen for a while tells.
-    A sighting ``dt`` after the previous one of its landmark gets its variance times ``(1 + rho) / (1 - rho)``,
-    ``rho`` = :func:`correlation` at ``dt``: the information per sighting of a first-order autoregressive error
-    of that correlation (a landmark's first sighting keeps its sigma).
-
-    Args:
-        noise: The noise model.
-        times: Sighting times, sorted, shape (N,).
-        subjects: Landmark of each sighting, shape (N,).
-        ranges: Measured ranges, shape (N,).
-
-    Returns:
-        Sigmas ``[range, bearing]``, shape (N, 2).
-    """
-    order = np.lexsort((times, subjects))
-    gap = np.full(len(times), np.inf)
-    same = subjects[order][1:] == subjects[order][:-1]
-    gap[order[1:][same]] = np.diff(times[order])[same]
-    base = np.stack(
-        [noise.range_sigma + noise.range_sigma_per_m * ranges, np.full(len(times), noise.bearing_sigma)], -1
-    )
-    rho = np.stack([correlation(noise.range_correlation, gap), correlation(noise.bearing_correlation, gap)], -1)
-    rho = np.clip(rho, 0.0, 0.99)
-    return base * np.sqrt((1.0 + rho) / (1.0 - rho))
 
 
 def _table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
@@ -341,10 +307,10 @@ def increment_covariances(increments: np.ndarray, variances: np.ndarray) -> np.n
 
 def calibrated(commands: np.ndarray, cfg: MrclamNoise) -> np.ndarray:
     """Commands ``(t, v, w)`` as the robot carries them out: delayed by ``command_lag_s``, speed and turn rate
-    scaled by ``speed_scale`` and ``turn_scale``, shape (C, 3)."""
+    scaled by ``speed_scale`` and ``turn_scale``, speed slowed by turning (``speed_per_turn``), shape (C, 3)."""
     out = np.array(commands, dtype=float)
     out[:, 0] += cfg.command_lag_s
-    out[:, 1] *= cfg.speed_scale
+    out[:, 1] *= cfg.speed_scale * np.maximum(0.0, 1.0 - cfg.speed_per_turn * np.abs(out[:, 2]))
     out[:, 2] *= cfg.turn_scale
     return out
 
@@ -457,11 +423,13 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
         raise InputError(str(root), 0, "robot", f"expected a robot number 1..5, got {robot}")
     data = load_robot(root, robot)
     kept, kept_subjects, times, truth = data.measurements, data.subjects, data.times, data.truth
+    camera = camera_of(cfg, robot)
+    kept = through_camera(kept, camera)
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     increments, covariances = odometry_increments(data.odometry, times, cfg)
     true_poses, covered = _interpolate_truth(truth, times)
     yield Header(
-        name=f"MRCLAM Dataset6 robot {robot}",
+        name=f"MRCLAM {root.name.removeprefix('MRCLAM_')} robot {robot}",
         meta={
             "converted_from": str(root.name),
             "robot": robot,
@@ -477,7 +445,7 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     yield Start(t=float(times[0]), pose=tuple(map(float, start)), sigma=(cfg.start_sigma,) * 3)
     for subject, x, y, _, _ in landmarks:
         yield LandmarkTruth(int(subject), (float(x), float(y)))
-    sigmas = sighting_sigmas(cfg, kept[:, 0], kept_subjects, kept[:, 2])
+    sigmas = sighting_sigmas(cfg, kept[:, 0], kept_subjects, kept[:, 2], camera)
     bounds = np.searchsorted(kept[:, 0], np.r_[times, np.inf])
     for k, t in enumerate(times):
         if k > 0:

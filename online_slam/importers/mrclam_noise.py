@@ -1,18 +1,22 @@
 """Choosing the MRCLAM noise model from data: maximum-likelihood fits against the Vicon ground truth.
 
-The conversion (:mod:`online_slam.importers.mrclam`) models the data in three parts, each fitted here over every
+The conversion (:mod:`online_slam.importers.mrclam`) models the data in four parts, each fitted here over every
 robot of a dataset folder:
 
 - **the commands' calibration**: motion follows a command ``command_lag_s`` after its timestamp (the lag that
   minimizes the heading error of 1 s windows), and covers ``speed_scale`` and ``turn_scale`` of the commanded
-  distance and turn (least squares over 5 s windows, long beside the lag);
+  distance and turn (least squares over 5 s windows, long enough that the lag hardly matters), the speed slowed
+  by turning (``speed_per_turn``, the loss that leaves the least forward error);
 - **the increments' noise**: per increment, forward and lateral variances ``a dt + c s^2`` along the axes of the
   pose it reaches, and heading variance ``a dt + b |turn|`` accrued along its commands (each piece's heading
   noise turning the rest of its path); the six terms by maximum likelihood of the full 3x3 covariances
   (``scipy.optimize.minimize`` over their logarithms) against the Vicon increments;
-- **the sightings' noise**: range and bearing sigmas as a Gaussian beside a uniform share of outliers (a few rows
-  carry another landmark's barcode), the range's growing with the measured range, and the correlation of one
-  landmark's errors with time apart (two exponentials fitted to the binned products of residual pairs).
+- **each robot's camera** (:func:`fit_camera`): where it puts a sighting (a logged range is a depth), and its range
+  and bearing sigmas as a Gaussian beside a uniform share of outliers (a few rows carry another landmark's
+  barcode), the range's growing with the range;
+- **the sightings' correlation**: of one landmark's errors with time apart, each residual divided by its camera's
+  sigma (two exponentials fitted to the binned products of residual pairs); and sigmas pooled over the robots,
+  for a robot without a camera.
 
 Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data.
 :mod:`online_slam.evaluation.noise_fit` then checks any stream, this one included, against its truth and scales
@@ -26,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import curve_fit, minimize
+from scipy.optimize import curve_fit, least_squares, minimize
 
 from online_slam.evaluation.noise_fit import MAD_TO_SIGMA
 from online_slam.geometry.angles import wrap
@@ -38,13 +42,13 @@ from online_slam.importers.mrclam import (
     _interpolate_truth,
     _table,
     calibrated,
-    correlation,
     levers_of,
     load_robot,
     model_covariances,
     pieces,
     sampled,
 )
+from online_slam.importers.mrclam_sightings import Camera, correlation, through_camera
 
 Array = NDArray[np.float64]
 
@@ -69,6 +73,8 @@ class MrclamNoiseFit:
 
 LAGS = np.arange(0.0, 0.505, 0.01)
 """Command lags tried, seconds."""
+SPEED_PER_TURN = np.arange(0.0, 2.001, 0.05)
+"""Speed losses per rad/s of turn tried, s/rad."""
 CORRELATION_BINS = np.array([0.0, 0.3, 0.6, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 100.0])
 """Edges (seconds apart) of the bins over which residual pairs are averaged to fit the correlation."""
 
@@ -85,11 +91,12 @@ def _windows(data: RobotData, commands: np.ndarray, width: float, lag: float) ->
     return commanded[both], actual[both]
 
 
-def fit_command_calibration(datas: list[RobotData]) -> tuple[float, float, float]:
-    """``(command_lag_s, speed_scale, turn_scale)`` of the robots' commands against Vicon.
+def fit_command_calibration(datas: list[RobotData]) -> tuple[float, float, float, float]:
+    """``(command_lag_s, speed_scale, turn_scale, speed_per_turn)`` of the robots' commands against Vicon.
 
-    The lag minimizes the RMS heading error of 1 s windows over :data:`LAGS`; the scales are the least-squares
-    ratios of Vicon's forward motion and turn to the commanded ones over 5 s windows at that lag.
+    The lag minimizes the RMS heading error of 1 s windows over :data:`LAGS`. Over 5 s windows at that lag, the
+    turn scale is the least-squares ratio of Vicon's turn to the commanded one; the speed's loss per rad/s turned
+    minimizes, over :data:`SPEED_PER_TURN`, the RMS forward error left by the least-squares speed scale.
     """
     rms = []
     for lag in LAGS:
@@ -97,10 +104,24 @@ def fit_command_calibration(datas: list[RobotData]) -> tuple[float, float, float
         error = np.concatenate([actual[:, 2] - commanded[:, 2] for commanded, actual in parts])
         rms.append(float(np.sqrt(np.mean(error**2))))
     lag = float(LAGS[int(np.argmin(rms))])
-    commanded, actual = (np.concatenate(a) for a in zip(*[_windows(d, d.odometry, 5.0, lag) for d in datas]))
-    speed = float(commanded[:, 0] @ actual[:, 0] / (commanded[:, 0] @ commanded[:, 0]))
-    turn = float(commanded[:, 2] @ actual[:, 2] / (commanded[:, 2] @ commanded[:, 2]))
-    return lag, speed, turn
+    fits = []
+    for loss in SPEED_PER_TURN:
+        slowed = [replace_speed(d.odometry, loss) for d in datas]
+        commanded, actual = (np.concatenate(a) for a in zip(*[_windows(d, c, 5.0, lag) for d, c in zip(datas, slowed)]))
+        speed = float(commanded[:, 0] @ actual[:, 0] / (commanded[:, 0] @ commanded[:, 0]))
+        error = float(np.sqrt(np.mean((actual[:, 0] - speed * commanded[:, 0]) ** 2)))
+        turn = float(commanded[:, 2] @ actual[:, 2] / (commanded[:, 2] @ commanded[:, 2]))
+        fits.append((error, speed, turn, float(loss)))
+    _, speed, turn, loss = min(fits)
+    return lag, speed, turn, loss
+
+
+def replace_speed(commands: np.ndarray, speed_per_turn: float) -> np.ndarray:
+    """Commands ``(t, v, w)`` with the speed slowed by turning as :func:`~online_slam.importers.mrclam.calibrated`
+    slows it (no lag, no scales)."""
+    out = np.array(commands, dtype=float)
+    out[:, 1] *= np.maximum(0.0, 1.0 - speed_per_turn * np.abs(out[:, 2]))
+    return out
 
 
 @dataclass(frozen=True)
@@ -250,6 +271,54 @@ def fit_sighting_sigma(residuals: Array, ranges: Array | None = None) -> tuple[f
     return float(np.exp(best.x[0])), float(np.exp(best.x[1]))
 
 
+def _figure(value: float) -> float:
+    """A fitted sigma to 3 significant digits; 0 below a nanometre (the fit's floor)."""
+    return float(f"{value:.3g}") if value > 1e-9 else 0.0
+
+
+def fit_camera(data: RobotData, landmark_xy: dict[int, Array]) -> Camera:
+    """One robot's camera (:class:`~online_slam.importers.mrclam.Camera`).
+
+    Where it puts a sighting: the least-squares fit, with a soft-L1 loss (0.1 m scale: a few rows carry another
+    landmark's barcode), of the surveyed landmarks' positions in the robot's Vicon frame. How far it errs: the
+    sigmas of :func:`fit_sighting_sigma` over the residuals of the sightings so placed.
+
+    Args:
+        data: The robot's tables as logged.
+        landmark_xy: Surveyed landmark positions by subject.
+    """
+    rows, subjects = data.measurements, data.subjects
+    at, inside = _interpolate_truth(data.truth, rows[:, 0])
+    use = inside & np.array([int(s) in landmark_xy for s in subjects], dtype=bool)
+    pose = at[use]
+    xy = np.array([landmark_xy[int(s)] for s in subjects[use]]).reshape(-1, 2) - pose[:, :2]
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    seen = np.stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1]], -1)
+    depth, bearing = rows[use, 2], rows[use, 3]
+
+    def misfit(q: Array) -> Array:
+        scale, forward, left, bearing_scale = q
+        x = scale * depth + forward
+        y = scale * depth * np.tan(bearing_scale * bearing) + left
+        return np.concatenate([x - seen[:, 0], y - seen[:, 1]])
+
+    scale, forward, left, bearing_scale = (
+        float(f"{v:.4g}") for v in least_squares(misfit, [1.0, 0.0, 0.0, 1.0], loss="soft_l1", f_scale=0.1).x
+    )
+    placed = Camera(scale, forward, left, bearing_scale, 0.0, 0.0, 0.0)
+    _, _, range_residuals, bearing_residuals, ranges = _sighting_residuals(
+        replace(data, measurements=through_camera(rows, placed)), landmark_xy
+    )
+    range_sigma, per_m = fit_sighting_sigma(range_residuals - np.median(range_residuals), ranges)
+    bearing_sigma, _ = fit_sighting_sigma(bearing_residuals - np.median(bearing_residuals))
+    return replace(
+        placed,
+        range_sigma=_figure(range_sigma),
+        range_sigma_per_m=_figure(per_m),
+        bearing_sigma=_figure(bearing_sigma),
+    )
+
+
 def _sighting_residuals(data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, ...]:
     """Times, subjects, range and bearing residuals and measured ranges of the sightings Vicon covers."""
     rows, subjects = data.measurements, data.subjects
@@ -279,11 +348,17 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     landmark_xy = {int(row[0]): row[1:3] for row in landmarks}
     datas = [load_robot(root, r) for r in robots]
-    lag, speed, turn = fit_command_calibration(datas)
-    noise = replace(defaults, command_lag_s=lag, speed_scale=speed, turn_scale=turn)
+    lag, speed, turn, loss = fit_command_calibration(datas)
+    noise = replace(defaults, command_lag_s=lag, speed_scale=speed, turn_scale=turn, speed_per_turn=loss)
     errors = IncrementErrors.pooled([increment_errors(d, calibrated(d.odometry, noise)) for d in datas])
     noise = fit_increment_terms(errors, noise)
-    sightings = [_sighting_residuals(d, landmark_xy) for d in datas]
+    fitted = [fit_camera(d, landmark_xy) for d in datas]
+    cameras = list(defaults.cameras)  # a robot left out of the fit keeps its default camera
+    for robot, camera in zip(robots, fitted):
+        cameras[robot - 1] = camera
+    noise = replace(noise, cameras=tuple(cameras))
+    seen = [replace(d, measurements=through_camera(d.measurements, c)) for d, c in zip(datas, fitted)]
+    sightings = [_sighting_residuals(d, landmark_xy) for d in seen]
     # one time line for all robots, 1000 s apart, so that no residual pair spans two robots
     offset = np.cumsum([0.0] + [float(np.ptp(s[0])) + 1000.0 for s in sightings[:-1]])
     times = np.concatenate([s[0] - s[0][0] + o for s, o in zip(sightings, offset)])
@@ -293,10 +368,14 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     range_bias, bearing_bias = float(np.median(range_residuals)), float(np.median(bearing_residuals))
     range_sigma, range_sigma_per_m = fit_sighting_sigma(range_residuals - range_bias, ranges)
     bearing_sigma, _ = fit_sighting_sigma(bearing_residuals - bearing_bias)
-    # correlations of the inliers (a few rows carry another landmark's barcode), each robot's own bias removed
-    centred = [(s[2] - np.median(s[2]), s[3] - np.median(s[3])) for s in sightings]
-    r_c, b_c = (np.concatenate([c[k] for c in centred]) for k in (0, 1))
-    inlier = (np.abs(r_c) < 0.6) & (np.abs(b_c) < 0.2)
+    # correlations of the inliers (a few rows carry another landmark's barcode), in each camera's sigmas, each
+    # robot's own bias removed
+    normalized = []
+    for (_, _, r, b, at), camera in zip(sightings, fitted):
+        sigma_r = camera.range_sigma + camera.range_sigma_per_m * at
+        normalized.append(((r - np.median(r)) / sigma_r, (b - np.median(b)) / camera.bearing_sigma))
+    r_c, b_c = (np.concatenate([n[k] for n in normalized]) for k in (0, 1))
+    inlier = (np.abs(r_c) < 5.0) & (np.abs(b_c) < 5.0)
     noise = replace(
         noise,
         range_sigma=range_sigma,

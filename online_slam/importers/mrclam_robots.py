@@ -7,8 +7,9 @@ model, odometry integrated exactly from its commands), with these differences:
   the robots); a row of its own barcode, or of an unknown one, is dropped and counted in the header.
 - Its poses are at the times of all of its own sightings (landmarks and robots) and at the times another robot
   sights it, so that a robot sighting links two poses of the same time.
-- Its sightings of other robots keep independent errors (:func:`~online_slam.importers.mrclam.sighting_sigma`);
-  its landmark sightings are widened for their correlation as when it is converted alone.
+- Its sightings of other robots, placed by its camera too, keep independent errors
+  (:func:`~online_slam.importers.mrclam_sightings.sighting_sigma`); its landmark sightings are widened for their
+  correlation as when it is converted alone.
 - Its start is its Vicon pose at its first pose time, with the conversion's small prior (``start_sigma``): the
   anchor's convention (every robot starts at its Vicon pose; the anchor's prior is zero).
 
@@ -32,9 +33,8 @@ from online_slam.importers.mrclam import (
     load_robot,
     noise_meta,
     odometry_increments,
-    sighting_sigma,
-    sighting_sigmas,
 )
+from online_slam.importers.mrclam_sightings import camera_of, sighting_sigma, sighting_sigmas, through_camera
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -73,8 +73,9 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Truth(t=float(times[k]), pose=tuple(map(float, true_poses[k])), robot=robot),
         )
-    rows = data.measurements
-    sigmas = sighting_sigmas(cfg, rows[:, 0], data.subjects, rows[:, 2])
+    camera = camera_of(cfg, robot)
+    rows = through_camera(data.measurements, camera)
+    sigmas = sighting_sigmas(cfg, rows[:, 0], data.subjects, rows[:, 2], camera)
     for row, subject, sigma in zip(rows, data.subjects, sigmas):
         t = float(row[0])
         yield (
@@ -83,14 +84,20 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Observation(t, int(subject), float(row[2]), float(row[3]), (float(sigma[0]), float(sigma[1])), robot=robot),
         )
-    for row, seen in zip(data.robot_rows, data.robots_seen):
+    for row, seen in zip(through_camera(data.robot_rows, camera), data.robots_seen):
         t = float(row[0])
         yield (
             t,
             _SIGHTING,
             robot,
             Observation(
-                t, None, float(row[2]), float(row[3]), sighting_sigma(cfg, row[2]), robot=robot, robot_seen=int(seen)
+                t,
+                None,
+                float(row[2]),
+                float(row[3]),
+                sighting_sigma(cfg, row[2], camera),
+                robot=robot,
+                robot_seen=int(seen),
             ),
         )
 
