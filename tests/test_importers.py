@@ -247,6 +247,26 @@ def test_calibrated_commands_are_delayed_and_scaled() -> None:
     assert calibrated(np.array([[0.0, 0.2, -1.5]]), MrclamNoise(speed_per_turn=1.0))[0, 1] == 0.0
 
 
+def _robot_data(
+    commands: np.ndarray, vicon: np.ndarray, sightings: np.ndarray | None = None, subjects: np.ndarray | None = None
+) -> RobotData:
+    """A robot's tables from commands ``(t, v, w)``, Vicon ``(t, x, y, theta)`` and landmark sightings
+    ``(t, barcode, range, bearing)`` with their subjects (none by default), no robot sightings."""
+    rows = np.zeros((0, 4)) if sightings is None else sightings
+    return RobotData(
+        odometry=commands,
+        measurements=rows,
+        subjects=np.zeros(0, dtype=int) if subjects is None else subjects,
+        times=np.unique(rows[:, 0]) if len(rows) else vicon[:1, 0],
+        truth=vicon,
+        dropped_robots=0,
+        dropped_unknown=0,
+        robot_rows=np.zeros((0, 4)),
+        robots_seen=np.zeros(0, dtype=int),
+        dropped_self=0,
+    )
+
+
 def test_command_calibration_recovers_lag_scales_and_the_speed_lost_turning() -> None:
     """Vicon at 100 Hz along commands carried out 0.2 s late, 5% slower, turning 10% less, and 80% of the speed
     kept per rad/s turned: the fit finds all four."""
@@ -259,18 +279,7 @@ def test_command_calibration_recovers_lag_scales_and_the_speed_lost_turning() ->
     truth_model = MrclamNoise(command_lag_s=0.2, speed_scale=0.95, turn_scale=0.9, speed_per_turn=0.8)
     vicon_t = np.arange(1.0, t[-1] - 1.0, 0.01)
     poses, _, _ = _dead_reckoning(calibrated(commands, truth_model), vicon_t)
-    data = RobotData(
-        odometry=commands,
-        measurements=np.zeros((0, 4)),
-        subjects=np.zeros(0, dtype=int),
-        times=vicon_t[:1],
-        truth=np.column_stack([vicon_t, poses]),
-        dropped_robots=0,
-        dropped_unknown=0,
-        robot_rows=np.zeros((0, 4)),
-        robots_seen=np.zeros(0, dtype=int),
-        dropped_self=0,
-    )
+    data = _robot_data(commands, np.column_stack([vicon_t, poses]))
     lag, speed, turn, loss = fit_command_calibration([data])
     assert lag == pytest.approx(0.2, abs=0.011)
     assert speed == pytest.approx(0.95, rel=0.01) and turn == pytest.approx(0.9, rel=0.01)
@@ -376,18 +385,7 @@ def test_the_camera_fit_recovers_a_simulated_camera() -> None:
     wrong = rng.random(n) < 0.02
     subjects = np.where(wrong, rng.integers(6, 21, n), subjects)
     rows = np.column_stack([t, subjects, depth, bearing])[ahead]
-    data = RobotData(
-        odometry=np.zeros((1, 3)),
-        measurements=rows,
-        subjects=subjects[ahead],
-        times=t[ahead],
-        truth=np.column_stack([t, pose]),
-        dropped_robots=0,
-        dropped_unknown=0,
-        robot_rows=np.zeros((0, 4)),
-        robots_seen=np.zeros(0, dtype=int),
-        dropped_self=0,
-    )
+    data = _robot_data(np.zeros((1, 3)), np.column_stack([t, pose]), rows, subjects[ahead])
     fitted = fit_camera(data, landmark_xy)
     assert fitted.scale == pytest.approx(0.96, rel=0.003) and fitted.bearing_scale == pytest.approx(0.98, rel=0.01)
     assert fitted.forward_m == pytest.approx(-0.05, abs=0.01) and fitted.left_m == pytest.approx(0.02, abs=0.01)
