@@ -43,7 +43,7 @@ from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, rotation
 from online_slam.importers._lines import numbered_lines, numbers
-from online_slam.importers.mrclam_sightings import CAMERAS, Camera, camera_of, sighting_sigmas, through_camera
+from online_slam.importers.mrclam_sightings import CAMERAS, Camera, camera_sightings
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 
@@ -422,9 +422,8 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     if not 1 <= robot <= 5:
         raise InputError(str(root), 0, "robot", f"expected a robot number 1..5, got {robot}")
     data = load_robot(root, robot)
-    kept, kept_subjects, times, truth = data.measurements, data.subjects, data.times, data.truth
-    camera = camera_of(cfg, robot)
-    kept = through_camera(kept, camera)
+    kept_subjects, times, truth = data.subjects, data.times, data.truth
+    _, kept, sigmas = camera_sightings(cfg, robot, data.measurements, kept_subjects)
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     increments, covariances = odometry_increments(data.odometry, times, cfg)
     true_poses, covered = _interpolate_truth(truth, times)
@@ -445,7 +444,6 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     yield Start(t=float(times[0]), pose=tuple(map(float, start)), sigma=(cfg.start_sigma,) * 3)
     for subject, x, y, _, _ in landmarks:
         yield LandmarkTruth(int(subject), (float(x), float(y)))
-    sigmas = sighting_sigmas(cfg, kept[:, 0], kept_subjects, kept[:, 2], camera)
     bounds = np.searchsorted(kept[:, 0], np.r_[times, np.inf])
     for k, t in enumerate(times):
         if k > 0:

@@ -50,7 +50,7 @@ from online_slam.importers.mrclam import (
     pieces,
     sampled,
 )
-from online_slam.importers.mrclam_sightings import Camera, correlation, through_camera
+from online_slam.importers.mrclam_sightings import Camera, camera_point, correlation, through_camera
 
 Array = NDArray[np.float64]
 
@@ -75,6 +75,8 @@ class MrclamNoiseFit:
 
 LAGS = np.arange(0.0, 0.505, 0.01)
 """Command lags tried, seconds."""
+AS_COMMANDED = MrclamNoise(command_lag_s=0.0, speed_scale=1.0, turn_scale=1.0, speed_per_turn=0.0)
+"""A model whose :func:`~online_slam.importers.mrclam.calibrated` leaves the commands as logged."""
 SPEED_PER_TURN = np.arange(0.0, 2.001, 0.05)
 """Speed losses per rad/s of turn tried, s/rad."""
 CORRELATION_BINS = np.array([0.0, 0.3, 0.6, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 100.0])
@@ -110,7 +112,7 @@ def fit_command_calibration(datas: list[RobotData]) -> tuple[float, float, float
     lag = _grid_minimum(LAGS, heading_rms)[0]
 
     def forward_fit(loss: float) -> tuple[float, float, float]:
-        slowed = [replace_speed(d.odometry, loss) for d in datas]
+        slowed = [calibrated(d.odometry, replace(AS_COMMANDED, speed_per_turn=loss)) for d in datas]
         commanded, actual = (np.concatenate(a) for a in zip(*[_windows(d, c, 5.0, lag) for d, c in zip(datas, slowed)]))
         speed = float(commanded[:, 0] @ actual[:, 0] / (commanded[:, 0] @ commanded[:, 0]))
         error = float(np.sqrt(np.mean((actual[:, 0] - speed * commanded[:, 0]) ** 2)))
@@ -132,14 +134,6 @@ def _grid_minimum(grid: Array, cost: Callable[[float], Any], stride: int = 5) ->
             costs[i] = cost(float(grid[i]))
     best = min(costs, key=costs.__getitem__)
     return float(grid[best]), costs[best]
-
-
-def replace_speed(commands: np.ndarray, speed_per_turn: float) -> np.ndarray:
-    """Commands ``(t, v, w)`` with the speed slowed by turning as :func:`~online_slam.importers.mrclam.calibrated`
-    slows it (no lag, no scales)."""
-    out = np.array(commands, dtype=float)
-    out[:, 1] *= np.maximum(0.0, 1.0 - speed_per_turn * np.abs(out[:, 2]))
-    return out
 
 
 @dataclass(frozen=True)
@@ -305,19 +299,14 @@ def fit_camera(data: RobotData, landmark_xy: dict[int, Array]) -> Camera:
         data: The robot's tables as logged.
         landmark_xy: Surveyed landmark positions by subject.
     """
-    rows, subjects = data.measurements, data.subjects
-    at, inside = _interpolate_truth(data.truth, rows[:, 0])
-    use = inside & np.array([int(s) in landmark_xy for s in subjects], dtype=bool)
-    pose = at[use]
-    xy = np.array([landmark_xy[int(s)] for s in subjects[use]]).reshape(-1, 2) - pose[:, :2]
+    rows = data.measurements
+    use, pose, xy = _covered(data, landmark_xy)
     c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
     seen = np.stack([c * xy[:, 0] + s * xy[:, 1], -s * xy[:, 0] + c * xy[:, 1]], -1)
-    depth, bearing = rows[use, 2], rows[use, 3]
+    logged, bearing = rows[use, 2], rows[use, 3]
 
     def misfit(q: Array) -> Array:
-        scale, forward, left, bearing_scale = q
-        x = scale * depth + forward
-        y = scale * depth * np.tan(bearing_scale * bearing) + left
+        x, y = camera_point(tuple(q), logged, bearing)  # type: ignore[arg-type]
         return np.concatenate([x - seen[:, 0], y - seen[:, 1]])
 
     scale, forward, left, bearing_scale = (
@@ -337,18 +326,24 @@ def fit_camera(data: RobotData, landmark_xy: dict[int, Array]) -> Camera:
     )
 
 
-def _sighting_residuals(data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, ...]:
-    """Times, subjects, range and bearing residuals and measured ranges of the sightings Vicon covers."""
+def _covered(data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, Array, Array]:
+    """The sightings of surveyed landmarks at times Vicon covers: their mask (N,), the robot's Vicon pose at each
+    (M, 3), and the landmark's offset from it in the world frame (M, 2)."""
     rows, subjects = data.measurements, data.subjects
     at, inside = _interpolate_truth(data.truth, rows[:, 0])
     use = inside & np.array([int(s) in landmark_xy for s in subjects], dtype=bool)
     pose = at[use]
     xy = np.array([landmark_xy[int(s)] for s in subjects[use]]).reshape(-1, 2)
-    d = xy - pose[:, :2]
-    kept = rows[use]
+    return use, pose, xy - pose[:, :2]
+
+
+def _sighting_residuals(data: RobotData, landmark_xy: dict[int, Array]) -> tuple[Array, ...]:
+    """Times, subjects, range and bearing residuals and measured ranges of the sightings Vicon covers."""
+    use, pose, d = _covered(data, landmark_xy)
+    kept, subjects = data.measurements[use], data.subjects[use]
     range_residuals = kept[:, 2] - np.hypot(d[:, 0], d[:, 1])
     bearing_residuals = wrap(kept[:, 3] - (np.arctan2(d[:, 1], d[:, 0]) - pose[:, 2]))
-    return kept[:, 0], subjects[use], range_residuals, bearing_residuals, kept[:, 2]
+    return kept[:, 0], subjects, range_residuals, bearing_residuals, kept[:, 2]
 
 
 def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> MrclamNoiseFit:

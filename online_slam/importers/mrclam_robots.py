@@ -34,7 +34,7 @@ from online_slam.importers.mrclam import (
     noise_meta,
     odometry_increments,
 )
-from online_slam.importers.mrclam_sightings import camera_of, sighting_sigma, sighting_sigmas, through_camera
+from online_slam.importers.mrclam_sightings import camera_sightings, sighting_sigma, through_camera
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -73,9 +73,7 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Truth(t=float(times[k]), pose=tuple(map(float, true_poses[k])), robot=robot),
         )
-    camera = camera_of(cfg, robot)
-    rows = through_camera(data.measurements, camera)
-    sigmas = sighting_sigmas(cfg, rows[:, 0], data.subjects, rows[:, 2], camera)
+    camera, rows, sigmas = camera_sightings(cfg, robot, data.measurements, data.subjects)
     for row, subject, sigma in zip(rows, data.subjects, sigmas):
         t = float(row[0])
         yield (

@@ -156,15 +156,35 @@ def camera_of(noise: MrclamNoise, robot: int) -> Camera | None:
     return noise.cameras[robot - 1] if len(noise.cameras) >= robot else None
 
 
+def camera_point(
+    placement: tuple[float, float, float, float], logged: np.ndarray, bearing: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where a camera ``(scale, forward_m, left_m, bearing_scale)`` puts sightings of logged range and bearing:
+    ``x, y`` in the robot's frame, each shaped as the input (:class:`Camera`)."""
+    scale, forward, left, bearing_scale = placement
+    depth = scale * logged
+    return depth + forward, depth * np.tan(bearing_scale * bearing) + left
+
+
 def through_camera(rows: np.ndarray, camera: Camera | None) -> np.ndarray:
     """Sighting rows ``(t, barcode, range, bearing)`` as logged -> the range and bearing, from the robot's
     centre, of the point the camera puts the barcode at (:class:`Camera`); unchanged without a camera.
     Shape (N, 4)."""
     if camera is None:
         return rows
-    depth = camera.scale * rows[:, 2]
-    x = depth + camera.forward_m
-    y = depth * np.tan(camera.bearing_scale * rows[:, 3]) + camera.left_m
+    placement = (camera.scale, camera.forward_m, camera.left_m, camera.bearing_scale)
+    x, y = camera_point(placement, rows[:, 2], rows[:, 3])
     out = np.array(rows, dtype=float)
     out[:, 2], out[:, 3] = np.hypot(x, y), np.arctan2(y, x)
     return out
+
+
+def camera_sightings(
+    noise: MrclamNoise, robot: int, rows: np.ndarray, subjects: np.ndarray
+) -> tuple[Camera | None, np.ndarray, np.ndarray]:
+    """One robot's landmark sightings as the stream carries them: its camera (None without one), the rows
+    ``(t, barcode, range, bearing)`` placed by it (:func:`through_camera`), and their widened sigmas
+    (:func:`sighting_sigmas`), shapes (N, 4) and (N, 2)."""
+    camera = camera_of(noise, robot)
+    placed = through_camera(rows, camera)
+    return camera, placed, sighting_sigmas(noise, placed[:, 0], subjects, placed[:, 2], camera)
