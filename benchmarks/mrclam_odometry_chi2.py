@@ -8,7 +8,10 @@ It then compares, by log-likelihood over every robot's covered increments, the m
 as logged, each increment perturbed once at its end), the commands calibrated with one speed scale with that
 end-only noise and with the heading noise accrued along them (each piece's turning the rest of the path), and the
 conversion's model (the speed also slowed by turning): each with its own terms and refitted
-(:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`).
+(:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`) on the increments alone. Last, over consecutive
+windows of the spans the conversion's fit also uses (:data:`~online_slam.importers.mrclam_noise.WINDOWS_S`), the
+mean squared Mahalanobis distance, of the pose and of the heading alone, under the terms fitted on the increments
+alone and under the conversion's.
 """
 
 from __future__ import annotations
@@ -21,13 +24,15 @@ import numpy as np
 
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import MrclamNoise, calibrated, load_robot, read_mrclam
+from online_slam.importers.mrclam import MrclamNoise, calibrated, load_robot, model_covariances, read_mrclam
 from online_slam.importers.mrclam_noise import (
     TERMS,
+    WINDOWS_S,
     IncrementErrors,
     fit_increment_terms,
     increment_errors,
     increment_log_likelihood,
+    window_errors,
 )
 from online_slam.sources.events import Odometry, Start, Truth
 
@@ -100,12 +105,33 @@ def compare_models(folder: str) -> None:
         print(f"{name}: {own:.1f} with its terms; refitted {refitted:.1f} ({terms})")
 
 
+def window_chi2(noise: MrclamNoise, e: IncrementErrors) -> tuple[float, float]:
+    """Mean squared Mahalanobis distance of the increments' errors (pose, 3 if consistent; heading, 1)."""
+    cov = model_covariances(noise, e.commanded, (e.dt, e.path, e.turn), (e.per_s, e.per_rad))
+    pose = np.einsum("ki,ki->k", e.errors, np.linalg.solve(cov, e.errors[..., None])[..., 0])
+    return float(pose.mean()), float(np.mean(e.errors[:, 2] ** 2 / cov[:, 2, 2]))
+
+
+def compare_windows(folder: str) -> None:
+    """Print the windows' figures under the terms fitted on the increments alone and under the conversion's."""
+    datas = [load_robot(Path(folder), robot) for robot in (1, 2, 3, 4, 5)]
+    now = MrclamNoise()
+    commands = [calibrated(d.odometry, now) for d in datas]
+    alone = fit_increment_terms(IncrementErrors.pooled([increment_errors(d, c) for d, c in zip(datas, commands)]), now)
+    print("windows of s: mean chi2 pose, heading; terms fitted on the increments alone -> the conversion's")
+    for width in WINDOWS_S:
+        windows = IncrementErrors.pooled([window_errors(d, c, width) for d, c in zip(datas, commands)])
+        (a_pose, a_heading), (c_pose, c_heading) = window_chi2(alone, windows), window_chi2(now, windows)
+        print(f"{width:>4g} s (n {len(windows.dt):>4}): {a_pose:.2f}, {a_heading:.2f} -> {c_pose:.2f}, {c_heading:.2f}")
+
+
 def main(folder: str = "../shared/data/MRCLAM_Dataset6") -> None:
     """Print the table, then the models' log-likelihoods."""
     print("robot  " + "  ".join(f"{a:g}-{b:g} s: n, mean chi2".ljust(24) for a, b in SPANS))
     for robot in (1, 2, 3, 4, 5):
         print(f"{robot:>5}  " + "  ".join(f"{n:>5}, {m:6.1f}".ljust(24) for n, m in chi2_by_span(folder, robot)))
     compare_models(folder)
+    compare_windows(folder)
 
 
 if __name__ == "__main__":

@@ -51,21 +51,21 @@ from online_slam.sources.events import Event, Header, LandmarkTruth, Observation
 class MrclamNoise:
     """Noise model of the MRCLAM conversion."""
 
-    x_per_s: float = 1.01e-5
+    x_per_s: float = 2.34e-5
     """Forward variance per second elapsed, m^2/s."""
     x_per_m: float = 0.0
     """Forward variance per metre of commanded path, m^2/m."""
-    x_per_m2: float = 0.00228
+    x_per_m2: float = 0.00125
     """Forward variance per squared metre of commanded path."""
-    y_per_s: float = 2.95e-7
+    y_per_s: float = 1.13e-6
     """Lateral variance per second, m^2/s."""
     y_per_m: float = 0.0
     """Lateral variance per metre of commanded path, m^2/m."""
-    y_per_m2: float = 1.95e-4
+    y_per_m2: float = 6.24e-4
     """Lateral variance per squared metre of commanded path."""
-    theta_per_s: float = 1.49e-4
+    theta_per_s: float = 1.51e-4
     """Heading variance per second, rad^2/s."""
-    theta_per_rad: float = 0.00804
+    theta_per_rad: float = 0.0095
     """Heading variance per radian of commanded turn, rad^2/rad (a random walk in the angle turned)."""
     theta_per_rad2: float = 0.0
     """Heading variance per squared radian of commanded turn."""

@@ -25,7 +25,7 @@ its covariances (``--noise fit`` does both).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -79,13 +79,25 @@ AS_COMMANDED = MrclamNoise(command_lag_s=0.0, speed_scale=1.0, turn_scale=1.0, s
 """A model whose :func:`~online_slam.importers.mrclam.calibrated` leaves the commands as logged."""
 SPEED_PER_TURN = np.arange(0.0, 2.001, 0.05)
 """Speed losses per rad/s of turn tried, s/rad."""
+WINDOWS_S = (5.0, 10.0, 20.0, 40.0)
+"""Spans of the consecutive Vicon windows the increments' noise is also fitted on, seconds. The errors are
+correlated for tens of seconds (a heading drift), so a model fitted on the sighting increments alone (most under
+a second) makes long stretches too certain: under it the mean squared heading error in sigmas grows from 0.9 over
+5 s windows to 1.8 over 40 s, and the pose's squared Mahalanobis distance is 4.7-5.2 (3 if consistent)."""
+WINDOWS_SHARE = 0.5
+"""Share of the fit's weight on the windows of :data:`WINDOWS_S` (the sighting increments carry the rest)."""
 CORRELATION_BINS = np.array([0.0, 0.3, 0.6, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 100.0])
 """Edges (seconds apart) of the bins over which residual pairs are averaged to fit the correlation."""
 
 
+def _window_times(data: RobotData, commands: np.ndarray, width: float) -> Array:
+    """Ends of consecutive windows of ``width`` seconds over the time Vicon and the commands cover."""
+    return np.arange(max(data.truth[0, 0], commands[0, 0]) + 1.0, data.truth[-1, 0] - 1.0, width)
+
+
 def _windows(data: RobotData, commands: np.ndarray, width: float, lag: float) -> tuple[Array, Array]:
     """Commanded and Vicon increments over consecutive windows of ``width`` seconds that Vicon covers."""
-    t = np.arange(max(data.truth[0, 0], commands[0, 0]) + 1.0, data.truth[-1, 0] - 1.0, width)
+    t = _window_times(data, commands, width)
     poses, _, _ = _dead_reckoning(commands, t - lag)
     commanded = between(poses[:-1], poses[1:])
     truth, covered = _interpolate_truth(data.truth, t)
@@ -183,6 +195,11 @@ def increment_errors(data: RobotData, commands: Array) -> IncrementErrors:
     )
 
 
+def window_errors(data: RobotData, commands: Array, width: float) -> IncrementErrors:
+    """:func:`increment_errors` of consecutive windows of ``width`` seconds instead of the pose times."""
+    return increment_errors(replace(data, times=_window_times(data, commands, width)), commands)
+
+
 TERMS = ("x_per_s", "x_per_m2", "y_per_s", "y_per_m2", "theta_per_s", "theta_per_rad")
 """The odometry model's terms that the fit estimates (the others are zero in it)."""
 
@@ -195,18 +212,24 @@ def increment_log_likelihood(noise: MrclamNoise, e: IncrementErrors) -> float:
     return -0.5 * float(np.sum(log_det + chi2))
 
 
-def fit_increment_terms(e: IncrementErrors, start: MrclamNoise) -> MrclamNoise:
-    """Maximum-likelihood :data:`TERMS` (the others zero), from ``start``'s values, bounded to ``[e^-40, e^10]``."""
+def fit_increment_terms(e: IncrementErrors, start: MrclamNoise, windows: Sequence[IncrementErrors] = ()) -> MrclamNoise:
+    """Maximum-likelihood :data:`TERMS` (the others zero), from ``start``'s values, bounded to ``[e^-40, e^10]``.
+
+    With ``windows`` (increments over longer spans, :func:`window_errors`), a composite likelihood: they carry
+    :data:`WINDOWS_SHARE` of the weight, split evenly between them, and ``e`` the rest.
+    """
     zero = {"x_per_m": 0.0, "y_per_m": 0.0, "theta_per_rad2": 0.0}
+    weights = [1.0] + [WINDOWS_SHARE / (1.0 - WINDOWS_SHARE) * len(e.dt) / (len(w.dt) * len(windows)) for w in windows]
 
     def model(log_terms: Array) -> MrclamNoise:
         return replace(start, **zero, **dict(zip(TERMS, map(float, np.exp(log_terms)))))
 
+    def cost(log_terms: Array) -> float:
+        noise = model(log_terms)
+        return -sum(w * increment_log_likelihood(noise, part) for w, part in zip(weights, (e, *windows)))
+
     first = np.log([max(getattr(start, name), 1e-12) for name in TERMS])
-    best = minimize(
-        lambda q: -increment_log_likelihood(model(q), e), first, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 6
-    )
-    return model(best.x)
+    return model(minimize(cost, first, method="L-BFGS-B", bounds=[(-40.0, 10.0)] * 6).x)
 
 
 def fit_sighting_correlation(times: Array, subjects: Array, residuals: Array) -> tuple[float, float, float, float]:
@@ -363,8 +386,10 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     datas = [load_robot(root, r) for r in robots]
     lag, speed, turn, loss = fit_command_calibration(datas)
     noise = replace(defaults, command_lag_s=lag, speed_scale=speed, turn_scale=turn, speed_per_turn=loss)
-    errors = IncrementErrors.pooled([increment_errors(d, calibrated(d.odometry, noise)) for d in datas])
-    noise = fit_increment_terms(errors, noise)
+    commands = [calibrated(d.odometry, noise) for d in datas]
+    errors = IncrementErrors.pooled([increment_errors(d, c) for d, c in zip(datas, commands)])
+    windows = [IncrementErrors.pooled([window_errors(d, c, w) for d, c in zip(datas, commands)]) for w in WINDOWS_S]
+    noise = fit_increment_terms(errors, noise, windows)
     fitted = [fit_camera(d, landmark_xy) for d in datas]
     cameras = list(defaults.cameras)  # a robot left out of the fit keeps its default camera
     for robot, camera in zip(robots, fitted):
