@@ -11,7 +11,7 @@ conversion's model (the speed also slowed by turning): each with its own terms a
 (:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`) on the increments alone. Last, over consecutive
 windows of the spans the conversion's fit also uses (:data:`~online_slam.importers.mrclam_noise.WINDOWS_S`), the
 mean squared Mahalanobis distance, of the pose and of the heading alone, under the terms fitted on the increments
-alone and under the conversion's.
+alone and under the conversion's; and each robot's heading drift against the distance it covers.
 """
 
 from __future__ import annotations
@@ -40,8 +40,9 @@ SPANS = ((0.0, 1.0), (1.0, 5.0), (5.0, 15.0), (15.0, np.inf))
 """Groups of increments by the seconds they span."""
 
 
-def chi2_by_span(folder: str, robot: int) -> list[tuple[int, float]]:
-    """(count, mean squared Mahalanobis distance) of one robot's increments in each of :data:`SPANS`."""
+def chi2_by_span(folder: str, robot: int) -> tuple[list[tuple[int, float]], tuple[float, float]]:
+    """(count, mean squared Mahalanobis distance) of one robot's increments in each of :data:`SPANS`, and (seconds,
+    squared Mahalanobis distance) of its longest increment."""
     truth: dict[float, np.ndarray] = {}
     increments = []
     last = 0.0
@@ -62,7 +63,8 @@ def chi2_by_span(folder: str, robot: int) -> list[tuple[int, float]]:
             chi2.append(float(error @ np.linalg.solve(cov, error)))
     s, c = np.array(spans), np.array(chi2)
     groups = [(s >= low) & (s < high) for low, high in SPANS]
-    return [(int(np.sum(m)), float(c[m].mean()) if m.any() else float("nan")) for m in groups]
+    longest = int(np.argmax(s))
+    return [(int(np.sum(m)), float(c[m].mean()) if m.any() else float("nan")) for m in groups], (s[longest], c[longest])
 
 
 EARLIER = MrclamNoise(
@@ -125,13 +127,33 @@ def compare_windows(folder: str) -> None:
         print(f"{width:>4g} s (n {len(windows.dt):>4}): {a_pose:.2f}, {a_heading:.2f} -> {c_pose:.2f}, {c_heading:.2f}")
 
 
-def main(folder: str = "../shared/data/MRCLAM_Dataset6") -> None:
-    """Print the table, then the models' log-likelihoods."""
-    print("robot  " + "  ".join(f"{a:g}-{b:g} s: n, mean chi2".ljust(24) for a, b in SPANS))
+def heading_drift(folder: str, width: float = 5.0) -> None:
+    """Print each robot's heading drift: the least-squares slope of Vicon's turn minus the calibrated commands'
+    over windows of ``width`` seconds against the distance commanded in them, rad/m (negative: clockwise), over
+    the whole run and over its first and second halves, with the windows' RMS heading error before and after."""
+    now = MrclamNoise()
+    print(f"heading drift, {width:g} s windows: rad/m over the run (first half, second half); RMS rad before -> after")
     for robot in (1, 2, 3, 4, 5):
-        print(f"{robot:>5}  " + "  ".join(f"{n:>5}, {m:6.1f}".ljust(24) for n, m in chi2_by_span(folder, robot)))
+        data = load_robot(Path(folder), robot)
+        w = window_errors(data, calibrated(data.odometry, now), width)
+        turn, distance = -w.errors[:, 2], w.path  # Vicon minus commanded; the commands never go backwards
+        half = len(turn) // 2
+        parts = (slice(None), slice(None, half), slice(half, None))
+        slopes = [float(distance[k] @ turn[k] / (distance[k] @ distance[k])) for k in parts]
+        before, after = np.sqrt(np.mean(turn**2)), np.sqrt(np.mean((turn - slopes[0] * distance) ** 2))
+        print(f"{robot:>5}  {slopes[0]:+.4f} ({slopes[1]:+.4f}, {slopes[2]:+.4f}); {before:.4f} -> {after:.4f}")
+
+
+def main(folder: str = "../shared/data/MRCLAM_Dataset6") -> None:
+    """Print the table, the models' log-likelihoods, the windows' figures and the robots' heading drift."""
+    print("robot  " + "  ".join(f"{a:g}-{b:g} s: n, mean chi2".ljust(24) for a, b in SPANS) + "  longest: s, chi2")
+    for robot in (1, 2, 3, 4, 5):
+        spans, (seconds, chi2) = chi2_by_span(folder, robot)
+        cells = "  ".join(f"{n:>5}, {m:6.1f}".ljust(24) for n, m in spans)
+        print(f"{robot:>5}  {cells}  {seconds:.1f}, {chi2:.1f}")
     compare_models(folder)
     compare_windows(folder)
+    heading_drift(folder)
 
 
 if __name__ == "__main__":

@@ -7,10 +7,13 @@ robot of a dataset folder:
   minimizes the heading error of 1 s windows), and covers ``speed_scale`` and ``turn_scale`` of the commanded
   distance and turn (least squares over 5 s windows, long enough that the lag hardly matters), the speed slowed
   by turning (``speed_per_turn``, the loss that leaves the least forward error);
-- **the increments' noise**: per increment, forward and lateral variances ``a dt + c s^2`` along the axes of the
-  pose it reaches, and heading variance ``a dt + b |turn|`` accrued along its commands (each piece's heading
-  noise turning the rest of its path); the six terms by maximum likelihood of the full 3x3 covariances
-  (``scipy.optimize.minimize`` over their logarithms) against the Vicon increments;
+- **the increments' noise**: per increment, forward and lateral variances ``x_per_s dt + x_per_m2 s^2`` (and
+  ``y_...``) along the axes of the pose it reaches, and heading variance ``theta_per_s dt + theta_per_rad |turn|``
+  accrued along its commands (each piece's heading noise turning the rest of its path), ``floor`` added to each
+  and not fitted; the six terms by maximum likelihood of the full 3x3 covariances (``scipy.optimize.minimize``
+  over their logarithms) against the Vicon increments and, beside them, windows of 5-40 s (:data:`WINDOWS_S`):
+  the errors are correlated, so a model right for the sub-second increments is too sure over a long stretch
+  without sightings, which the conversion turns into one increment;
 - **each robot's camera** (:func:`fit_camera`): where it puts a sighting (a logged range is a depth), and its range
   and bearing sigmas as a Gaussian beside a uniform share of outliers (a few rows carry another landmark's
   barcode), the range's growing with the range;
@@ -80,12 +83,15 @@ AS_COMMANDED = MrclamNoise(command_lag_s=0.0, speed_scale=1.0, turn_scale=1.0, s
 SPEED_PER_TURN = np.arange(0.0, 2.001, 0.05)
 """Speed losses per rad/s of turn tried, s/rad."""
 WINDOWS_S = (5.0, 10.0, 20.0, 40.0)
-"""Spans of the consecutive Vicon windows the increments' noise is also fitted on, seconds. The errors are
-correlated for tens of seconds (a heading drift), so a model fitted on the sighting increments alone (most under
-a second) makes long stretches too certain: under it the mean squared heading error in sigmas grows from 0.9 over
-5 s windows to 1.8 over 40 s, and the pose's squared Mahalanobis distance is 4.7-5.2 (3 if consistent)."""
+"""Lengths of the consecutive, non-overlapping Vicon windows the increments' noise is also fitted on, seconds.
+The errors are correlated for tens of seconds (a heading drift), so a model fitted on the sighting increments
+alone (most under a second) makes long stretches too certain: under it the mean squared heading error in sigmas
+grows from 0.9 over 5 s windows to 1.8 over 40 s, and the pose's squared Mahalanobis distance is 4.6-5.2 (3 if
+consistent)."""
 WINDOWS_SHARE = 0.5
-"""Share of the fit's weight on the windows of :data:`WINDOWS_S` (the sighting increments carry the rest)."""
+"""Share of the fit's summed log-likelihood weight on the windows of :data:`WINDOWS_S`, split evenly between the
+window lengths whatever their counts (each window's log-likelihood scaled to match); the sighting increments carry
+the rest."""
 CORRELATION_BINS = np.array([0.0, 0.3, 0.6, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0, 30.0, 50.0, 100.0])
 """Edges (seconds apart) of the bins over which residual pairs are averaged to fit the correlation."""
 
@@ -196,7 +202,9 @@ def increment_errors(data: RobotData, commands: Array) -> IncrementErrors:
 
 
 def window_errors(data: RobotData, commands: Array, width: float) -> IncrementErrors:
-    """:func:`increment_errors` of consecutive windows of ``width`` seconds instead of the pose times."""
+    """:func:`increment_errors` of consecutive, non-overlapping windows of ``width`` seconds instead of the pose
+    times, from 1 s after Vicon and the commands start to 1 s before Vicon ends; a window Vicon does not cover at
+    both ends is left out."""
     return increment_errors(replace(data, times=_window_times(data, commands, width)), commands)
 
 
