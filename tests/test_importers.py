@@ -154,6 +154,7 @@ def test_mrclam_robot_counts_match_the_provenance() -> None:
     header = events[0]
     assert header.meta["poses"] == 1012 and header.meta["landmark_observations"] == 1534
     assert header.meta["dropped_robot_observations"] == 407 and header.meta["dropped_unknown_barcodes"] == 1
+    assert header.meta["dropped_own_barcode"] == 0
     assert len(events_of(LandmarkTruth, events)) == 15 and len(events_of(Observation, events)) == 1534
 
 
@@ -264,7 +265,6 @@ def _robot_data(
         subjects=np.zeros(0, dtype=int) if subjects is None else subjects,
         times=np.unique(rows[:, 0]) if len(rows) else vicon[:1, 0],
         truth=vicon,
-        dropped_robots=0,
         dropped_unknown=0,
         robot_rows=np.zeros((0, 4)),
         robots_seen=np.zeros(0, dtype=int),

@@ -226,8 +226,6 @@ class RobotData:
     """Distinct sighting times: the pose times, shape (P,)."""
     truth: np.ndarray
     """Vicon poses (t, x, y, theta), shape (G, 4)."""
-    dropped_robots: int
-    """Sightings of other robots (dropped when the robot is converted alone)."""
     dropped_unknown: int
     """Sightings of barcodes not in ``Barcodes.dat``, dropped."""
     robot_rows: np.ndarray
@@ -274,7 +272,6 @@ def load_robot(root: Path, robot: int) -> RobotData:
         subjects=kept_subjects[order],
         times=np.unique(kept[:, 0]),
         truth=truth,
-        dropped_robots=int(np.sum((subjects >= 1) & (subjects <= 5))),
         dropped_unknown=int(np.sum(subjects < 0)),
         robot_rows=others[by_time],
         robots_seen=others_seen[by_time],
@@ -434,7 +431,8 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
             "robot": robot,
             "poses": int(len(times)),
             "landmark_observations": int(len(kept)),
-            "dropped_robot_observations": data.dropped_robots,
+            "dropped_robot_observations": int(len(data.robot_rows)),
+            "dropped_own_barcode": data.dropped_self,
             "dropped_unknown_barcodes": data.dropped_unknown,
             "noise": noise_meta(cfg),
             "sightings_correlated": correlates(cfg),
