@@ -1,7 +1,8 @@
 """Where an MRCLAM robot's online error and NEES come from: per stretch of its run.
 
 The online estimators' position RMSE and mean pose NEES (3 if consistent) per ``BIN`` seconds from the robot's
-first pose: the replay's own per-step figures (``Results.series``), which the table averages over the run.
+first pose, over the steps with a NEES (those Vicon covers): the replay's own per-step figures
+(``Results.series``), whose run averages are the online RMSE and mean NEES of ``online-slam replay``'s table.
 
 ``python -m benchmarks.mrclam_by_time ROBOT [FOLDER] [BIN]`` (default ``../shared/data/MRCLAM_Dataset6``, 50 s).
 """

@@ -1,15 +1,15 @@
-"""How honest the MRCLAM conversion's odometry covariances are, by the length of the increment.
+"""How honest the MRCLAM conversion's odometry covariances are, by the seconds an increment spans.
 
 For every increment whose two ends Vicon covers, the squared Mahalanobis distance of its error against the Vicon
 increment, ``e^T C^-1 e`` (3 if consistent), averaged per robot over increments grouped by the time they span.
 ``python -m benchmarks.mrclam_odometry_chi2 [FOLDER]`` (default ``../shared/data/MRCLAM_Dataset6``).
 
 It then compares, by log-likelihood over every robot's covered increments, the model before 2026-12-04 (commands
-as logged, each increment perturbed once at its end), the commands calibrated with one speed scale with that
-end-only noise and with the heading noise accrued along them (each piece's turning the rest of the path), and the
-conversion's model (the speed also slowed by turning): each with its own terms and refitted
+as logged, each increment perturbed once at its end), two models of the commands calibrated with one speed scale
+(one with that end-only noise, one with the heading noise accrued along the commands, each piece's turning the
+rest of the path), and the conversion's model (the speed also slowed by turning): each with its own terms and refitted
 (:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`) on the increments alone. Last, over consecutive
-windows of the spans the conversion's fit also uses (:data:`~online_slam.importers.mrclam_noise.WINDOWS_S`), the
+windows of the lengths the conversion's fit also uses (:data:`~online_slam.importers.mrclam_noise.WINDOWS_S`), the
 mean squared Mahalanobis distance, of the pose and of the heading alone, under the terms fitted on the increments
 alone and under the conversion's; and each robot's heading drift against the distance it covers.
 """
