@@ -32,6 +32,7 @@ from online_slam.importers.mrclam_noise import (
     fit_command_calibration,
     fit_increment_terms,
     fit_mrclam_noise,
+    fit_robot_barcode,
     fit_sighting_correlation,
     fit_sighting_sigma,
     increment_errors,
@@ -431,6 +432,24 @@ def test_the_camera_fit_recovers_a_simulated_camera() -> None:
     )
 
 
+def test_robot_barcode_fit_finds_how_much_farther_a_seen_robot_reads() -> None:
+    """Robot 1 drives along y = 0 and sights robot 2, parked at (3, 1), 4 cm too far (a camera with no offset,
+    exact bearings), and once robot 3, which is not in the fit: the median residual is 4 cm."""
+    t = np.linspace(0.0, 10.0, 101)
+    robot1 = np.column_stack([t, 0.1 * t, np.zeros_like(t), np.zeros_like(t)])
+    robot2 = np.column_stack([t, np.full_like(t, 3.0), np.ones_like(t), np.zeros_like(t)])
+    seen_at = t[1:-1:5]
+    d = np.column_stack([3.0 - 0.1 * seen_at, np.ones_like(seen_at)])
+    bearing = np.arctan2(d[:, 1], d[:, 0])
+    depth = (np.hypot(d[:, 0], d[:, 1]) + 0.04) * np.cos(bearing)  # a logged range is a depth (Camera)
+    rows = np.column_stack([seen_at, np.full_like(seen_at, 14), depth, bearing])
+    first = replace(_robot_data(np.zeros((1, 3)), robot1), robot_rows=np.r_[rows, [[5.0, 41, 9.0, 0.0]]],
+                    robots_seen=np.r_[np.full(len(rows), 2), 3])  # fmt: skip
+    second = _robot_data(np.zeros((1, 3)), robot2)
+    camera = Camera(1.0, 0.0, 0.0, 1.0, 0.0, 0.01, 0.01)
+    assert fit_robot_barcode({1: first, 2: second}, {1: camera, 2: camera}) == pytest.approx(0.04, abs=1e-9)
+
+
 def test_sighting_correlation_fit_recovers_two_time_scales() -> None:
     """Residuals of three landmarks as a sum of two Ornstein-Uhlenbeck processes and white noise, sampled at
     irregular times: the fit finds the weights and time constants."""
@@ -470,7 +489,7 @@ def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path:
     builtin = MrclamNoise()
     assert fit.increments > 8000 and fit.measurements > 15000
     names = ("x_per_s", "x_per_m2", "y_per_m2", "theta_per_s", "theta_per_rad", "command_lag_s", "speed_scale")
-    for name in (*names, "turn_scale", "speed_per_turn"):
+    for name in (*names, "turn_scale", "speed_per_turn", "robot_barcode_m"):
         assert getattr(fit.noise, name) == pytest.approx(getattr(builtin, name), rel=0.02), name
     assert fit.noise.range_correlation == pytest.approx(builtin.range_correlation, rel=0.02)
     assert fit.noise.bearing_correlation == pytest.approx(builtin.bearing_correlation, rel=0.02)

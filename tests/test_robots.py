@@ -19,7 +19,8 @@ from online_slam import Slam
 from online_slam.errors import InputError
 from online_slam.frontend import FrontEnd
 from online_slam.importers import open_dataset
-from online_slam.importers.mrclam import _interpolate_truth, _table
+from online_slam.importers.mrclam import MrclamNoise, _interpolate_truth, _table
+from online_slam.importers.mrclam_robots import read_mrclam_robots
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources import (
     WORLDS,
@@ -260,6 +261,19 @@ def test_all_mrclam_robots_merge_by_time_and_link_robot_sightings(tmp_path: Path
     assert (sighting.robot, sighting.robot_seen, sighting.t, sighting.landmark) == (1, 2, 2.0, None)
     assert any(isinstance(e, Odometry) and e.robot == 1 and e.t == 2.0 for e in events)  # the sighting robot's pose
     assert {e.robot for e in events if isinstance(e, Truth)} == {1, 2, 3, 4, 5}
+
+
+def test_robot_sightings_read_the_seen_robot_closer_by_the_barcode_offset(tmp_path: Path) -> None:
+    """The range of a robot sighting is the camera's placement less ``robot_barcode_m``."""
+    folder = tmp_path / "MRCLAM_Dataset9"
+    write_tiny_mrclam(folder)
+
+    def robot_sighting(noise: MrclamNoise) -> Observation:
+        (found,) = [e for e in read_mrclam_robots(folder, noise) if isinstance(e, Observation) and e.robot_seen]
+        return found
+
+    plain, offset = robot_sighting(MrclamNoise(robot_barcode_m=0.0)), robot_sighting(MrclamNoise(robot_barcode_m=0.05))
+    assert plain.range - offset.range == pytest.approx(0.05, abs=1e-12) and plain.bearing == offset.bearing
 
 
 @needs_mrclam

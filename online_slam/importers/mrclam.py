@@ -102,6 +102,10 @@ class MrclamNoise:
     """Each robot's camera, robots 1..5 in order (:class:`Camera`): the stream carries the range and bearing of
     the point the robot's camera puts a sighting at, with the camera's sigmas. Empty: the logged columns as they
     are, with the sigmas above."""
+    robot_barcode_m: float = 0.0253
+    """How much farther a robot reads than its Vicon centre when another robot sights it through its camera, m:
+    taken off the range of robot sightings (``--robot all``; fitted as the median over every robot's sightings of
+    robots, :func:`~online_slam.importers.mrclam_noise.fit_robot_barcode`: 0.022-0.042 m by observing robot)."""
     start_sigma: float = 0.01
     """Standard deviation of the start prior (x, y in m, theta in rad)."""
 

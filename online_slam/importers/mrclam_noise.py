@@ -17,6 +17,8 @@ robot of a dataset folder:
 - **each robot's camera** (:func:`fit_camera`): where it puts a sighting (a logged range is a depth), and its range
   and bearing sigmas as a Gaussian beside a uniform share of outliers (a few rows carry another landmark's
   barcode), the range's growing with the range;
+- **robot sightings** (``--robot all``): how much farther a seen robot reads than its Vicon centre
+  (:func:`fit_robot_barcode`);
 - **the sightings' correlation**: of one landmark's errors with time apart, each residual divided by its camera's
   sigma (two exponentials fitted to the binned products of residual pairs); and sigmas pooled over the robots,
   for a robot without a camera.
@@ -377,6 +379,24 @@ def _sighting_residuals(data: RobotData, landmark_xy: dict[int, Array]) -> tuple
     return kept[:, 0], subjects, range_residuals, bearing_residuals, kept[:, 2]
 
 
+def fit_robot_barcode(datas: dict[int, RobotData], cameras: dict[int, Camera]) -> float:
+    """How much farther a robot reads than its Vicon centre when another robot sights it, m: the median range
+    residual of the robots' sightings of each other (placed by the observer's camera) against the two robots'
+    Vicon centres, over the pairs whose data are given and the times Vicon covers both; 0 without any."""
+    residuals = []
+    for robot, data in datas.items():
+        rows = through_camera(data.robot_rows, cameras[robot])
+        here, inside = _interpolate_truth(data.truth, rows[:, 0])
+        for seen in sorted(set(data.robots_seen.tolist()) & datas.keys()):
+            mask = data.robots_seen == seen
+            there, covered = _interpolate_truth(datas[seen].truth, rows[mask, 0])
+            both = inside[mask] & covered
+            offset = there[both, :2] - here[mask][both, :2]
+            residuals.append(rows[mask][both, 2] - np.hypot(offset[:, 0], offset[:, 1]))
+    found = np.concatenate(residuals) if residuals else np.zeros(0)
+    return float(np.median(found)) if len(found) else 0.0
+
+
 def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> MrclamNoiseFit:
     """Fit the MRCLAM model (calibration, increments' noise, sightings' noise) against Vicon over the given robots.
 
@@ -402,7 +422,8 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     cameras = list(defaults.cameras)  # a robot left out of the fit keeps its default camera
     for robot, camera in zip(robots, fitted):
         cameras[robot - 1] = camera
-    noise = replace(noise, cameras=tuple(cameras))
+    barcode = fit_robot_barcode(dict(zip(robots, datas)), dict(zip(robots, fitted)))
+    noise = replace(noise, cameras=tuple(cameras), robot_barcode_m=round(barcode, 4))
     seen = [replace(d, measurements=through_camera(d.measurements, c)) for d, c in zip(datas, fitted)]
     sightings = [_sighting_residuals(d, landmark_xy) for d in seen]
     # one time line for all robots, 1000 s apart, so that no residual pair spans two robots
