@@ -8,9 +8,10 @@ model, odometry integrated exactly from its commands), with these differences:
 - Its poses are at the times of all of its own sightings (landmarks and robots) and at the times another robot
   sights it, so that a robot sighting links two poses of the same time.
 - Its sightings of other robots are placed by its camera too, their range shortened by ``robot_barcode_m`` (a
-  robot reads farther than its Vicon centre), and widened for their correlation as landmark sightings are, each
-  seen robot taking a landmark's place (:func:`~online_slam.importers.mrclam_sightings.sighting_sigmas`; on
-  Dataset 6 their errors correlate as much: range ``0.23 exp(-dt / 1.9) + 0.44 exp(-dt / 31)``).
+  robot reads farther than its Vicon centre), and widened for their correlation as landmark sightings are, with
+  the model's correlation, one observer's sightings of one seen robot grouped as one landmark's
+  (:func:`~online_slam.importers.mrclam_sightings.sighting_sigmas`; on Dataset 6 their errors are correlated too:
+  range ``0.23 exp(-dt / 1.9 s) + 0.44 exp(-dt / 31 s)`` in the camera's sigmas).
 - Its start is its Vicon pose at its first pose time, with the conversion's small prior (``start_sigma``): the
   anchor's convention (every robot starts at its Vicon pose; the anchor's prior is zero).
 
