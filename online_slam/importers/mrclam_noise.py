@@ -55,7 +55,7 @@ from online_slam.importers.mrclam import (
     pieces,
     sampled,
 )
-from online_slam.importers.mrclam_sightings import Camera, camera_point, correlation, through_camera
+from online_slam.importers.mrclam_sightings import Camera, base_sigmas, camera_point, correlation, through_camera
 
 Array = NDArray[np.float64]
 
@@ -439,8 +439,8 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     # robot's own bias removed
     normalized = []
     for (_, _, r, b, at), camera in zip(sightings, fitted):
-        sigma_r = camera.range_sigma + camera.range_sigma_per_m * at
-        normalized.append(((r - np.median(r)) / sigma_r, (b - np.median(b)) / camera.bearing_sigma))
+        sigma = base_sigmas(noise, at, camera)
+        normalized.append(((r - np.median(r)) / sigma[:, 0], (b - np.median(b)) / sigma[:, 1]))
     r_c, b_c = (np.concatenate([n[k] for n in normalized]) for k in (0, 1))
     inlier = (np.abs(r_c) < 5.0) & (np.abs(b_c) < 5.0)
     noise = replace(

@@ -36,7 +36,7 @@ from online_slam.importers.mrclam import (
     noise_meta,
     odometry_increments,
 )
-from online_slam.importers.mrclam_sightings import camera_sightings, sighting_sigmas, through_camera
+from online_slam.importers.mrclam_sightings import camera_sightings
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -84,10 +84,8 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Observation(t, int(subject), float(row[2]), float(row[3]), (float(sigma[0]), float(sigma[1])), robot=robot),
         )
-    placed = through_camera(data.robot_rows, camera)
-    ranges = placed[:, 2] - cfg.robot_barcode_m
-    widened = sighting_sigmas(cfg, placed[:, 0], data.robots_seen, ranges, camera)
-    for row, seen, distance, sigma in zip(placed, data.robots_seen, ranges, widened):
+    _, placed, widened = camera_sightings(cfg, robot, data.robot_rows, data.robots_seen, cfg.robot_barcode_m)
+    for row, seen, sigma in zip(placed, data.robots_seen, widened):
         t = float(row[0])
         yield (
             t,
@@ -96,7 +94,7 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             Observation(
                 t,
                 None,
-                float(distance),
+                float(row[2]),
                 float(row[3]),
                 (float(sigma[0]), float(sigma[1])),
                 robot=robot,

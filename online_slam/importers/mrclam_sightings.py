@@ -49,11 +49,20 @@ CAMERAS = (
 :func:`~online_slam.importers.mrclam_noise.fit_camera`."""
 
 
-def sighting_sigma(noise: MrclamNoise, measured_range: float, camera: Camera | None = None) -> tuple[float, float]:
-    """Range and bearing standard deviations of a sighting at its range (m, rad), errors independent: the camera's
-    when there is one, else the model's."""
+def base_sigmas(noise: MrclamNoise, ranges: np.ndarray, camera: Camera | None = None) -> np.ndarray:
+    """Range and bearing standard deviations (m, rad) of sightings at their ranges, errors independent: the
+    camera's when there is one, else the model's. Shape (N, 2)."""
     sigmas = camera or noise
-    return (sigmas.range_sigma + sigmas.range_sigma_per_m * float(measured_range), sigmas.bearing_sigma)
+    ranges = np.asarray(ranges, dtype=float)
+    return np.stack(
+        [sigmas.range_sigma + sigmas.range_sigma_per_m * ranges, np.full(len(ranges), sigmas.bearing_sigma)], -1
+    )
+
+
+def sighting_sigma(noise: MrclamNoise, measured_range: float, camera: Camera | None = None) -> tuple[float, float]:
+    """:func:`base_sigmas` of one sighting."""
+    range_sigma, bearing_sigma = base_sigmas(noise, np.array([measured_range]), camera)[0]
+    return float(range_sigma), float(bearing_sigma)
 
 
 def correlation(terms: tuple[float, float, float, float], dt: np.ndarray) -> np.ndarray:
@@ -85,15 +94,12 @@ def sighting_sigmas(
         times: Sighting times, sorted, shape (N,).
         subjects: Landmark of each sighting, shape (N,).
         ranges: Measured ranges, shape (N,).
-        camera: The robot's camera, whose sigmas replace the model's (:func:`sighting_sigma`).
+        camera: The robot's camera, whose sigmas replace the model's (:func:`base_sigmas`).
 
     Returns:
         Sigmas ``[range, bearing]``, shape (N, 2).
     """
-    sigmas = camera or noise
-    base = np.stack(
-        [sigmas.range_sigma + sigmas.range_sigma_per_m * ranges, np.full(len(times), sigmas.bearing_sigma)], -1
-    )
+    base = base_sigmas(noise, ranges, camera)
     factors = [
         information_factors(times, subjects, terms) for terms in (noise.range_correlation, noise.bearing_correlation)
     ]
@@ -180,11 +186,12 @@ def through_camera(rows: np.ndarray, camera: Camera | None) -> np.ndarray:
 
 
 def camera_sightings(
-    noise: MrclamNoise, robot: int, rows: np.ndarray, subjects: np.ndarray
+    noise: MrclamNoise, robot: int, rows: np.ndarray, subjects: np.ndarray, range_offset: float = 0.0
 ) -> tuple[Camera | None, np.ndarray, np.ndarray]:
-    """One robot's landmark sightings as the stream carries them: its camera (None without one), the rows
-    ``(t, barcode, range, bearing)`` placed by it (:func:`through_camera`), and their widened sigmas
-    (:func:`sighting_sigmas`), shapes (N, 4) and (N, 2)."""
+    """One robot's sightings as the stream carries them: its camera (None without one), the rows
+    ``(t, barcode, range, bearing)`` placed by it (:func:`through_camera`), their range less ``range_offset``, and
+    their widened sigmas (:func:`sighting_sigmas`, ``subjects`` grouping them), shapes (N, 4) and (N, 2)."""
     camera = camera_of(noise, robot)
-    placed = through_camera(rows, camera)
+    placed = np.array(through_camera(rows, camera), dtype=float)
+    placed[:, 2] -= range_offset
     return camera, placed, sighting_sigmas(noise, placed[:, 0], subjects, placed[:, 2], camera)
