@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from online_slam.errors import ConfigError, OnlineSlamError
+from online_slam.faults import crash_point
 from online_slam.options import OPTIONS, check_value, estimator_options, flag, replay_config
 from online_slam.pipeline import ESTIMATORS, ReplayConfig
 from online_slam.sources.worlds import WORLDS
@@ -286,6 +287,7 @@ def sweep(
                 if path is not None:
                     _append(path, cell_rows, rows)
                 finished += 1
+                crash_point("cells", finished - (total - len(todo)))
                 if progress is not None:
                     progress(finished, total)
         finally:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -10,7 +13,45 @@ import pytest
 
 from online_slam.geometry import wrap
 
-SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA_VARIABLE = "ONLINE_SLAM_DATA"
+SHARED_DATA = Path(os.environ.get(DATA_VARIABLE) or Path(__file__).resolve().parents[2] / "shared" / "data")
+"""The real datasets: ``$ONLINE_SLAM_DATA``, by default ``../shared/data`` beside the repository."""
+REAL_DATA_SKIP = "real data: "
+
+
+def needs_data(relative: str) -> pytest.MarkDecorator:
+    """Skip a test when the real dataset ``relative`` (a folder or file under :data:`SHARED_DATA`) is absent."""
+    return pytest.mark.skipif(
+        not (SHARED_DATA / relative).exists(),
+        reason=f"{REAL_DATA_SKIP}{relative} is not in {SHARED_DATA} (set {DATA_VARIABLE})",
+    )
+
+
+def assert_close(a: object, b: object, rtol: float = 1e-12, where: str = "") -> None:
+    """a equals b with floats (anywhere in dataclasses, dicts, sequences, arrays) equal to ``rtol``.
+
+    For what one CPU computes and another recomputes: ``np.sin``, ``exp`` and BLAS kernels differ in the last
+    bits between CPUs, so values written on one machine are compared to a fresh computation with a tolerance.
+    """
+    if dataclasses.is_dataclass(a) and not isinstance(a, type):
+        assert type(a) is type(b), f"{where}: {type(a).__name__} != {type(b).__name__}"
+        for f in dataclasses.fields(a):
+            assert_close(getattr(a, f.name), getattr(b, f.name), rtol, f"{where}.{f.name}")
+    elif isinstance(a, dict):
+        assert isinstance(b, dict) and set(a) == set(b), f"{where}: keys {sorted(a)} != {sorted(b)}"
+        for k in a:
+            assert_close(a[k], b[k], rtol, f"{where}[{k!r}]")
+    elif isinstance(a, (list, tuple, np.ndarray)) and not isinstance(a, str):
+        assert len(a) == len(b), f"{where}: length {len(a)} != {len(b)}"
+        for k, (x, y) in enumerate(zip(a, b)):
+            assert_close(x, y, rtol, f"{where}[{k}]")
+    elif isinstance(a, (float, np.floating)) and not isinstance(b, bool):
+        assert isinstance(b, (float, int, np.floating)), f"{where}: {a!r} != {b!r}"
+        assert math.isclose(a, b, rel_tol=rtol, abs_tol=rtol) or (math.isnan(a) and math.isnan(b)), (
+            f"{where}: {a!r} != {b!r}"
+        )
+    else:
+        assert a == b, f"{where}: {a!r} != {b!r}"
 
 
 def numerical_jacobian(
@@ -46,15 +87,26 @@ HEAVY_FIRST = (
 )  # fmt: skip
 
 
+# The floating-point-sensitive modules: `.ci/run` runs their fast tests (and those marked `portable`) again under
+# every OpenBLAS kernel family the CPU can run, since BLAS kernels round differently (see .ci/run).
+PORTABLE_MODULES = (
+    "test_ekf.py", "test_smoother.py", "test_solver.py", "test_article.py", "test_shipped_replays.py",
+    "test_geometry.py", "test_models.py", "test_checkpoint.py", "test_slam_api.py",
+)  # fmt: skip
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Collect the heaviest modules first (a stable sort: each module stays whole and in its own order)."""
+    """Collect the heaviest modules first (a stable sort: each module stays whole and in its own order); mark the
+    fast tests of the floating-point-sensitive modules ``portable``."""
     rank = {name: k for k, name in enumerate(HEAVY_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+    for item in items:
+        if item.path.name in PORTABLE_MODULES and item.get_closest_marker("slow") is None:
+            item.add_marker(pytest.mark.portable)
 
 
 # -- processes: every test stops what it starts, children included -------------------------------------------
 import contextlib  # noqa: E402
-import os  # noqa: E402
 import subprocess  # noqa: E402
 import time  # noqa: E402
 import uuid  # noqa: E402
@@ -103,6 +155,12 @@ def stop_process_tree(process: subprocess.Popen | psutil.Process, timeout: float
         process.wait(timeout=timeout)
 
 
+def stop_marked_processes() -> None:
+    """Stop every process this session started that still runs: the orphans of a process that was killed."""
+    for process in _marked_processes():
+        stop_process_tree(process)
+
+
 @pytest.fixture
 def processes():
     """Start processes for a test (``processes(cmd, **popen_kwargs)``); each tree is stopped at teardown."""
@@ -149,3 +207,18 @@ def circle_anees(config: object, seeds: tuple[int, ...] = tuple(range(100, 120))
     (anees,) = mc.anees.values()
     low, high = mc.anees_bounds
     return anees, low, high
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus: int, config: pytest.Config) -> None:  # noqa: ANN001
+    """Say which tests the absence of real data skipped (CI prints it: a green run may have left them out)."""
+    skipped = [
+        report for report in terminalreporter.stats.get("skipped", [])
+        if isinstance(report.longrepr, tuple) and REAL_DATA_SKIP in str(report.longrepr[2])
+    ]  # fmt: skip
+    if skipped:
+        terminalreporter.section("real data")
+        terminalreporter.write_line(
+            f"{len(skipped)} tests skipped: no real data in {SHARED_DATA} (set {DATA_VARIABLE})"
+        )
+        for report in skipped:
+            terminalreporter.write_line(f"  {report.nodeid}")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, needs_data
 
 from online_slam.geometry.se2 import compose
 from online_slam.importers.acfr import AcfrNoise, AcfrVehicle, read_acfr
@@ -115,7 +115,7 @@ def test_simulated_log_replays_without_ids(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not VICTORIA_RAW.is_dir(), reason="../shared/data/victoria_park_acfr_ascii is not present")
+@needs_data("victoria_park_acfr_ascii")
 def test_real_victoria_park_log_first_minutes() -> None:
     header = next(iter(read_acfr(VICTORIA_RAW)))
     assert header.meta["detections"] == 52974 and header.meta["scans"] <= 7230

@@ -6,14 +6,12 @@ from __future__ import annotations
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from tests.test_cli import cli
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 HEAVY = ("scipy", "filterpy", "rerun", "matplotlib", "dask", "pyarrow", "pandas")
 
 
@@ -85,12 +83,10 @@ def test_connect_without_a_viewer_stops_before_the_replay(tmp_path: Path) -> Non
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]  # closed again: nothing listens there
     out = tmp_path / "r.json"
-    started = time.perf_counter()
     done = cli("replay", "grid", "--connect", f"rerun+http://127.0.0.1:{port}/proxy", "--json", str(out))
     line = one_error(done)
     assert f"127.0.0.1:{port}" in line and "'rerun'" in line and "rerun --serve-web" in line
     assert done.stdout == "" and not out.exists()  # no replay ran (grid: 2000 poses)
-    assert time.perf_counter() - started < 20
 
 
 def test_robot_with_a_source_without_robots_is_refused() -> None:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, needs_data
 
 from online_slam.errors import InputError
 from online_slam.importers import open_dataset
@@ -146,7 +146,7 @@ def test_exact_integration_of_piecewise_constant_commands() -> None:
     assert np.allclose(path, [0, 1.0, 2.25, 2.5]) and np.allclose(turn, [0, 0.5, 1.0, 2.0])
 
 
-needs_mrclam = pytest.mark.skipif(not MRCLAM.is_dir(), reason="../shared/data/MRCLAM_Dataset6 is not present")
+needs_mrclam = needs_data("MRCLAM_Dataset6")
 
 
 @needs_mrclam
@@ -181,14 +181,14 @@ def test_mrclam_batch_equals_gtsam_from_the_same_initial_values() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not CITY.is_dir(), reason="../shared/data/isam_citytrees10000_synthetic is not present")
+@needs_data("isam_citytrees10000_synthetic")
 def test_citytrees_truth_is_the_noise_free_twin() -> None:
     events = list(open_dataset(CITY / "cityTrees10000.txt", truth=CITY / "cityTrees10000_groundtruth.txt"))
     assert len(events_of(Truth, events)) == 10_000 and len(events_of(LandmarkTruth, events)) == 100
     assert len(events_of(Observation, events)) == 4443
 
 
-@pytest.mark.skipif(not VICTORIA.is_file(), reason="../shared/data/gtsam_victoria_park is not present")
+@needs_data("gtsam_victoria_park/victoria_park.txt")
 def test_victoria_park_shape() -> None:
     events = list(open_dataset(VICTORIA))
     assert len(events_of(Odometry, events)) == 6968 and len(events_of(Observation, events)) == 3640

@@ -1,9 +1,9 @@
-"""Estimators on real data: MRCLAM Dataset 6, every robot, from the raw files (skipped without ../shared/data)."""
+"""Estimators on real data: MRCLAM Dataset 6, every robot, from the raw files (skipped without the data)."""
 
 from __future__ import annotations
 
 import pytest
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, needs_data
 
 from online_slam.pipeline import ReplayConfig, replay
 
@@ -11,7 +11,7 @@ MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not MRCLAM.is_dir(), reason="../shared/data/MRCLAM_Dataset6 is not present")
+@needs_data("MRCLAM_Dataset6")
 @pytest.mark.parametrize("robot", [1, 2, 3, 4, 5])
 def test_mrclam_every_estimator_beats_dead_reckoning_and_smoother_and_batch_reach_25_cm(robot: int) -> None:
     # The defaults, no flags (issue 12): global relinearization, batch from the smoother's estimate.

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, needs_data
 
 from online_slam import Slam
 from online_slam.errors import InputError
@@ -38,7 +38,7 @@ from online_slam.sources.validate import validate_events
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
-needs_mrclam = pytest.mark.skipif(not MRCLAM.is_dir(), reason="../shared/data/MRCLAM_Dataset6 is not present")
+needs_mrclam = needs_data("MRCLAM_Dataset6")
 SIG3, SIG2 = [0.1, 0.1, 0.05], [0.1, 0.01]
 
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -15,8 +17,9 @@ import pytest
 
 pytest.importorskip("distributed", reason="dask[distributed] is not installed")
 
-from conftest import stop_process_tree  # noqa: E402
+from conftest import stop_marked_processes  # noqa: E402
 
+from online_slam.faults import CRASH_VARIABLE  # noqa: E402
 from online_slam.options import flag  # noqa: E402
 from online_slam.sources.worlds import WORLDS  # noqa: E402
 from online_slam.sweep import FIGURES, make_cells, run_cell, sweep  # noqa: E402
@@ -131,22 +134,16 @@ def test_a_killed_sweep_resumes_without_computing_a_cell_twice(cells, local_rows
     out = tmp_path / "sweep.csv"
     command = [*EXE, "sweep", "square", "--window", "5,10", "--robust", "auto,none", "--runs", "2", "--workers", "1",
                "--output", str(out), "--quiet"]  # fmt: skip
-    first = processes(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 120
-    done_cells = 0
-    while done_cells < 3 and time.monotonic() < deadline:
-        time.sleep(0.1)
-        if out.exists():
-            with out.open() as handle:
-                done_cells = len({row["cell"] for row in csv.DictReader(handle)})
-    assert first.poll() is None, "the sweep finished before it could be killed"
-    stop_process_tree(first)  # the sweep and its Dask worker processes
+    first = processes(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                      env={**os.environ, CRASH_VARIABLE: "cells:3"})  # fmt: skip
+    assert first.wait(timeout=300) == -signal.SIGKILL  # killed once 3 of 8 cells are written
+    stop_marked_processes()  # its Dask worker, orphaned
     with out.open() as handle:
         kept = {row["cell"] for row in csv.DictReader(handle)}
-    assert 3 <= len(kept) < 8
+    assert len(kept) == 3
     again = subprocess.run([c for c in command if c != "--quiet"], capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
-    assert f"8 replays: {8 - len(kept)} computed, {len(kept)} already in the output" in again.stdout
+    assert "8 replays: 5 computed, 3 already in the output" in again.stdout
     from online_slam.sweep import read_rows
 
     rows = read_rows(out)

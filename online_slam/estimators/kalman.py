@@ -9,7 +9,27 @@ from scipy.linalg import blas
 Array = NDArray[np.float64]
 
 SYRK_MIN = 64
-"""Below this size :func:`downdate` uses numpy (exactly symmetric; the temporary is small)."""
+"""Below this size :func:`downdate` uses numpy (``W @ W.T``: syrk, then mirrored; the temporary is small)."""
+
+MIRROR_BLOCK = 128
+"""Rows per block of :func:`mirror_upper` (a transposed copy of a block stays in cache)."""
+
+
+def mirror_upper(F: Array) -> None:
+    """Copy the upper triangle of square F onto its lower one, in place: F is then symmetric bit for bit.
+
+    BLAS kernels that update both triangles (``ger``, two ``syrk``) round each entry on its own, and whether
+    ``F[i, j]`` equals ``F[j, i]`` then depends on the kernel the CPU selects. Computing one triangle and mirroring
+    it is symmetric by construction on every CPU. Blocks of :data:`MIRROR_BLOCK` rows keep the copy O(n^2) without
+    an n x n temporary.
+    """
+    n = len(F)
+    for i in range(0, n, MIRROR_BLOCK):
+        j = min(i + MIRROR_BLOCK, n)
+        F[j:, i:j] = F[i:j, j:].T
+        block = F[i:j, i:j]
+        upper = np.triu_indices(j - i, 1)
+        block.T[upper] = block[upper]
 
 
 def stacked_jacobian(J_pose: Array, J_landmark: Array, pose_first: bool = True) -> Array:
@@ -33,12 +53,11 @@ def stacked_jacobian(J_pose: Array, J_landmark: Array, pose_first: bool = True) 
 
 
 def downdate(cov: Array, W: Array) -> None:
-    """``cov -= W W^T`` in place, without an n x n temporary (BLAS syrk on each triangle) when cov is contiguous.
+    """``cov -= W W^T`` in place, without an n x n temporary when cov is contiguous, symmetric bit for bit.
 
     Memory traffic, not arithmetic, is the cost of a low-rank update of a large covariance: numpy's
-    ``cov -= W @ W.T`` writes the product to a temporary and reads it back (measured: 25 ms for n = 1771, m = 16,
-    one thread), two in-place syrk calls 4.7 ms. Each triangle comes from its own syrk, so the two can differ
-    in the last bits (relative 1e-15): symmetric to rounding, not bit for bit.
+    ``cov -= W @ W.T`` writes the product to a temporary and reads it back; an in-place BLAS syrk on one
+    triangle, mirrored (:func:`mirror_upper`), does not.
 
     Args:
         cov: Symmetric matrix, shape (n, n), C- or Fortran-contiguous for the fast path; updated in place.
@@ -46,14 +65,12 @@ def downdate(cov: Array, W: Array) -> None:
     """
     F = cov.T if cov.flags.c_contiguous else cov  # the Fortran-ordered view BLAS updates in place
     if len(cov) < SYRK_MIN or not F.flags.f_contiguous or cov.dtype != np.float64:
-        cov -= W @ W.T
+        cov -= W @ W.T  # numpy: syrk, then mirrored
         return
     Wf = np.asfortranarray(W, dtype=np.float64)
     upper = blas.dsyrk(-1.0, Wf, beta=1.0, c=F, overwrite_c=1, lower=0)
     assert np.shares_memory(upper, cov), "syrk did not update in place"
-    diagonal = np.diagonal(F).copy()
-    blas.dsyrk(-1.0, Wf, beta=1.0, c=F, overwrite_c=1, lower=1)
-    np.fill_diagonal(F, diagonal)  # the second call subtracted the diagonal again
+    mirror_upper(F)
 
 
 def apply_update(
@@ -66,8 +83,9 @@ def apply_update(
         PHt: ``P H^T``, shape (n, m).
         S: Innovation covariance, shape (m, m).
         y: Innovation, shape (m,).
-        exactly_symmetric: True: numpy's ``W @ W.T`` (syrk, then mirrored), so cov stays symmetric bit for bit;
-            False: :func:`downdate` (symmetric to rounding, several times faster on large contiguous cov).
+        exactly_symmetric: True: numpy's ``W @ W.T`` (syrk, then mirrored); False: :func:`downdate` (syrk in
+            place, then mirrored: no n x n temporary, faster on large contiguous cov). Both keep cov symmetric
+            bit for bit.
 
     Returns:
         (state correction K y (n,), W = P H^T L^-T (n, m), L^-1 (m, m)) with ``S = L L^T``.

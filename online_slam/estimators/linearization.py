@@ -37,6 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import blas
 
+from online_slam.estimators.kalman import mirror_upper
+
 Array = NDArray[np.float64]
 
 LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
@@ -121,18 +123,17 @@ def invariant_retraction(x: Array, dx: Array) -> tuple[Array, Array]:
 def transport(P: Array, column: Array, heading: int = 2) -> None:
     """``P <- T P T^T`` in place with ``T = I + column e_heading^T``; O(n^2).
 
-    It is the rank-2 update ``P += c v^T + v c^T`` (``v = P e_heading + P_hh c / 2``), applied as
-    ``P += a a^T - b b^T`` with ``a, b = (c +- v) / sqrt 2``: each term is exactly symmetric, so P stays symmetric
-    bit for bit. Contiguous P takes two in-place BLAS ``ger`` calls (no n x n temporary: 5.8 ms at n = 2000,
-    against 38 ms for numpy's outer products).
+    It is the symmetric rank-2 update ``P += c v^T + v c^T`` (``v = P e_heading + P_hh c / 2``). Contiguous P takes
+    BLAS ``syr2`` on one triangle, mirrored (:func:`~online_slam.estimators.kalman.mirror_upper`): no n x n
+    temporary, and symmetric bit for bit whatever kernel the CPU selects.
     """
     c = np.asarray(column, dtype=np.float64)
     v = P[:, heading] + 0.5 * P[heading, heading] * c
-    a, b = (c + v) * math.sqrt(0.5), (c - v) * math.sqrt(0.5)
     F = P.T if P.flags.c_contiguous else P  # the Fortran-ordered view BLAS updates in place
     if not F.flags.f_contiguous or P.dtype != np.float64:
-        P += np.outer(a, a)
-        P -= np.outer(b, b)
+        P += np.triu(np.outer(c, v) + np.outer(v, c))
+        mirror_upper(P)
         return
-    blas.dger(1.0, a, a, a=F, overwrite_a=1)
-    blas.dger(-1.0, b, b, a=F, overwrite_a=1)
+    updated = blas.dsyr2(1.0, c, v, a=F, overwrite_a=1, lower=0)
+    assert np.shares_memory(updated, P), "syr2 did not update in place"
+    mirror_upper(F)

@@ -19,6 +19,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.protocol import Snapshot
+from online_slam.faults import crash_point
 from online_slam.pipeline.config import ReplayConfig, build_estimators
 from online_slam.pipeline.source import OpenedSource
 from online_slam.sinks.protocol import ProgressSink, ReplayProgress, ReplaySink
@@ -280,6 +281,7 @@ class ReplayRun:
             self._tell()
         if self._checkpoint is not None and self.engine.steps % self._checkpoint.every == 0:
             self._save(self._checkpoint)
+        crash_point("steps", self.engine.steps)
 
     def _save(self, checkpoint: Checkpointing) -> None:
         state = ReplayCheckpoint(

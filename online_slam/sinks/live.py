@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import IO, TYPE_CHECKING
 
 from online_slam.estimators.protocol import Snapshot
@@ -22,23 +22,28 @@ class Pacer:
 
     Args:
         rate: Speed-up over the stream's own clock (> 0).
+        clock: The wall clock, seconds.
+        sleep: Waits that many seconds.
     """
 
-    def __init__(self, rate: float) -> None:
+    def __init__(
+        self, rate: float, clock: Callable[[], float] = time.perf_counter, sleep: Callable[[float], None] = time.sleep
+    ) -> None:
         if not rate > 0:
             raise ValueError("rate must be > 0")
         self.rate = rate
+        self._clock, self._sleep = clock, sleep
         self._origin: tuple[float, float] | None = None
 
     def on_step(self, step: Step, snapshots: Mapping[str, Snapshot], truth: GroundTruth) -> None:
         """Wait until the wall clock catches up with the step's time."""
-        now = time.perf_counter()
+        now = self._clock()
         if self._origin is None:
             self._origin = (step.t, now)
             return
         due = self._origin[1] + (step.t - self._origin[0]) / self.rate
         if due > now:
-            time.sleep(due - now)
+            self._sleep(due - now)
 
     def on_finish(self, results: Results, truth: GroundTruth) -> None:
         """Nothing to do."""
