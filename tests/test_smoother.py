@@ -504,3 +504,23 @@ def test_fej_reanchors_a_background_hand_over_at_the_windows_landmarks() -> None
     assert anchor_landmarks(solved, False, w, fej) is w.landmarks
     assert anchor_landmarks(solved, True, w, fej) is solved
     assert anchor_landmarks(solved, False, w, SmootherConfig()) is solved
+
+
+def test_a_background_global_solve_that_raises_is_reported(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Its error reaches the step's report, the results' details and the table's notes (it was dropped)."""
+    from online_slam.estimators.smoother import global_solve
+    from online_slam.reports.table import notes
+
+    def broken(*args: object) -> None:
+        raise np.linalg.LinAlgError("made to fail")
+
+    monkeypatch.setattr(global_solve, "solve_now", broken)
+    smoother = SmootherConfig(window=WindowConfig(size=5, distance=0.0), global_solve=GlobalConfig(every=5, delay=2))
+    config = ReplayConfig(estimators=("smoother",), smoother=smoother)
+    results = online_slam.replay(grid_world(GridConfig(poses=60, seed=3)), config)
+    failures = results.estimators["smoother"].details["global_failures"]
+    assert failures and all("made to fail" in f for f in failures)
+    assert any("background global solve" in line and "made to fail" in line for line in notes(results))
+    steps = SlidingWindowSmoother(smoother)
+    reports = [steps.step(s).info for s in FrontEnd().steps(grid_world(GridConfig(poses=60, seed=3)))]
+    assert sum(r.get("global_failed", 0.0) for r in reports) == len(failures)

@@ -51,7 +51,7 @@ class BatchConfig:
     """Initial values: ``odometry`` (composed odometry, landmarks from first sight), the final estimate of
     another estimator of the same replay (``ekf``, ``smoother``), or ``auto`` (default): the (first) smoother's if one
     ran, else the EKF's, else odometry. From composed odometry LM can end in a poor local minimum on long real runs
-    (MRCLAM; see the README)."""
+    (MRCLAM; see docs/estimators.md, "Batch")."""
     use_ids: bool = True
     """False (association by ``nn``/``jcbb``): the stream's ids are ignored; the batch solves with the associations
     of the estimate it starts from (each sighting's landmark as that estimator decided, in the end)."""

@@ -20,7 +20,8 @@ class EkfConfig:
     fails once, but repeated failures of one landmark mean the filter has drifted, and rejecting them would
     starve it. 0 turns this off (every gated sighting rejected)."""
     reanchor: bool = True
-    """When a landmark has failed the gate ``gate_persistence`` times in a row while the rest of each scan
+    """When a landmark has failed the gate 3 times in a row (:data:`~online_slam.estimators.ekf.REANCHOR_AFTER`,
+    whatever ``gate_persistence``; only ``gate_persistence`` 0 turns re-anchoring off) while the rest of each scan
     agreed with the filter, and those gated sightings agree with each other, the landmark's estimate is the
     stale one (e.g. it was placed by a wrong association): restart it from the newest sighting instead of
     letting that sighting pull the robot. When most of a scan fails the gate, the filter itself has drifted

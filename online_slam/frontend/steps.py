@@ -9,8 +9,8 @@ With several robots (``robot`` on its lines) a step is one robot's pose: poses a
 begin (one index sequence over all robots, so in time order), a line belongs to its robot's newest pose, and a
 pose is complete when its robot's next pose begins. Steps leave in index order: a complete pose waits for the
 earlier poses of other robots (``later`` holds them), one step per event, the rest at :meth:`FrontEnd.close`.
-A step carries its robot (None: the stream names none) and its sightings of other robots (``robot_seen``) apart
-from its landmark sightings, so that no estimator mistakes a robot for a landmark.
+A step carries its robot (None: the stream names none) and its sightings of other robots (``robots_seen``, from
+the lines' ``robot_seen``) apart from its landmark sightings, so that no estimator mistakes a robot for a landmark.
 
 Optional keyframing merges consecutive odometry events with no observation in between into one step (the
 increments composed and their covariance propagated), up to distance, angle and time limits.
@@ -115,8 +115,8 @@ class Step:
     robot: RobotId | None = None
     """The robot this pose is of (its lines' ``robot``); None for a stream that names no robot."""
     robots_seen: tuple[RobotId, ...] = ()
-    """Robots sighted from this pose (``robot_seen``), length m; each sighting relates this pose to the seen
-    robot's newest pose at the step's time."""
+    """Robots sighted from this pose (the sightings' ``robot_seen``), length m; each sighting relates this pose to
+    the seen robot's newest pose at the step's time."""
     z_robots: Array = field(default_factory=lambda: _NO_ROBOT_Z)
     """Range and bearing to each seen robot's position, shape (m, 2)."""
     z_robots_cov: Array = field(default_factory=lambda: _NO_ROBOT_Z_COV)

@@ -167,6 +167,10 @@ def notes(results: Results) -> list[str]:
             if d["linearization"] == "invariant" and result.robots:
                 several = " (standard updates: several robots)" if name == "ekf" else " (re-centred: several robots)"
             out.append(f"{name}: {d['linearization']} linearization{several}")
+        if d.get("global_failures"):
+            failures = d["global_failures"]
+            out.append(f"{name}: {counted(len(failures), 'background global solve')} failed, results kept without "
+                       f"{'it' if len(failures) == 1 else 'them'} (first: {failures[0]})")  # fmt: skip
         if "iterations" in d:
             state = "converged" if d.get("converged") else "NOT converged"
             out.append(

@@ -1,9 +1,11 @@
-"""Levenberg-Marquardt (Gauss-Newton when undamped) with a sparse factorisation of the normal equations.
+"""Levenberg-Marquardt (Gauss-Newton when undamped) on the normal equations, dense or sparse by size.
 
 Each iteration linearizes every factor analytically (:func:`online_slam.factors.linearize`), forms
-``H = J^T J`` and ``g = J^T r``, and solves ``(H + lambda diag(H)) dx = -g`` by a sparse LDL^T factorisation
-(QDLDL with an AMD ordering; the symbolic analysis is done once and reused while the sparsity pattern holds).
-Damping follows Nielsen's rule: shrink after a good step, grow after a rejected one.
+``H = J^T J`` and ``g = J^T r``, and solves ``(H + lambda diag(H)) dx = -g``. Problems with a dense prior (every
+window solve of the smoother) or at most :data:`DENSE_LIMIT` free variables assemble H dense and solve it by
+Cholesky; the others (the batch, global relinearizations) by a sparse LDL^T factorisation (QDLDL with an AMD
+ordering; the symbolic analysis is done once and reused while the sparsity pattern holds). Damping follows
+Nielsen's rule: shrink after a good step, grow after a rejected one.
 """
 
 from __future__ import annotations

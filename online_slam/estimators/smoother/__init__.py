@@ -1,25 +1,25 @@
 """Sliding-window least-squares smoother with Schur-complement marginalization.
 
-The smoother keeps the W newest poses and *every* landmark as variables. Each step adds the new pose
-(propagated by odometry from the latest estimate), new landmarks (inverse observation model) and their
-factors. Every K steps, and at the end of the stream, it relinearizes all factors in the window and iterates
-Levenberg-Marquardt to convergence. A pose is never marginalized before it has been optimized at least once.
+The smoother keeps a window of the newest poses and *every* landmark as variables: at least W poses, and more
+(up to ``max_poses``) until their path spans ``distance`` metres (:class:`.config.WindowConfig`). Each step adds
+the new pose (propagated by odometry from the latest estimate), new landmarks (inverse observation model) and
+their factors. Every K steps, and at the end of the stream, it relinearizes all factors in the window and runs
+Levenberg-Marquardt, up to ``solver.max_iterations`` iterations or its tolerances (the last solve to tight ones).
+A pose is never marginalized before it has been optimized at least once.
 
-When the window holds more than W poses, the oldest is marginalized: its factors (odometry to the next pose,
+When the window holds more poses than it keeps, the oldest is marginalized: its factors (odometry to the next pose,
 its observations, a start prior) are linearized and folded into the marginal prior, a Gaussian in covariance
 form over the oldest window pose and every landmark it has touched, and its 3 variables are eliminated
-(:mod:`.prior`). The prior's quadratic is never relinearized between global solves. By default
-(``linearization="standard"``) it is re-centred (exactly) at the current estimate before each fold-in, and every
-Jacobian is taken at the current estimate. ``linearization="fej"`` (First-Estimates Jacobians) instead takes, in
-every factor on a variable the prior holds — its poses and landmarks, in the window's solves and in later fold-ins
-alike — that variable's Jacobian at the prior's linearization point, so each variable has one linearization and
-the window cannot gain information along the directions no sighting observes (global position and heading;
-Dong-Si & Mourikis, ICRA 2011); each global relinearization re-anchors those first estimates at its solution and
-relinearizes the prior's covariance there, so first estimates far off do not stay, and window solves start
-undamped. ``linearization="invariant"`` keeps every Jacobian at the current estimate and carries the prior's
-covariance to each new linearization point, as the invariant EKF carries its own (:func:`.prior.carry`), with
-window solves started undamped. Both are consistent where the standard smoother is overconfident, and less
-accurate on MRCLAM robot 2, so neither is the default (benchmarks/RESULTS.md). Landmarks are never marginalized, so a
+(:mod:`.prior`). The prior's quadratic is never relinearized between global solves. Where the Jacobians of the
+variables it holds are taken is :attr:`.config.SmootherConfig.linearization`: ``standard`` re-centres the prior
+(exactly) at the current estimate before each fold-in and takes every Jacobian at the current estimate; ``fej``
+(First-Estimates Jacobians) takes each such variable's Jacobian at the prior's linearization point, in the window's
+solves and in later fold-ins alike, so the window cannot gain information along the directions no sighting
+observes (global position and heading; Dong-Si & Mourikis, ICRA 2011), each global relinearization re-anchoring
+those first estimates at its solution; ``invariant`` (the default) keeps every Jacobian at the current estimate and
+carries the prior's covariance to each new linearization point, as the invariant EKF carries its own
+(:func:`.prior.carry`). ``fej`` and ``invariant`` start window solves undamped. The decision and its evidence are
+in benchmarks/RESULTS.md ("The invariant smoother prior"). Landmarks are never marginalized, so a
 re-observation long after the poses that saw a landmark left the window (a loop closure) still corrects the map
 and the current pose.
 

@@ -125,9 +125,8 @@ class SmootherConfig:
     (:func:`~online_slam.estimators.linearization.transport`; re-centring before a fold-in, and re-anchoring that
     keeps the fold-in covariance), so its weak directions follow the estimate's unobservable ones; window solves
     start undamped; with several robots it re-centres exactly, as ``standard``. ``fej`` and ``invariant`` are
-    consistent where ``standard`` is overconfident (esde's circle, 100 runs: pose ANEES 3.55 and 3.57 against
-    13.3); ``invariant`` is the default since MRCLAM's conversion models its data (2026-12-04), where it is also
-    the more accurate (robot 2 online 0.395 against 0.450 m; benchmarks/RESULTS.md)."""
+    consistent where ``standard`` is overconfident; ``invariant`` is the default, the more accurate of the two on
+    real data (benchmarks/RESULTS.md, "The invariant smoother prior")."""
     global_solve: GlobalConfig = field(default_factory=GlobalConfig)
     """The periodic re-solve of the whole history."""
     association: AssociationConfig = field(default_factory=AssociationConfig)
@@ -160,7 +159,7 @@ class SmootherConfig:
         odometry (a near-zero lateral variance) makes huge: the damped step then barely moves along the weakly
         observed directions, its quadratic model holds, and ``model_tolerance`` ends the solve short of the
         optimum, overconfident. FEJ and the invariant prior start with a Gauss-Newton step (damping only after a
-        step that fails). The standard smoother keeps the damped start: undamped, it is less overconfident on the
-        circle (ANEES 4.00 against 13.3) but its online error grows 16% on MRCLAM robot 3 (benchmarks/RESULTS.md).
+        step that fails). The standard smoother keeps the damped start: undamped, it is less overconfident but less
+        accurate online on real data (benchmarks/RESULTS.md, "Re-centred prior versus First-Estimates Jacobians").
         """
         return self.solver if self.linearization == "standard" else replace(self.solver, initial_lambda=0.0)

@@ -235,6 +235,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 "marginalized_poses": p.marginalized,
                 "global_solves": r.solves,
                 "global_rejections": r.rejections,
+                "global_failures": list(r.failures),
                 "landmarks_released": p.released,
                 **self._robot_info(),
                 "window": self.config.window.size,
@@ -457,6 +458,9 @@ class SlidingWindowSmoother(SeveralRobots):
             started = time.perf_counter()
             finish_job(job)
             r.job = None
+            if job.error is not None:  # told in this step's report and in the estimate's details
+                r.failures.append(job.error)
+                report = {**report, "global_failed": 1.0}
             if job.result is not None:
                 if job.released != p.released:  # consensus corrected the map since it started
                     report = {**report, **self.relinearize_globally(), "global_stale": 1.0}

@@ -163,8 +163,8 @@ def propagated_covariance(solved: Solved | None, window: Window, prior: Prior | 
     It applies while nothing moved since that solve but the newest pose's odometry: the newest pose is then
     the solved one composed with it, and its joint covariance with the landmarks is the solved one carried
     through the composition's Jacobians. Marginalizing old poses since does not change the remaining
-    variables' marginal (exact for the linearized system with the default re-centred marginalization; with
-    ``linearization="fej"`` up to the prior's older linearization points). A landmark only the prior
+    variables' marginal (exact for the linearized system with a re-centred marginalization, ``standard`` and
+    ``invariant``; with ``linearization="fej"`` up to the prior's older linearization points). A landmark only the prior
     holds is, given the prior's part that the solve saw (its pose and solved landmarks), independent of the
     rest: its covariance is the prior's conditional plus that part's solved covariance carried through the
     regression. None when the state moved otherwise (the owner drops ``solved`` then: a sighting was added, a

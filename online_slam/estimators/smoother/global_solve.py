@@ -3,9 +3,12 @@
 Every ``global_every`` steps (or N / 20 after N steps) every factor seen so far is re-solved from a copy of the
 current estimate (:func:`~online_slam.estimators.smoother.relinearize.solve_all`), in a background thread
 started here (:func:`start_job`); its result is handed over ``global_delay`` steps later (or N / 50), waiting for the
-thread if need be (:func:`finish_job`), so the outcome never depends on timing. The hand-over revises the history
-and re-anchors the prior at the revised values (:func:`revise`). All threading of the smoother is in this
-module.
+thread if need be (:func:`finish_job`). The outcome does not depend on timing because the job reads a copy, is
+joined at a fixed step, and factors sparse (plain C, no threaded BLAS whose sums could depend on the other thread;
+:func:`~online_slam.estimators.smoother.relinearize.solve_all`). A job that raises is reported, not dropped
+(``Relinearization.failures``, the step's ``global_failed``, the estimate's ``global_failures``). The hand-over
+revises the history and re-anchors the prior at the revised values (:func:`revise`). All threading of the smoother
+is in this module.
 """
 
 from __future__ import annotations
@@ -79,6 +82,8 @@ class Relinearization:
     """The robot sightings folded into the prior (their numbers in the log's sightings)."""
     robot_rejected: list[int] = field(default_factory=list)
     """The robot sightings judged outliers when they left the window (left out of global solves)."""
+    failures: list[str] = field(default_factory=list)
+    """The errors of background solves that raised, in order (the smoother went on without their results)."""
 
 
 @dataclass(frozen=True)

@@ -4,9 +4,9 @@ The prior is a Gaussian ``d ~ N(mu, Sigma)`` on ``d = x - x_lin`` (heading wrapp
 and every landmark it has touched, kept in covariance form: folding a factor in is an exact linear-Gaussian
 update (the next pose and new landmarks are appended through their factor, the other observations update it
 like a Kalman filter), and eliminating a pose is dropping its rows — the same result as a Schur complement of
-the information matrix, at O(n^2) per factor. Its quadratic is never relinearized: by default it is re-centred
-(exactly) at the current estimate before new factors are folded in, and those are linearized there; the
-invariant option also carries its covariance there (:func:`carry`).
+the information matrix, at O(n^2) per factor. Its quadratic is never relinearized: it is re-centred (exactly) at
+the current estimate before new factors are folded in, and those are linearized there; with
+``linearization="invariant"`` (the default) its covariance is also carried there (:func:`carry`).
 
 A window solve sees only the prior's marginal on its pose and the landmarks the window observes
 (:func:`reduced`); the others are recovered from their conditional mean afterwards.
