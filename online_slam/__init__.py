@@ -9,15 +9,13 @@ The names below are imported on first use, so that ``import online_slam`` (and `
 load the numerical libraries.
 """
 
-from __future__ import annotations
-
-import importlib
-import importlib.util
-from typing import TYPE_CHECKING, Any
+import importlib as _importlib
+import importlib.util as _importlib_util
+import typing as _typing
 
 from online_slam.version import __version__
 
-if TYPE_CHECKING:
+if _typing.TYPE_CHECKING:
     from online_slam.errors import ConfigError, InputError, OnlineSlamError
     from online_slam.evaluation.results import EstimatorResult, OdometryResult, Results
     from online_slam.pipeline import ReplayConfig, replay
@@ -59,16 +57,17 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> _typing.Any:
     """A public name, imported from its module on first use (or a subpackage, as ``online_slam.sources``)."""
     if name not in _HOMES:
-        if importlib.util.find_spec(f"{__name__}.{name}") is None:
+        if _importlib_util.find_spec(f"{__name__}.{name}") is None:
             raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
-        return importlib.import_module(f"{__name__}.{name}")
-    value = getattr(importlib.import_module(_HOMES[name]), name)
+        return _importlib.import_module(f"{__name__}.{name}")
+    value = getattr(_importlib.import_module(_HOMES[name]), name)
     globals()[name] = value
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *_HOMES})
+    """The public API only (helpers and submodules stay out of ``dir(online_slam)`` and tab completion)."""
+    return sorted(__all__)

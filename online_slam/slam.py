@@ -41,6 +41,7 @@ from online_slam.frontend.steps import FrontEndConfig
 from online_slam.options import Option, check_value, estimator_options, replay_config
 from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
+from online_slam.wording import did_you_mean
 
 Array = NDArray[np.float64]
 
@@ -187,7 +188,8 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
         raise ConfigError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
     for key, value in options.items():
         if key not in OPTIONS:
-            raise ConfigError(f"unknown option {key!r}; options: {', '.join(sorted(OPTIONS))}")
+            hint = did_you_mean(key, OPTIONS)
+            raise ConfigError(f"unknown option {key!r}{hint}; options: {', '.join(sorted(OPTIONS))}")
         option = OPTIONS[key]
         check_value(option, value)
         if not option.fits(estimator):

@@ -10,6 +10,7 @@ import pytest
 
 from online_slam import ConfigError, Slam
 from online_slam.cli.main import build_parser
+from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.smoother import WindowConfig
 from online_slam.options import (
     GROUPS,
@@ -25,6 +26,8 @@ from online_slam.options import (
 from online_slam.pipeline import ReplayConfig
 from online_slam.slam import OPTIONS as SLAM_OPTIONS
 from online_slam.slam import _configs
+from online_slam.solvers.least_squares import SolverConfig
+from online_slam.sources.worlds import GridConfig
 from online_slam.sweep import SETTINGS, make_cells
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "options.md"
@@ -145,3 +148,18 @@ def test_help_shows_each_command_its_own_notes() -> None:
 
 def test_estimator_names_are_case_insensitive_as_in_slam() -> None:
     assert replay_config({"estimators": "EKF, Batch"}).estimators == ("ekf", "batch")
+
+
+@pytest.mark.parametrize(
+    ("config", "fields"),
+    [
+        (BatchConfig, {"outliers": "Auto"}),
+        (BatchConfig, {"initial": "odom"}),
+        (SolverConfig, {"step_tolerance": -1.0}),
+        (GridConfig, {"model": "bearing"}),
+    ],
+)
+def test_every_config_refuses_a_value_it_would_misread(config: type, fields: dict) -> None:
+    """``outliers="Auto"`` once silently meant off."""
+    with pytest.raises(ValueError):
+        config(**fields)

@@ -91,7 +91,7 @@ def test_estimate_is_read_only() -> None:
 
 
 def test_options_are_validated() -> None:
-    with pytest.raises(ConfigError, match="unknown option 'windw'"):
+    with pytest.raises(ConfigError, match=r"unknown option 'windw' \(did you mean window\?\)"):
         Slam("smoother", windw=10)
     with pytest.raises(ConfigError, match="window must be >= 1"):
         Slam("smoother", window=0)

@@ -25,6 +25,9 @@ from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import SolverConfig, solve
 
+OUTLIER_MODES = ("auto", "off")
+"""What :attr:`BatchConfig.outliers` takes."""
+
 
 @dataclass(frozen=True)
 class BatchConfig:
@@ -55,6 +58,14 @@ class BatchConfig:
     use_ids: bool = True
     """False (association by ``nn``/``jcbb``): the stream's ids are ignored; the batch solves with the associations
     of the estimate it starts from (each sighting's landmark as that estimator decided, in the end)."""
+
+    def __post_init__(self) -> None:
+        if self.outliers not in OUTLIER_MODES:
+            raise ValueError(f"batch outliers must be one of {', '.join(OUTLIER_MODES)}, not {self.outliers!r}")
+        if not (self.initial in ("auto", "odometry") or self.initial.startswith(("ekf", "smoother"))):
+            raise ValueError(f"batch_init must be auto, odometry or an estimator's name, not {self.initial!r}")
+        if not (0.0 < self.outlier_false_alarm < 1.0 and 0.0 < self.reject_false_alarm < 1.0):
+            raise ValueError("the batch's false-alarm probabilities must be in (0, 1)")
 
 
 def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:

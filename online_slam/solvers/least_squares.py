@@ -56,6 +56,13 @@ class SolverConfig:
     fraction of the cost: the quadratic model held over the step, so the next step would gain about their
     difference. 0 (default) turns it off; a smoother's per-step solves use it to save one relinearization."""
 
+    def __post_init__(self) -> None:
+        if self.max_iterations < 0:
+            raise ValueError("max_iterations must be >= 0")
+        tolerances = (self.relative_cost_tolerance, self.step_tolerance, self.gradient_tolerance, self.model_tolerance)
+        if self.initial_lambda < 0 or min(tolerances) < 0:
+            raise ValueError("the solver's damping and tolerances must be >= 0")
+
 
 @dataclass(frozen=True)
 class SolveResult:

@@ -156,6 +156,12 @@ class GridConfig:
     dt: float = 1.0
     """Time between poses, seconds."""
 
+    def __post_init__(self) -> None:
+        if self.poses < 2 or self.landmarks < 1:
+            raise ValueError("a world needs poses >= 2 and landmarks >= 1")
+        if self.model not in MODEL_NAMES:
+            raise ValueError(f"model must be one of {', '.join(MODEL_NAMES)}, not {self.model!r}")
+
 
 def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
     """A configurable street-grid world for scale tests.
@@ -230,6 +236,12 @@ class WaypointConfig:
     """Seed of ``numpy.random.default_rng``."""
     dt: float = 1.0
     """Time between poses, seconds."""
+
+    def __post_init__(self) -> None:
+        if self.poses < 2 or self.landmarks < 1:
+            raise ValueError("a world needs poses >= 2 and landmarks >= 1")
+        if self.model not in MODEL_NAMES:
+            raise ValueError(f"model must be one of {', '.join(MODEL_NAMES)}, not {self.model!r}")
 
 
 def waypoint_world(config: WaypointConfig | None = None) -> Iterator[Event]:

@@ -62,6 +62,10 @@ class RobustConfig:
     estimate exceeds the chi-square bound this inlier would exceed with this probability (13.8 for 1e-3):
     it is judged an outlier and dropped. 0 folds every sighting in."""
 
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.reject_false_alarm < 1.0:
+            raise ValueError("the smoother's reject false alarm must be in [0, 1)")
+
 
 @dataclass(frozen=True)
 class GlobalConfig:
