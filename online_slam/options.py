@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from online_slam.errors import ConfigError
-from online_slam.importers.detect import DATASET_FORMATS
+from online_slam.importers import registry
 from online_slam.option_defaults import CHOICES, DEFAULTS
 from online_slam.sources.worlds import WORLDS
 
@@ -173,14 +173,18 @@ def _estimator(name: str, help: str, group: str, owner: str, field: tuple[str, s
 _DATASET = ("replay", "compare", "convert")
 
 
-def robot_choice(text: str) -> int | str:
-    """An MRCLAM robot on the command line: its number, or ``all``."""
-    if text == "all":
-        return text
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a robot number or all, got {text!r}") from None
+def _dataset_options() -> list[Option]:
+    """The importers' options (:mod:`online_slam.importers.registry`): one flag per field name, for every format
+    that reads it; a sweep takes a list of a ``listed`` one."""
+    out = []
+    for name, (f, _) in registry.dataset_options().items():
+        m = f.metadata
+        commands = (*_DATASET, "sweep") if m["listed"] else _DATASET
+        unset = m["unset"] or ("off" if m["kind"] is bool else "")
+        out.append(Option(name, m["help"], "input", ("dataset",), kind=m["kind"], metavar=m["metavar"],
+                          choices=m["choices"], unset=unset, positive=m["positive"], parse=m["parse"],
+                          lands=(f"dataset.{name}",), commands=commands))  # fmt: skip
+    return out
 
 
 _WORLD_NAMES = ", ".join(WORLDS)
@@ -191,16 +195,13 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            ("replay",), default="square", nargs="?", commands=("replay", "compare")),
     Option("sources", f"stream files, dataset paths or worlds ({_WORLD_NAMES})", "input", ("replay",),
            nargs="+", commands=("sweep",)),
-    Option("format", "dataset format", "input", ("dataset",), choices=DATASET_FORMATS, unset="detected",
+    Option("format", "dataset format", "input", ("dataset",), choices=registry.names(), unset="detected",
            lands=("dataset.format",), commands=("replay", "compare")),
-    Option("robot", "MRCLAM: robot number 1..5, or all: the five robots in one stream (sweep: a list)", "input",
-           ("dataset",), kind=int, metavar="N", parse=robot_choice, lands=("dataset.robot",),
-           commands=(*_DATASET, "sweep")),
+    *_dataset_options(),
     Option("noise", "the noise the source declares (builtin), or fit it to the source's truth (replay: print "
-           "the figures, then replay with the fitted --odometry-noise-scale and --sensor-noise-scale, an MRCLAM "
-           "folder's model refitted against Vicon first; compare: the same in every run, unprinted; convert: "
-           "MRCLAM only, its model refitted against Vicon, all five robots)", "input", ("dataset",),
-           choices=("builtin", "fit"), unset="builtin", lands=("dataset.noise",), commands=_DATASET),
+           "the figures, then replay with the fitted --odometry-noise-scale and --sensor-noise-scale; compare: the "
+           "same in every run, unprinted)", "input", ("replay",), choices=("builtin", "fit"), unset="builtin",
+           lands=("dataset.noise",), commands=("replay", "compare")),
     _estimator("odometry_noise_scale", "multiply every odometry covariance of the source by S (a sigma by "
                "sqrt(S)), e.g. as --noise fit prints it", "input", "front-end",
                ("FrontEndConfig", "odometry_noise_scale"), metavar="S", positive=True,
@@ -208,12 +209,6 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("sensor_noise_scale", "multiply every sighting's covariance of the source by S", "input",
                "front-end", ("FrontEndConfig", "sensor_noise_scale"), metavar="S", positive=True,
                lands=("frontend.sensor_noise_scale",)),
-    Option("truth", "GTSAM/iSAM text: the noise-free twin file (truth)", "input", ("dataset",), metavar="PATH",
-           lands=("dataset.truth",), commands=_DATASET),
-    Option("dt", "seconds per pose for files without timestamps", "input", ("dataset",), kind=float, unit="s",
-           metavar="S", unset="1 s", positive=True, lands=("dataset.dt",), commands=_DATASET),
-    Option("convention", "GTSAM/iSAM text noise convention", "input", ("dataset",), choices=("gtsam", "isam"),
-           unset="detected", lands=("dataset.convention",), commands=_DATASET),
     Option("on_error", "a bad line of a stream: stop there, or report it on stderr and skip it", "input",
            ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin",
            lands=("on_error",), commands=_DATASET),
@@ -489,7 +484,10 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> None:
     text = f"{told} (default: {shown})" if shown and option.kind is not bool else told
     kw: dict[str, Any] = {"help": text.replace("%", "%%")}
     if option.kind is bool:
-        kw.update(action="store_const", const=(True,)) if listed else kw.update(action="store_true")
+        if listed:
+            kw.update(action="store_const", const=(True,))
+        else:
+            kw.update(action="store_true", default=option.default)
     elif listed:
         values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
         kw.update(type=_list_of(option), metavar=f"{values}[,...]")

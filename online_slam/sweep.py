@@ -28,6 +28,7 @@ import numpy as np
 
 from online_slam.errors import ConfigError, OnlineSlamError
 from online_slam.faults import crash_point
+from online_slam.importers import registry
 from online_slam.options import OPTIONS, check_value, estimator_options, flag, replay_config
 from online_slam.pipeline import ESTIMATORS, ReplayConfig
 from online_slam.sources.worlds import WORLDS
@@ -110,10 +111,11 @@ def make_cells(
     for source in sources:
         is_world = source in WORLDS and not Path(source).exists()
         seeds: list[int | None] = [WORLDS[source].seed + k for k in range(runs)] if is_world else [None]
-        is_mrclam = Path(source).is_dir() and (Path(source) / "Barcodes.dat").is_file()
-        robot_list: list[int | None] = list(robots) if is_mrclam else [None]
-        if is_mrclam and not robots:
-            raise OnlineSlamError(f"sweep: {source} is an MRCLAM folder; give --robot 1,2,...")
+        kind = None if is_world else registry.detect(source)
+        needs_robot = "robot" in registry.takes(kind) and registry.fields(kind)["robot"].metadata["required"]
+        robot_list: list[int | str | None] = list(robots) if needs_robot else [None]
+        if needs_robot and not robots:
+            raise OnlineSlamError(f"sweep: {source} is {kind} data; give --robot 1,2,...")
         for robot, seed, combo in itertools.product(robot_list, seeds, combos):
             cells.append(Cell(source, tuple(estimators), combo, seed, robot))
     return cells

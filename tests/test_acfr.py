@@ -11,8 +11,8 @@ import pytest
 from conftest import SHARED_DATA, needs_data
 
 from online_slam.geometry.se2 import compose
-from online_slam.importers.acfr import AcfrNoise, AcfrVehicle, read_acfr
-from online_slam.importers.detect import detect_format
+from online_slam.importers.acfr.reader import AcfrNoise, AcfrVehicle, read_acfr
+from online_slam.importers.registry import detect as detect_format
 from online_slam.models.range_bearing import range_bearing
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.events import Observation, Odometry, Start, Truth

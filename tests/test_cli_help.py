@@ -97,7 +97,7 @@ def test_robot_with_a_source_without_robots_is_refused() -> None:
 def test_a_folder_of_gtsam_text_says_which_file_to_pass(tmp_path: Path) -> None:
     (tmp_path / "victoria.txt").write_text("ODOMETRY 0 1 1.0 0.0 0.0 1 0 0 1 0 1\n")
     line = one_error(cli("replay", str(tmp_path)))
-    assert "a folder, but not an MRCLAM or ACFR dataset folder" in line and str(tmp_path / "victoria.txt") in line
+    assert "a folder, but no dataset folder an importer reads" in line and str(tmp_path / "victoria.txt") in line
     assert "no such file" not in line
 
 

@@ -15,17 +15,8 @@ from conftest import SHARED_DATA, needs_data
 
 from online_slam.errors import InputError
 from online_slam.importers import open_dataset
-from online_slam.importers.g2o import read_g2o, write_g2o
-from online_slam.importers.mrclam import (
-    MrclamNoise,
-    RobotData,
-    _dead_reckoning,
-    calibrated,
-    heading_levers,
-    model_covariances,
-    odometry_increments,
-)
-from online_slam.importers.mrclam_noise import (
+from online_slam.importers.g2o.reader import read_g2o, write_g2o
+from online_slam.importers.mrclam.noise import (
     WINDOWS_S,
     IncrementErrors,
     fit_camera,
@@ -38,7 +29,16 @@ from online_slam.importers.mrclam_noise import (
     increment_errors,
     window_errors,
 )
-from online_slam.importers.mrclam_sightings import (
+from online_slam.importers.mrclam.reader import (
+    MrclamNoise,
+    RobotData,
+    _dead_reckoning,
+    calibrated,
+    heading_levers,
+    model_covariances,
+    odometry_increments,
+)
+from online_slam.importers.mrclam.sightings import (
     Camera,
     correlation,
     information_factors,
@@ -508,7 +508,7 @@ def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path:
     )
     out = tmp_path / "robot2.jsonl"
     done = subprocess.run(
-        [*EXE, "convert", "mrclam", str(MRCLAM), "--robot", "2", "--noise", "fit", "-o", str(out)],
+        [*EXE, "convert", "mrclam", str(MRCLAM), "--robot", "2", "--refit", "-o", str(out)],
         capture_output=True,
         text=True,
     )

@@ -251,7 +251,7 @@ def test_save_load_continue_on_position_sightings(tmp_path: Path, estimator: str
 
 
 def test_position_sightings_convert_to_g2o_point_edges(tmp_path: Path) -> None:
-    from online_slam.importers.g2o import read_g2o, write_g2o
+    from online_slam.importers.g2o.reader import read_g2o, write_g2o
 
     events = [Start(0.0, (1.0, 2.0, 0.5)), Observation(0.0, "a", sigma=(0.1, 0.2), xy=(3.0, -1.0))]
     write_g2o(tmp_path / "xy.g2o", events)

@@ -19,8 +19,8 @@ from online_slam import Slam
 from online_slam.errors import InputError
 from online_slam.frontend import FrontEnd
 from online_slam.importers import open_dataset
-from online_slam.importers.mrclam import MrclamNoise, _interpolate_truth, _table
-from online_slam.importers.mrclam_robots import read_mrclam_robots
+from online_slam.importers.mrclam.reader import MrclamNoise, _interpolate_truth, _table
+from online_slam.importers.mrclam.robots import read_mrclam_robots
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources import (
     WORLDS,

@@ -24,7 +24,7 @@ MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
 @needs_data("MRCLAM_Dataset6")
 def test_the_shipped_mrclam_stream_is_what_the_conversion_writes() -> None:
     """The shipped robot-1 stream is today's conversion, header included (``--noise fit`` reads it)."""
-    from online_slam.importers.mrclam import read_mrclam
+    from online_slam.importers.mrclam.reader import read_mrclam
 
     shipped = list(read_stream(REPLAY / "mrclam6_robot1.jsonl.gz"))
     assert_close(shipped, list(read_mrclam(MRCLAM, 1)), rtol=1e-12)  # sin, cos, exp: last bits differ by CPU

@@ -366,7 +366,7 @@ def test_g2o_drops_the_hidden_true_ids_and_refuses_sightings_without_ids(tmp_pat
     """g2o holds no truth: ``truth_landmark`` is left out as ``truth_outlier`` is; a sighting without an id (g2o has
     no unknown association) is refused rather than all such sightings being made one landmark."""
     from online_slam.errors import OnlineSlamError
-    from online_slam.importers.g2o import write_g2o
+    from online_slam.importers.g2o.reader import write_g2o
 
     world = list(grid_world(replace(SMALL, poses=40)))
     hidden = [replace(e, truth_landmark=e.landmark) if isinstance(e, Observation) else e for e in world]

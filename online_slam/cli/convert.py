@@ -7,7 +7,7 @@ import sys
 
 from online_slam.cli.replay import report_skip
 from online_slam.errors import OnlineSlamError
-from online_slam.importers.detect import DATASET_FORMATS, open_dataset
+from online_slam.importers import registry
 from online_slam.options import add_options, on_error_of
 from online_slam.sources.stream import write_stream
 from online_slam.wording import counted
@@ -17,11 +17,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the command."""
     p = sub.add_parser(
         "convert",
-        help="convert a dataset (mrclam, gtsam, g2o, acfr) to stream v1, or a stream to g2o",
-        description="Convert MRCLAM, GTSAM/iSAM text or g2o files to stream v1 (-o X.jsonl[.gz]), "
-        "or a stream to g2o (FORMAT stream, -o X.g2o).",
+        help=f"convert a dataset ({', '.join(registry.names())}) to stream v1, or a stream to g2o",
+        description="Convert a dataset to stream v1 (-o X.jsonl[.gz]), or a stream to g2o (FORMAT stream, -o X.g2o). "
+        "Formats: " + "; ".join(f"{i.name}: {i.summary}" for i in registry.importers().values()) + ".",
     )
-    p.add_argument("format", choices=(*DATASET_FORMATS, "stream"), help="input format")
+    p.add_argument("format", choices=(*registry.names(), "stream"), help="input format")
     p.add_argument("input", help="dataset file or folder (MRCLAM), or a stream for FORMAT stream")
     p.add_argument("--poses", type=int, help="keep only the first N poses (for shipped excerpts)")
     add_options(p, "convert")
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     """Convert and write; a one-line summary on stderr."""
     output = args.output or "-"
     if args.format == "stream":
-        from online_slam.importers.g2o import write_g2o
+        from online_slam.importers.g2o.reader import write_g2o
         from online_slam.sources.stream import read_stream
 
         if not str(output).endswith(".g2o"):
@@ -57,14 +57,8 @@ def run(args: argparse.Namespace) -> int:
             raise OnlineSlamError(
                 "convert: --on-error skip applies to stream input; dataset readers stop at a bad record"
             )
-        options = {
-            "robot": args.robot,
-            "noise": args.noise,
-            "truth": args.truth,
-            "dt": args.dt,
-            "convention": args.convention,
-        }
-        events = open_dataset(args.input, args.format, **{k: v for k, v in options.items() if v is not None})
+        given = {name: getattr(args, name, None) for name in registry.dataset_options()}
+        events = registry.open_dataset(args.input, args.format, **{k: v for k, v in given.items() if v is not None})
         try:
             lines = write_stream(output, _first_poses(events, args.poses))
         except OSError as exc:

@@ -35,8 +35,8 @@ the stock ``update`` still works on our state (used to cross-check). What we cha
 nothing); ``dim_x``, ``_I``, ``F`` and ``Q`` follow the state size so that stock filterpy calls stay valid.
 
 Each step runs with BLAS limited to one thread: the products here are small (n up to a few thousand, rank 2k),
-and OpenBLAS's thread hand-off costs more than it saves. The figures behind these choices are in
-benchmarks/RESULTS.md ("EKF").
+and OpenBLAS's thread hand-off costs more than it saves. The evidence behind these choices is in
+benchmarks/RESULTS.md ("The invariant EKF", "The EKF's BLAS on one thread").
 """
 
 from __future__ import annotations

@@ -1,5 +1,8 @@
-"""Importers: dataset files -> stream-v1 events. They yield events; they never call estimators."""
+"""Importers: dataset files -> stream-v1 events. They yield events; they never call estimators.
 
-from online_slam.importers.detect import DATASET_FORMATS, open_dataset
+Each format is a plug-in registered in :mod:`online_slam.importers.registry`.
+"""
 
-__all__ = ["DATASET_FORMATS", "open_dataset"]
+from online_slam.importers.registry import detect, names, open_dataset
+
+__all__ = ["detect", "names", "open_dataset"]

@@ -5,21 +5,15 @@ It lives with the importers, which it dispatches to, so that ``sources`` never d
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from online_slam.errors import InputError
-from online_slam.importers.detect import detect_format, open_dataset
+from online_slam.importers import registry
 from online_slam.sources.events import Event
 from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
 from online_slam.wording import did_you_mean
-
-TAKES = {"mrclam": ("robot", "noise"), "gtsam": ("truth", "dt", "convention"), "g2o": ("dt",), "acfr": ()}
-"""The dataset options each format reads (any other given is refused rather than ignored)."""
-MRCLAM_FILE = re.compile(r"(Robot[1-5]_(Odometry|Measurement|Groundtruth)|Barcodes|Landmark_Groundtruth)\.dat")
-"""The files of an MRCLAM folder (one of them alone is no source: the folder is)."""
 
 
 def open_source(
@@ -45,31 +39,31 @@ def open_source(
     text = str(spec)
     options = {k: v for k, v in dataset_options.items() if v is not None}
     is_world = text in WORLDS and not Path(text).exists()
-    kind = options.pop("format", None) or (detect_format(text) if text != "-" and not is_world else None)
+    kind = options.pop("format", None) or (registry.detect(text) if text != "-" and not is_world else None)
     _check_options(text, kind, is_world, options)
     if is_world:
         return text, WORLDS[text].events()
     if kind is not None:
-        return text, open_dataset(text, kind, **options)
+        return text, registry.open_dataset(text, kind, **options)
     if text != "-" and not Path(text).is_file():
         raise _not_found(text)
     if text.endswith(".rrd"):
         raise InputError(text, 0, "", "a Rerun recording, not a stream: read it with 'online-slam inspect' or rerun")
-    if MRCLAM_FILE.fullmatch(Path(text).name):
-        raise InputError(text, 0, "", f"a file of an MRCLAM folder: pass the folder with --robot N, e.g. "
-                         f"'online-slam replay {Path(text).parent} --robot 1'")  # fmt: skip
+    why = registry.refusal(text)
+    if why is not None:
+        raise InputError(text, 0, "", why)
     return source_name(text), read_stream(text, on_error)
 
 
 def _check_options(text: str, kind: str | None, is_world: bool, options: dict[str, object]) -> None:
     """Refuse dataset options this source does not read (``--robot 2`` with a world would be ignored)."""
-    extra = [name for name in options if name not in TAKES.get(kind or "", ())]
+    extra = [name for name in options if name not in registry.takes(kind)]
     if not extra:
         return
     what = (
         "a built-in world" if is_world else "standard input" if text == "-" else f"{kind} data" if kind else "a stream"
     )
-    readers = [f for f, names in TAKES.items() if extra[0] in names]
+    readers = [f for f in registry.names() if extra[0] in registry.takes(f)]
     flag = "--" + extra[0].replace("_", "-")
     raise InputError(source_name(text), 0, "", f"{flag} applies to {' and '.join(readers) or 'no'} data, not to {what}")
 
@@ -85,10 +79,10 @@ def _not_found(text: str) -> InputError:
     """Why a source that is neither a world nor a readable file cannot be opened, with what to pass instead."""
     path = Path(text)
     if path.is_dir():
-        inside = sorted(p.name for p in path.iterdir() if detect_format(p) is not None)
+        inside = sorted(p.name for p in path.iterdir() if registry.detect(p) is not None)
         files = ", ".join(str(path / name) for name in inside[:3])
         hint = f"pass one of its files: {files}" if inside else "none of its files is a dataset"
-        return InputError(text, 0, "", f"a folder, but not an MRCLAM or ACFR dataset folder; {hint}")
+        return InputError(text, 0, "", f"a folder, but no dataset folder an importer reads; {hint}")
     worlds = ", ".join(sorted(WORLDS))
     guess = did_you_mean(text, WORLDS) if "/" not in text else ""
     return InputError(text, 0, "", f"no such file, and not a built-in world{guess}; worlds: {worlds}")

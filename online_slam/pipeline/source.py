@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from online_slam.errors import InputError
-from online_slam.importers.detect import detect_format
+from online_slam.importers import registry
 from online_slam.importers.resolve import open_source
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.sources.events import Event, Observation, Scan
@@ -88,10 +88,8 @@ def open_events(
 
 
 def importer_options(source: str | Path, dataset: dict) -> dict:
-    """The dataset options the source's reader takes: ``noise`` reaches only an MRCLAM folder's importer (which
-    refits its model for ``fit``); for other sources ``--noise`` is the replay's (:mod:`online_slam.pipeline.noise`)."""
-    if "noise" not in dataset or (dataset.get("format") or detect_format(source)) == "mrclam":
-        return dict(dataset)
+    """The dataset options that reach the source's reader: ``format`` and those its importer reads (``noise`` is
+    the replay's, :mod:`online_slam.pipeline.noise`); the others are left for it to refuse."""
     return {name: value for name, value in dataset.items() if name != "noise"}
 
 
@@ -109,7 +107,7 @@ def count_items(source: str | Path | Iterable[Event], events: Iterable[Event]) -
     if text in WORLDS and not path.exists():
         events = list(events)
         return len(events), events
-    if text == "-" or not path.is_file() or detect_format(path) is not None:
+    if text == "-" or not path.is_file() or registry.detect(path) is not None:
         return None, events
     opener = gzip.open if path.suffix == ".gz" else open
     lines, last = 0, b"\n"

@@ -2,14 +2,14 @@
 
 For every increment whose two ends Vicon covers, the squared Mahalanobis distance of its error against the Vicon
 increment, ``e^T C^-1 e`` (3 if consistent), averaged per robot over increments grouped by the time they span.
-``python -m benchmarks.mrclam_odometry_chi2 [FOLDER]`` (default ``../shared/data/MRCLAM_Dataset6``).
+``python -m benchmarks.mrclam.odometry_chi2 [FOLDER]`` (default ``../shared/data/MRCLAM_Dataset6``).
 
 It then compares, by log-likelihood over every robot's covered increments, the model before 2026-12-04 (commands
 as logged, each increment perturbed once at its end), two models of the commands calibrated with one speed scale
 (one with that end-only noise, one with the heading noise accrued along the commands, each piece's turning the
 rest of the path), and the conversion's model (the speed also slowed by turning): each with its own terms and refitted
-(:func:`~online_slam.importers.mrclam_noise.fit_increment_terms`) on the increments alone. Last, over consecutive
-windows of the lengths the conversion's fit also uses (:data:`~online_slam.importers.mrclam_noise.WINDOWS_S`), the
+(:func:`~online_slam.importers.mrclam.noise.fit_increment_terms`) on the increments alone. Last, over consecutive
+windows of the lengths the conversion's fit also uses (:data:`~online_slam.importers.mrclam.noise.WINDOWS_S`), the
 mean squared Mahalanobis distance, of the pose and of the heading alone, under the terms fitted on the increments
 alone and under the conversion's; and each robot's heading drift against the distance it covers.
 """
@@ -24,8 +24,7 @@ import numpy as np
 
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import MrclamNoise, calibrated, load_robot, model_covariances, read_mrclam
-from online_slam.importers.mrclam_noise import (
+from online_slam.importers.mrclam.noise import (
     TERMS,
     WINDOWS_S,
     IncrementErrors,
@@ -34,6 +33,7 @@ from online_slam.importers.mrclam_noise import (
     increment_log_likelihood,
     window_errors,
 )
+from online_slam.importers.mrclam.reader import MrclamNoise, calibrated, load_robot, model_covariances, read_mrclam
 from online_slam.sources.events import Odometry, Start, Truth
 
 SPANS = ((0.0, 1.0), (1.0, 5.0), (5.0, 15.0), (15.0, np.inf))

@@ -1,6 +1,6 @@
 """UTIAS MRCLAM, all five robots -> one stream v1 (``--robot all``): merged by time, robot sightings kept.
 
-Each robot is converted as :func:`~online_slam.importers.mrclam.read_mrclam` converts it alone (the same noise
+Each robot is converted as :func:`~online_slam.importers.mrclam.reader.read_mrclam` converts it alone (the same noise
 model, odometry integrated exactly from its commands), with these differences:
 
 - Its sightings of other robots are kept, as observations with ``robot_seen`` (Barcodes.dat: subjects 1-5 are
@@ -10,7 +10,7 @@ model, odometry integrated exactly from its commands), with these differences:
 - Its sightings of other robots are placed by its camera too, their range shortened by ``robot_barcode_m`` (a
   robot reads farther than its Vicon centre), and widened for their correlation as landmark sightings are, with
   the model's correlation, one observer's sightings of one seen robot grouped as one landmark's
-  (:func:`~online_slam.importers.mrclam_sightings.sighting_sigmas`; on Dataset 6 their errors are correlated too:
+  (:func:`~online_slam.importers.mrclam.sightings.sighting_sigmas`; on Dataset 6 their errors are correlated too:
   range ``0.23 exp(-dt / 1.9 s) + 0.44 exp(-dt / 31 s)`` in the camera's sigmas).
 - Its start is its Vicon pose at its first pose time, with the conversion's small prior (``start_sigma``): the
   anchor's convention (every robot starts at its Vicon pose; the anchor's prior is zero).
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from online_slam.importers.mrclam import (
+from online_slam.importers.mrclam.reader import (
     MrclamNoise,
     RobotData,
     _interpolate_truth,
@@ -36,7 +36,7 @@ from online_slam.importers.mrclam import (
     noise_meta,
     odometry_increments,
 )
-from online_slam.importers.mrclam_sightings import camera_sightings
+from online_slam.importers.mrclam.sightings import camera_sightings
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -107,7 +107,7 @@ def read_mrclam_robots(folder: str | Path, noise: MrclamNoise | None = None) -> 
     """Stream all five MRCLAM robots as one multi-robot stream.
 
     Args:
-        folder: The dataset folder (as for :func:`~online_slam.importers.mrclam.read_mrclam`).
+        folder: The dataset folder (as for :func:`~online_slam.importers.mrclam.reader.read_mrclam`).
         noise: Noise model (defaults: fitted on Dataset 6), the same for every robot.
 
     Yields:

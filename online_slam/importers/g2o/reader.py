@@ -22,7 +22,7 @@ import numpy as np
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.geometry.se2 import compose
 from online_slam.importers._lines import covariance_from, numbered_lines, numbers
-from online_slam.importers.gtsam_text import cartesian_to_range_bearing
+from online_slam.importers.gtsam_text.reader import cartesian_to_range_bearing
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.sources.events import Event, Header, Observation, Odometry, Start
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from online_slam.importers.mrclam import MrclamNoise
+    from online_slam.importers.mrclam.reader import MrclamNoise
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ CAMERAS = (
     Camera(0.9787, -0.0399, 0.01482, 0.9857, 0.0, 0.0136, 0.00887),
 )
 """The five robots' cameras (:attr:`MrclamNoise.cameras`), fitted on Dataset 6's Vicon by
-:func:`~online_slam.importers.mrclam_noise.fit_camera`."""
+:func:`~online_slam.importers.mrclam.noise.fit_camera`."""
 
 
 def base_sigmas(noise: MrclamNoise, ranges: np.ndarray, camera: Camera | None = None) -> np.ndarray:

@@ -1,5 +1,5 @@
 """UTIAS MRCLAM (multi-robot cooperative localization and mapping) -> stream v1, one robot at a time (all five
-robots in one stream: :mod:`online_slam.importers.mrclam_robots`).
+robots in one stream: :mod:`online_slam.importers.mrclam.robots`).
 
 - Poses at the robot's landmark-measurement times; rows sharing a timestamp (one camera image) share a pose.
 - Odometry between poses is integrated exactly from the piecewise-constant (v, w) commands (each command holds
@@ -11,8 +11,8 @@ robots in one stream: :mod:`online_slam.importers.mrclam_robots`).
   pose times where Vicon covers them; landmark truth from ``Landmark_Groundtruth.dat``.
 
 The model (``MrclamNoise``), every part fitted against Vicon over Dataset 6 by
-:mod:`online_slam.importers.mrclam_noise` (``--noise fit`` repeats the fit on a folder; the figures behind each
-choice are in benchmarks/RESULTS.md, "MRCLAM Dataset 6"):
+:mod:`online_slam.importers.mrclam.noise` (``--refit`` repeats the fit on a folder; the evidence behind each
+choice is in benchmarks/RESULTS.md, "The noise model of the conversion"):
 
 - the commands are integrated as the robot carries them out: ``command_lag_s`` late, their speed and turn rate
   scaled by ``speed_scale`` and ``turn_scale``, and the speed slowed by turning (``speed_per_turn``:
@@ -43,7 +43,7 @@ from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, rotation
 from online_slam.importers._lines import numbered_lines, numbers
-from online_slam.importers.mrclam_sightings import CAMERAS, Camera, camera_sightings
+from online_slam.importers.mrclam.sightings import CAMERAS, Camera, camera_sightings
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 
@@ -105,7 +105,7 @@ class MrclamNoise:
     robot_barcode_m: float = 0.0253
     """How much farther a robot reads than its Vicon centre when another robot sights it through its camera, m:
     taken off the range of robot sightings (``--robot all``; fitted as the median over every robot's sightings of
-    robots, :func:`~online_slam.importers.mrclam_noise.fit_robot_barcode`: 0.022-0.042 m by observing robot)."""
+    robots, :func:`~online_slam.importers.mrclam.noise.fit_robot_barcode`: 0.022-0.042 m by observing robot)."""
     start_sigma: float = 0.01
     """Standard deviation of the start prior (x, y in m, theta in rad)."""
 

@@ -39,12 +39,10 @@ from numpy.typing import NDArray
 from online_slam.errors import InputError
 from online_slam.geometry.se2 import between
 from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers.acfr import FILES
 from online_slam.sources.events import Event, Header, Observation, Odometry, Start, Truth
 
 Array = NDArray[np.float64]
-
-FILES = ("inputs.dat", "measurements.dat", "gps.dat")
-"""The three files of the folder."""
 
 
 @dataclass(frozen=True)

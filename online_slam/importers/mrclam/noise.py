@@ -25,7 +25,7 @@ robot of a dataset folder:
 
 Ground truth is used here to *calibrate* the model once; the conversion itself never uses it to clean data.
 :mod:`online_slam.evaluation.noise_fit` then checks any stream, this one included, against its truth and scales
-its covariances (``--noise fit`` does both).
+its covariances (``--refit`` runs this fit, ``--noise fit`` that check).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from scipy.optimize import curve_fit, least_squares, minimize
 from online_slam.evaluation.noise_fit import MAD_TO_SIGMA
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import (
+from online_slam.importers.mrclam.reader import (
     MrclamNoise,
     RobotData,
     _dead_reckoning,
@@ -55,7 +55,7 @@ from online_slam.importers.mrclam import (
     pieces,
     sampled,
 )
-from online_slam.importers.mrclam_sightings import Camera, base_sigmas, camera_point, correlation, through_camera
+from online_slam.importers.mrclam.sightings import Camera, base_sigmas, camera_point, correlation, through_camera
 
 Array = NDArray[np.float64]
 
@@ -81,7 +81,7 @@ class MrclamNoiseFit:
 LAGS = np.arange(0.0, 0.505, 0.01)
 """Command lags tried, seconds."""
 AS_COMMANDED = MrclamNoise(command_lag_s=0.0, speed_scale=1.0, turn_scale=1.0, speed_per_turn=0.0)
-"""A model whose :func:`~online_slam.importers.mrclam.calibrated` leaves the commands as logged."""
+"""A model whose :func:`~online_slam.importers.mrclam.reader.calibrated` leaves the commands as logged."""
 SPEED_PER_TURN = np.arange(0.0, 2.001, 0.05)
 """Speed losses per rad/s of turn tried, s/rad."""
 WINDOWS_S = (5.0, 10.0, 20.0, 40.0)
@@ -322,7 +322,7 @@ def _figure(value: float) -> float:
 
 
 def fit_camera(data: RobotData, landmark_xy: dict[int, Array]) -> Camera:
-    """One robot's camera (:class:`~online_slam.importers.mrclam.Camera`).
+    """One robot's camera (:class:`~online_slam.importers.mrclam.sightings.Camera`).
 
     Where it puts a sighting: the least-squares fit, with a soft-L1 loss (0.1 m scale: a few rows carry another
     landmark's barcode), of the surveyed landmarks' positions in the robot's Vicon frame. How far it errs: the
@@ -401,7 +401,7 @@ def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 
     """Fit the MRCLAM model (calibration, increments' noise, sightings' noise) against Vicon over the given robots.
 
     Args:
-        folder: The dataset folder (as for :func:`online_slam.importers.mrclam.read_mrclam`).
+        folder: The dataset folder (as for :func:`online_slam.importers.mrclam.reader.read_mrclam`).
         robots: Robots whose data enter the fit.
 
     Returns:

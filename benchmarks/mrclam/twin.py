@@ -9,7 +9,7 @@ sightings a pose) apart from the model's: on the twin the model is exact.
   stream keeps the conversion's sigmas (widened for that correlation).
 - The stream stops at the first pose Vicon does not cover.
 
-``python -m benchmarks.mrclam_twin [SEEDS] [FOLDER]`` prints, per robot, the EKF's and the smoother's online RMSE
+``python -m benchmarks.mrclam.twin [SEEDS] [FOLDER]`` prints, per robot, the EKF's and the smoother's online RMSE
 and mean NEES averaged over seeds 0..SEEDS-1 (default 3), beside the real data's.
 """
 
@@ -22,8 +22,8 @@ import numpy as np
 
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
-from online_slam.importers.mrclam import MrclamNoise, read_mrclam
-from online_slam.importers.mrclam_sightings import camera_of, sighting_sigma
+from online_slam.importers.mrclam.reader import MrclamNoise, read_mrclam
+from online_slam.importers.mrclam.sightings import camera_of, sighting_sigma
 from online_slam.pipeline import replay
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.sources.events import Event, LandmarkTruth, Observation, Odometry, Start, Truth

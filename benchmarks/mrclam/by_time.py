@@ -4,7 +4,7 @@ The online estimators' position RMSE and mean pose NEES (3 if consistent) per ``
 first pose, over the steps with a NEES (those Vicon covers): the replay's own per-step figures
 (``Results.series``), whose run averages are the online RMSE and mean NEES of ``online-slam replay``'s table.
 
-``python -m benchmarks.mrclam_by_time ROBOT [FOLDER] [BIN]`` (default ``../shared/data/MRCLAM_Dataset6``, 50 s).
+``python -m benchmarks.mrclam.by_time ROBOT [FOLDER] [BIN]`` (default ``../shared/data/MRCLAM_Dataset6``, 50 s).
 """
 
 from __future__ import annotations
