@@ -49,6 +49,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None, help="circle: processes for the runs (default: all cores)")
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
     p.add_argument(
+        "--record",
+        action="store_true",
+        help="measure the baseline (every estimator on the built-in worlds and replay/'s streams, iSAM2 beside) and "
+        "write benchmarks/baseline.json and RESULTS.md's table of current figures",
+    )
+    p.add_argument(
+        "--gate",
+        action="store_true",
+        help="measure the baseline again and exit 1 if a figure moved beyond benchmarks/baseline.json's tolerances",
+    )
+    p.add_argument(
         "--mrclam",
         metavar="PATH",
         help="mrclam, sweep: the MRCLAM Dataset 6 folder (required by those sections; not shipped with the repository)",
@@ -70,8 +81,31 @@ def chosen_sections(args: argparse.Namespace) -> list[str]:
     return [s for s in SECTIONS if s in chosen]
 
 
+def run_baseline(args: argparse.Namespace) -> int:
+    """``--record``: measure and write the baseline; ``--gate``: measure and compare (1 if something moved)."""
+    from benchmarks import baseline, results_page
+
+    if args.record and args.gate:
+        raise OnlineSlamError("--record and --gate: give one")
+    if args.gate and not baseline.BASELINE.is_file():
+        raise OnlineSlamError(f"--gate: no baseline at {baseline.BASELINE} (record one with --record)")
+    rows = baseline.measure()
+    if args.record:
+        document = baseline.record(rows)
+        results_page.update(document)
+        print(f"wrote {baseline.BASELINE} ({len(rows)} rows) and the table in {results_page.RESULTS}")
+        return 0
+    failures = baseline.gate(baseline.read(), rows)
+    for line in failures:
+        print(f"moved: {line}")
+    print(f"gate: {'FAILED' if failures else 'passed'} ({len(rows)} rows against {baseline.BASELINE.name})")
+    return 1 if failures else 0
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the selected sections, a blank line between their tables."""
+    """Run the selected sections, a blank line between their tables (or the baseline, with --record/--gate)."""
+    if args.record or args.gate:
+        return run_baseline(args)
     world = GridConfig(poses=args.poses, seed=args.seed)
     for k, section in enumerate(chosen_sections(args)):
         if k:
@@ -81,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Parse, run; returns the exit code (0 ok, 2 bad input or usage, 130 interrupted)."""
+    """Parse, run; returns the exit code (0 ok, 1 the gate failed, 2 bad input or usage, 130 interrupted)."""
     args = build_parser().parse_args(argv)
     try:
         return run(args)
