@@ -37,6 +37,13 @@ if TYPE_CHECKING:
 
 GROUPS = ("input", "estimators", "EKF", "smoother", "association", "outliers", "output", "live/checkpoint", "runs")
 """Help groups, in the order ``--help`` and the docs list them."""
+ADVANCED = frozenset({
+    "align", "first_observation_only", "keyframe_angle", "keyframe_time", "max_iterations", "gate_probability",
+    "gate_persistence", "ekf_update", "ekf_linearization", "window_distance", "window_max", "relinearize_every",
+    "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "robust_scale",
+    "convention",
+})  # fmt: skip
+"""The research knobs (:attr:`Option.advanced`): what a user seldom sets; ``--help-all`` shows them."""
 ESTIMATOR_OWNERS = frozenset({"ekf", "smoother", "batch", "front-end", "association"})
 """Owners of the estimator options: those ``replay``, ``compare``, ``sweep`` and ``Slam`` all accept."""
 _SHARED = frozenset({"front-end", "association"})
@@ -106,6 +113,8 @@ class Option:
     """Value of a flag given without its optional value."""
     short: str = ""
     """A one-letter spelling besides the flag (``-o``), or empty."""
+    advanced: bool = False
+    """A research knob: left out of ``--help`` (``--help-all`` shows it) and marked in docs/options.md."""
     parse: Callable[[str], Any] | None = None
     """How the command line's text becomes a value, when not by ``kind`` (``--robot``: a number or ``all``)."""
 
@@ -458,8 +467,29 @@ def add_options(parser: argparse.ArgumentParser, command: str, lists: Iterable[s
     """
     chosen = [o for o in OPTIONS.values() if command in o.commands]
     groups = {g: parser.add_argument_group(g) for g in GROUPS if any(o.group == g for o in chosen)}
+    hidden = []
     for option in chosen:
-        add_option(groups[option.group], option, option.name in set(lists), command)
+        action = add_option(groups[option.group], option, option.name in set(lists), command)
+        if option.name in ADVANCED:
+            hidden.append((action, action.help))
+            action.help = argparse.SUPPRESS
+    if hidden:
+        told = f"show this help with the {len(hidden)} advanced options (research knobs) too"
+        parser.add_argument("--help-all", action=_HelpAll, hidden=hidden, help=told)
+
+
+class _HelpAll(argparse.Action):
+    """``--help-all``: the help with the advanced options shown, then exit."""
+
+    def __init__(self, option_strings: list[str], dest: str, hidden: list, help: str | None = None) -> None:
+        super().__init__(option_strings, argparse.SUPPRESS, nargs=0, default=argparse.SUPPRESS, help=help)
+        self.hidden = hidden
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: Any, values: Any, option: Any = None) -> None:
+        for action, text in self.hidden:
+            action.help = f"[advanced] {text}"
+        parser.print_help()
+        parser.exit()
 
 
 _NOTE = re.compile(r" \(((?:replay|compare|sweep|convert|Slam): [^()]*)\)")
@@ -477,8 +507,8 @@ def for_command(help: str, command: str) -> str:
     return _NOTE.sub(own, help)
 
 
-def add_option(group: Any, option: Option, listed: bool, command: str) -> None:
-    """Add one option to an argparse group."""
+def add_option(group: Any, option: Option, listed: bool, command: str) -> argparse.Action:
+    """Add one option to an argparse group; its action."""
     shown = option.shown_default()
     told = for_command(option.help, command)
     text = f"{told} (default: {shown})" if shown and option.kind is not bool else told
@@ -500,7 +530,7 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> None:
         kw["const"] = option.const
     if option.positional and option.metavar is None:
         kw.pop("metavar", None)
-    group.add_argument(*filter(None, (option.short, option.flag)), **kw)
+    return group.add_argument(*filter(None, (option.short, option.flag)), **kw)
 
 
 def _list_of(option: Option) -> Callable[[str], tuple]:
@@ -553,7 +583,8 @@ def markdown() -> str:
             commands = ", ".join((*o.commands, "Slam") if slam else o.commands)
             shown, owners = o.shown_default() or "-", ", ".join(o.owners)
             flags = ", ".join(f"`{f}`" for f in (o.short, o.flag) if f)
-            row = (flags, kind, shown, owners, commands, o.help.replace("|", "\\|"))
+            told = ("advanced (`--help-all`): " if o.name in ADVANCED else "") + o.help
+            row = (flags, kind, shown, owners, commands, told.replace("|", "\\|"))
             lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
 

@@ -87,12 +87,14 @@ def parse_compare(text: str) -> dict[str, list[str]]:
 
 
 def test_help_is_grouped_with_readable_defaults() -> None:
-    done = cli("replay", "--help")
-    assert done.returncode == 0
-    for group in ("input:", "estimators:", "EKF:", "smoother:", "association:", "outliers:", "output:"):
+    done, every = cli("replay", "--help"), cli("replay", "--help-all")
+    assert done.returncode == 0 and every.returncode == 0
+    for group in ("input:", "estimators:", "smoother:", "association:", "outliers:", "output:"):
         assert f"\n{group}\n" in done.stdout
-    text = " ".join(done.stdout.split())
-    assert "(default: 20)" in text and "(default: 18 m)" in text and "0.35 rad (20.1 deg)" in text
+    assert "\nEKF:\n" in every.stdout  # its four options are all research knobs
+    text, full = " ".join(done.stdout.split()), " ".join(every.stdout.split())
+    assert "(default: 20)" in text and "--window-distance" not in text and "--help-all" in text
+    assert "[advanced] keep poses beyond W" in full and "(default: 18 m)" in full and "0.35 rad (20.1 deg)" in full
     assert "world (square, grid, waypoint, circle" in text
     assert not re.search(r"\d\.\d{8,}", cli("simulate", "--help").stdout)  # no 0.008726646259971648
 
