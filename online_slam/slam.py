@@ -202,14 +202,34 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
     return (config.ekf if estimator == "ekf" else config.smoother), config.frontend
 
 
+def _typed_configs(
+    estimator: str | None, config: EkfConfig | SmootherConfig | None, frontend: FrontEndConfig | None
+) -> tuple[str, EkfConfig | SmootherConfig, FrontEndConfig]:
+    """``Slam(config=..., frontend=...)``: the estimator named by ``estimator`` or by the config's type, checked."""
+    by_type: dict[type, str] = {EkfConfig: "ekf", SmootherConfig: "smoother"}
+    if config is not None and type(config) not in by_type:
+        raise ConfigError(f"Slam: config must be an EkfConfig or a SmootherConfig, not {type(config).__name__}")
+    if frontend is not None and not isinstance(frontend, FrontEndConfig):
+        raise ConfigError(f"Slam: frontend must be a FrontEndConfig, not {type(frontend).__name__}")
+    name = (estimator or (by_type[type(config)] if config is not None else "smoother")).strip().lower()
+    default, default_frontend = _configs(name, {})
+    if config is not None and by_type[type(config)] != name:
+        raise ConfigError(f"Slam({name!r}): config is a {type(config).__name__}, for the {by_type[type(config)]}")
+    return name, config if config is not None else default, frontend if frontend is not None else default_frontend
+
+
 class Slam:
     """Online 2D landmark SLAM in a robot's loop: push events, query the estimate.
 
     Args:
         estimator: ``"smoother"`` (sliding-window least squares, default) or ``"ekf"``, in any case. The batch
-            solver is no online estimator: run it with :func:`online_slam.replay`.
-        **options: Settings named as the CLI's flags (see :data:`OPTIONS`), e.g. ``window=50``,
-            ``robust="cauchy"``, ``gate_probability=0.999``.
+            solver is no online estimator: run it with :func:`online_slam.replay`. With ``config``: taken from
+            its type when not given.
+        config: The estimator's whole configuration (:class:`~online_slam.estimators.ekf_config.EkfConfig` or
+            :class:`~online_slam.estimators.smoother.SmootherConfig`): every field, flags or not.
+        frontend: The front-end's (:class:`~online_slam.frontend.steps.FrontEndConfig`: keyframes, noise scales).
+        **options: Or settings named as the CLI's flags (see :data:`OPTIONS`), e.g. ``window=50``,
+            ``robust="cauchy"``, ``gate_probability=0.999`` (not with ``config`` or ``frontend``).
 
     Raises:
         ConfigError: Unknown estimator or option, or a value out of range.
@@ -222,10 +242,26 @@ class Slam:
         1
     """
 
-    def __init__(self, estimator: str = "smoother", **options: Any) -> None:
-        estimator = estimator.strip().lower() if isinstance(estimator, str) else estimator
-        config, frontend = _configs(estimator, options)
-        self.estimator_name = estimator
+    def __init__(
+        self,
+        estimator: str | None = None,
+        *,
+        config: EkfConfig | SmootherConfig | None = None,
+        frontend: FrontEndConfig | None = None,
+        **options: Any,
+    ) -> None:
+        self.typed: tuple[EkfConfig | SmootherConfig | None, FrontEndConfig | None] = (None, None)
+        """The configurations given (``config``, ``frontend``), or (None, None) for options by name."""
+        if config is None and frontend is None:
+            name = "smoother" if estimator is None else estimator
+            name = name.strip().lower() if isinstance(name, str) else name  # a non-string is refused by name
+            config, frontend = _configs(name, options)
+        else:
+            if options:
+                raise ConfigError(f"Slam: give options by name ({', '.join(options)}) or configs, not both")
+            name, config, frontend = _typed_configs(estimator, config, frontend)
+            self.typed = (config, frontend)
+        self.estimator_name = name
         self.options: dict[str, Any] = dict(options)
         self._estimator = EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
         self._engine = Engine([self._estimator], frontend, records=False)
@@ -474,6 +510,7 @@ class Slam:
             self._validator.state,
             self._engine.checkpoint(),
             self._step_robots,
+            *self.typed,
         )
         write_checkpoint(path, _CHECKPOINT_KIND, state)
 
@@ -486,7 +523,8 @@ class Slam:
         """
         saved = read_checkpoint(path, _CHECKPOINT_KIND, SlamCheckpoint)
         try:
-            slam = cls(saved.estimator, **saved.options)
+            typed = {} if saved.frontend is None else {"config": saved.config, "frontend": saved.frontend}
+            slam = cls(saved.estimator, **typed, **saved.options)
             slam._validator.state = saved.validator
             slam._engine.restore(saved.engine)
             slam._step_robots = saved.step_robots
@@ -517,3 +555,7 @@ class SlamCheckpoint:
     """The engine's, the front-end's and the estimator's state."""
     step_robots: list[RobotId] = field(default_factory=list)
     """The robot of every pose so far, in index order (empty when the events name no robot)."""
+    config: EkfConfig | SmootherConfig | None = None
+    """The estimator's configuration when given as one (``Slam(config=...)``), else None."""
+    frontend: FrontEndConfig | None = None
+    """The front-end's configuration when given as one, else None."""

@@ -475,3 +475,26 @@ def test_a_checkpoint_that_cannot_be_written_is_an_error_of_ours_and_keeps_the_p
     with pytest.raises(InputError, match="no such checkpoint file"):
         Slam.load(blocker / "run.ckpt")
     np.testing.assert_array_equal(Slam.load(path).estimate().pose, slam.estimate().pose)  # the engine goes on
+
+
+def test_typed_configs_reach_every_field_and_survive_a_checkpoint(tmp_path: Path) -> None:
+    """``Slam(config=...)``: fields no flag reaches (the consensus move here) are settable; names and types checked."""
+    from online_slam.estimators import SmootherConfig
+    from online_slam.estimators.ekf_config import EkfConfig
+    from online_slam.estimators.smoother import RobustConfig, WindowConfig
+    from online_slam.frontend import FrontEndConfig
+
+    config = SmootherConfig(window=WindowConfig(size=7, distance=0.0), robust=RobustConfig(consensus=False))
+    slam = Slam(config=config, frontend=FrontEndConfig(odometry_noise_scale=2.0))
+    assert slam.estimator_name == "smoother" and slam._estimator.config is config
+    slam.add_odometry(1.0, delta=[1.0, 0.0, 0.0], sigma=[0.1, 0.1, 0.01])
+    slam.save(tmp_path / "typed.ckpt")
+    again = Slam.load(tmp_path / "typed.ckpt")
+    assert again._estimator.config == config and again.typed == slam.typed
+    assert Slam(config=EkfConfig()).estimator_name == "ekf"
+    with pytest.raises(ConfigError, match="or configs, not both"):
+        Slam(config=config, window=5)
+    with pytest.raises(ConfigError, match="config is a EkfConfig, for the ekf"):
+        Slam("smoother", config=EkfConfig())
+    with pytest.raises(ConfigError, match="config must be an EkfConfig or a SmootherConfig"):
+        Slam(config=FrontEndConfig())
