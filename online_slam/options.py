@@ -279,8 +279,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "once poses leave the window: at the current estimate (standard); at the prior's linearization "
                "point, re-anchored at each global solve (fej); or at the current estimate, with the prior's "
                "covariance carried there as the invariant EKF carries its own (invariant). fej and invariant "
-               "start window solves undamped; on the circle world their ANEES is near the 95% band (3.55, 3.57; "
-               "standard 13.3) and their steps up to 2.5x slower",
+               "start window solves undamped; they are consistent where standard is overconfident, and their steps "
+               "are slower (benchmarks/RESULTS.md)",
                "smoother", "smoother", ("SmootherConfig", "linearization"),
                choices=CHOICES["smoother_linearization"], lands=("smoother.linearization",)),
     _estimator("global_information_max", "at re-anchoring also relinearize the prior's covariance while it holds "

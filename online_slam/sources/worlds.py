@@ -221,8 +221,8 @@ class WaypointConfig:
     min_range: float = 0.5
     """Landmarks closer than this are not observed (the sensor's blind zone; the robot drives over landmarks
     here). Without it a sighting at a few centimetres (range noise 5 cm) carries a bearing the pose cannot
-    explain but by sitting on the landmark: the batch's information reached 5e20 there and its solution
-    depended on where it started (measured: 0.0297-0.0326 m)."""
+    explain but by sitting on the landmark: the batch's information grew without bound there and its solution
+    depended on where it started."""
     odometry_sigma: tuple[float, float, float] = (0.05, 0.05, 0.01)
     """Standard deviations of each odometry increment (dx m, dy m, dtheta rad)."""
     sensor_sigma: tuple[float, float] = (0.05, float(np.deg2rad(0.5)))

@@ -64,10 +64,8 @@ class AcfrNoise:
     """Noise model of the conversion: odometry per increment, laser per detection, and the clutter limits.
 
     The sigmas are about twice the residual spread at the batch solution of the whole log (JCBB associations):
-    range 0.083 m (robust 0.055), bearing 0.0026 rad, odometry 0.007 / 0.006 m and 0.0026 rad per square-root
-    metre. With those fitted values themselves the EKF turns overconfident on this log and its association
-    fails (measured: RMSE 23.7 m, 1,047 landmarks); with twice them: 4.4 m, 238 landmarks (with 2.5 to 5 times
-    them: the same).
+    with the fitted spread itself the EKF turns overconfident on this log and its association fails, with twice
+    it (up to five times) it holds (benchmarks/RESULTS.md, "Raw Victoria Park").
     """
 
     x_per_m: float = 0.02**2
@@ -88,9 +86,8 @@ class AcfrNoise:
     """Detections nearer than this are dropped, metres."""
     max_range: float = 25.0
     """Detections farther than this are dropped, metres: far trees are seen in few scans and poorly resolved, and
-    each becomes a landmark of its own more often (measured on the whole log, EKF / smoother: 40 m -> 424 / 407
-    landmarks, RMSE 4.38 / 4.13 m; 30 m -> 300 / 298, 4.49 / 4.16 m; 25 m -> 237 / 233, 4.36 / 4.30 m, and the
-    fastest run)."""
+    each becomes a landmark of its own more often; 25 m maps the fewest spurious landmarks at the same error and
+    runs fastest (benchmarks/RESULTS.md, "Raw Victoria Park")."""
     min_bearing: float = math.radians(6.3)
     """Laser-frame bearing limits (0 = laser's right, pi = its left): detections at the edges are dropped."""
     max_bearing: float = math.radians(177.0)
