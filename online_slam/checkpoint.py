@@ -39,7 +39,7 @@ import types
 import typing
 import zipfile
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -48,8 +48,6 @@ from online_slam.version import __version__
 
 FORMAT_VERSION = 5
 """Version of the checkpoint layout; files of another version are refused."""
-
-T = TypeVar("T")
 
 
 # -- objects <-> trees ---------------------------------------------------------------------------------------
@@ -118,8 +116,9 @@ def from_tree(hint: Any, tree: Any) -> Any:
     container = origin or hint
     if container in (list, tuple, dict, set, frozenset):
         return _from_container(container, args, tree)
-    if isinstance(hint, type) and callable(getattr(hint, "from_tree", None)):
-        return hint.from_tree(tree)
+    rebuild = getattr(hint, "from_tree", None) if isinstance(hint, type) else None
+    if callable(rebuild):
+        return rebuild(tree)
     raise TypeError(f"cannot rebuild a {hint!r}")
 
 
@@ -172,7 +171,7 @@ def _saved_fields(cls: type) -> tuple[tuple[str, Any], ...]:
     return tuple((f.name, hints[f.name]) for f in dataclasses.fields(cls) if f.init)
 
 
-def _from_dataclass(cls: type[T], tree: Any) -> T:
+def _from_dataclass(cls: type, tree: Any) -> Any:
     if not isinstance(tree, dict):
         raise TypeError(f"expected the fields of {cls.__name__}, got {type(tree).__name__}")
     saved = _saved_fields(cls)
@@ -191,7 +190,7 @@ class Checkpointed:
     def load_state(self, tree: Any) -> None:
         """Take the state of a :meth:`state_dict` (derived fields rebuilt; the tree's arrays become its own)."""
         loaded = from_tree(type(self), tree)
-        for f in dataclasses.fields(loaded):  # type: ignore[arg-type]
+        for f in dataclasses.fields(loaded):
             setattr(self, f.name, getattr(loaded, f.name))
 
 

@@ -323,8 +323,8 @@ def summarise(outcomes: list[Outcome], seeds: tuple[int, ...], scored: tuple[int
             ok = np.isfinite(values)
             mean[name][key] = float(values[ok].mean()) if ok.any() else None
             std[name][key] = float(values[ok].std(ddof=1)) if ok.sum() > 1 else None
-    figures = {name: _over_steps([o[1][name] for o in outcomes], scored) for name in outcomes[0][1]}
-    figures = {name: f for name, f in figures.items() if f is not None}
+    over_steps = {name: _over_steps([o[1][name] for o in outcomes], scored) for name in outcomes[0][1]}
+    figures = {name: f for name, f in over_steps.items() if f is not None}
     steps = next(iter(figures.values()))["steps"] if figures else (0, -1)
     return MonteCarlo(
         runs,

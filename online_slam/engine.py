@@ -24,7 +24,7 @@ from typing import Any
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.frontend.steps import FrontEnd, FrontEndConfig, Step
-from online_slam.sources.events import Event
+from online_slam.sources.events import Event, Scan
 
 
 @dataclass(frozen=True)
@@ -99,8 +99,8 @@ class Engine:
         """Observations in complete steps so far."""
         return self.state.observations
 
-    def push(self, event: Event) -> StepRecord | None:
-        """Consume one validated event.
+    def push(self, event: Event | Scan) -> StepRecord | None:
+        """Consume one validated event (or a scan of the library API).
 
         Returns:
             The step it completed (an odometry event completes the previous pose), with every estimator's

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,7 @@ try:  # pragma: no cover - depends on the optional extra
     import gtsam
     from gtsam.symbol_shorthand import L, X
 except ImportError:  # pragma: no cover
-    gtsam = None
+    gtsam = None  # type: ignore[assignment, unused-ignore]  # None marks the extra absent (then no error to ignore)
 
 Array = NDArray[np.float64]
 FIXED_SIGMA = 1e-9
@@ -50,7 +51,7 @@ def available() -> bool:
 
 def _covariances(W: Array) -> Array:
     info = np.swapaxes(W, -1, -2) @ W
-    return np.linalg.inv(info)
+    return cast(Array, np.linalg.inv(info))  # float64 in, float64 out (numpy's stubs say some float)
 
 
 def _tangent(theta: float) -> Array:
@@ -99,7 +100,7 @@ def _prior_factor(key: int, mean: Array, cov: Array) -> gtsam.CustomFactor:
     return gtsam.CustomFactor(gtsam.noiseModel.Gaussian.Covariance(cov), [key], error)
 
 
-def _position_factor(key_p: int, key_l: int, z: Array, noise: object) -> gtsam.CustomFactor:
+def _position_factor(key_p: int, key_l: int, z: Array, noise: gtsam.noiseModel.Base) -> gtsam.CustomFactor:
     """A position sighting ``z`` (the landmark in the robot frame) with its noise model, as our residual."""
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list | None) -> Array:
@@ -113,14 +114,16 @@ def _position_factor(key_p: int, key_l: int, z: Array, noise: object) -> gtsam.C
     return gtsam.CustomFactor(noise, [key_p, key_l], error)
 
 
-def _sighting_noise(cov: Array, model: int) -> object:
+def _sighting_noise(cov: Array, model: int) -> gtsam.noiseModel.Base:
     """The Gaussian noise model of a sighting's covariance, in the order its GTSAM factor takes (a bearing-range
     factor orders (bearing, range))."""
     cov = np.asarray(cov) if model == POSITION else np.asarray(cov)[::-1, ::-1]
     return gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
 
 
-def _sighting_factor(key_p: int, key_l: int, z: Array, model: int, noise: object) -> object:
+def _sighting_factor(
+    key_p: int, key_l: int, z: Array, model: int, noise: gtsam.noiseModel.Base
+) -> gtsam.NonlinearFactor:
     """Our sighting as a GTSAM factor: native bearing-range, or a position factor (noise from :func:`_sighting_noise`,
     possibly made robust)."""
     if model == POSITION:
@@ -162,7 +165,7 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
     obs_cov = _covariances(graph.obs_sqrt_info)
     for p, l, z, cov, model in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov, graph.obs_model):
         fg.add(_sighting_factor(X(int(p)), L(int(l)), z, int(model), _sighting_noise(cov, int(model))))
-    rob_cov = _covariances(graph.rob_sqrt_info)[:, ::-1, ::-1] if len(graph.rob_from) else []
+    rob_cov: Array | list[Array] = _covariances(graph.rob_sqrt_info)[:, ::-1, ::-1] if len(graph.rob_from) else []
     for a, b, z, cov in zip(graph.rob_from, graph.rob_to, graph.rob_z, rob_cov):
         noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
         fg.add(gtsam.BearingRangeFactorPose2(X(int(a)), X(int(b)), gtsam.Rot2(z[1]), z[0], noise))
@@ -284,7 +287,7 @@ def isam2_online(
         if step.odometry is None:
             latest = np.array(step.prior, dtype=float)
             cov = step.prior_cov
-            noise = (
+            noise: gtsam.noiseModel.Base = (
                 gtsam.noiseModel.Isotropic.Sigma(3, FIXED_SIGMA)
                 if cov is None
                 else gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov))

@@ -25,7 +25,7 @@ import math
 import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from online_slam.errors import ConfigError
 from online_slam.importers import registry
@@ -158,7 +158,10 @@ def field_default(field: tuple[str, str]) -> Any:
     """A configuration field's default value (its factory's product when it has one), read from the dataclass."""
     cls = getattr(importlib.import_module(CONFIGS[field[0]]), field[0])
     spec = next(f for f in dataclasses.fields(cls) if f.name == field[1])
-    return spec.default if spec.default is not dataclasses.MISSING else spec.default_factory()  # type: ignore[misc]
+    if spec.default is not dataclasses.MISSING:
+        return spec.default
+    factory = cast("Callable[[], Any]", spec.default_factory)  # a configuration field without a default has one
+    return factory()
 
 
 def readable(value: Any, unit: str = "") -> str:

@@ -35,7 +35,7 @@ from online_slam.engine import Engine, EngineCheckpoint
 from online_slam.errors import ConfigError, InputError, OnlineSlamError
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
-from online_slam.estimators.protocol import Estimator, Snapshot
+from online_slam.estimators.protocol import Estimator, SlamEstimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.frontend.steps import FrontEndConfig
 from online_slam.options import Option, check_value, estimator_options, replay_config
@@ -263,7 +263,9 @@ class Slam:
             self.typed = (config, frontend)
         self.estimator_name = name
         self.options: dict[str, Any] = dict(options)
-        self._estimator = EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
+        self._estimator: SlamEstimator = (
+            EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
+        )
         self._engine = Engine([self._estimator], frontend, records=False)
         self._validator = EventValidator("Slam")
         self._step_robots: list[RobotId] = []
@@ -492,7 +494,7 @@ class Slam:
             pose = snapshot.pose.copy()
             cov = snapshot.pose_cov.copy() if snapshot.pose_cov is not None else np.full((3, 3), np.nan)
             return MappingProxyType({self._step_robots[0]: (snapshot.index, snapshot.t, pose, cov)})
-        newest: dict[RobotId, NewestPose] = self._estimator.robot_poses()  # type: ignore[attr-defined]
+        newest: dict[RobotId | None, NewestPose] = self._estimator.robot_poses()
         return MappingProxyType({robot: newest[robot] for robot in self._validator.state.robots if robot in newest})
 
     @property

@@ -112,7 +112,9 @@ def make_cells(
         is_world = source in WORLDS and not Path(source).exists()
         seeds: list[int | None] = [WORLDS[source].seed + k for k in range(runs)] if is_world else [None]
         kind = None if is_world else registry.detect(source)
-        needs_robot = "robot" in registry.takes(kind) and registry.fields(kind)["robot"].metadata["required"]
+        needs_robot = (
+            kind is not None and "robot" in registry.takes(kind) and registry.fields(kind)["robot"].metadata["required"]
+        )
         robot_list: list[int | str | None] = list(robots) if needs_robot else [None]
         if needs_robot and not robots:
             raise OnlineSlamError(f"sweep: {source} is {kind} data; give --robot 1,2,...")
@@ -167,7 +169,7 @@ def _value(text: str, column: str) -> Any:
         return None if column != "error" else ""
     if column == "robot":  # an MRCLAM robot's number, or all
         return int(text) if text.isdigit() else text
-    kind = float if column in FIGURES else int if column == "seed" else None
+    kind: type | None = float if column in FIGURES else int if column == "seed" else None
     option = OPTIONS.get(column)
     kind = option.kind if option is not None and column in SETTINGS else kind
     if kind is bool:

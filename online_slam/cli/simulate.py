@@ -6,6 +6,7 @@ import argparse
 import itertools
 import sys
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -103,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         events = WORLDS[args.world].events(args.seed)
     else:
         base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
-        given = {
+        shape: dict[str, Any] = {
             k: tuple(v) if isinstance(v, list) else v
             for k, v in {
                 "poses": args.poses,
@@ -118,9 +119,9 @@ def run(args: argparse.Namespace) -> int:
             if v is not None
         }
         if isinstance(base, GridConfig):
-            config: GridConfig | WaypointConfig = replace(base, blocks=args.blocks, block_size=args.block_size, **given)
+            config: GridConfig | WaypointConfig = replace(base, blocks=args.blocks, block_size=args.block_size, **shape)
         else:
-            config = replace(base, size=args.size, max_turn=args.max_turn, min_range=args.min_range, **given)
+            config = replace(base, size=args.size, max_turn=args.max_turn, min_range=args.min_range, **shape)
         values = [*config.odometry_sigma, *config.sensor_sigma, *config.xy_sigma]
         if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
             raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")

@@ -4,7 +4,7 @@ from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
-from online_slam.estimators.protocol import Estimate, Estimator, Snapshot
+from online_slam.estimators.protocol import Estimate, Estimator, SlamEstimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 
 __all__ = [
@@ -15,6 +15,7 @@ __all__ = [
     "EkfSlam",
     "Estimate",
     "Estimator",
+    "SlamEstimator",
     "SlidingWindowSmoother",
     "SmootherConfig",
     "Snapshot",

@@ -42,7 +42,9 @@ benchmarks/RESULTS.md ("The invariant EKF", "The EKF's BLAS on one thread").
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Sequence
+from contextlib import AbstractContextManager
+from typing import Any, cast
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
@@ -95,6 +97,8 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
 
     name = "ekf"
     online = True
+    K: Array
+    """filterpy's Kalman gain of the last update, shape (n, k)."""
 
     def __init__(self, config: EkfConfig | None = None) -> None:
         self.config = config or EkfConfig()
@@ -170,7 +174,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         """Everything needed to continue exactly where the filter is: the tree of :class:`EkfState`."""
         return to_tree(self.state)
 
-    def single_threaded(self) -> object:
+    def single_threaded(self) -> AbstractContextManager[Any]:
         """Context manager limiting BLAS to one thread, as every ``step`` runs (see the module docstring)."""
         return self._blas.limit(limits=1, user_api="blas")
 
@@ -198,7 +202,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         self.K = np.zeros((self.dim_x, self.K.shape[1] if self.K.ndim == 2 else 1))
 
     # -- predict ---------------------------------------------------------------------------------
-    def predict(self, u: Array, Q: Array | None = None) -> None:  # type: ignore[override]
+    def predict(self, u: Array, Q: Array | None = None) -> None:
         """Move the robot by the odometry increment u (3,) with covariance Q (3, 3); O(n).
 
         Only the robot block and its cross-covariances change: ``P_rr = F P_rr F^T + G Q G^T``, ``P_rm = F P_rm``.
@@ -440,6 +444,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
 
     def _observe(self, step: Step, start: int) -> None:
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
+        ids: tuple[LandmarkId | None, ...] | list[LandmarkId | None]  # as given, or as associated
         ids, z_all, R_all, m_all = step.landmarks[start:], step.z[start:], step.z_cov[start:], step.z_model[start:]
         k = len(ids)
         if self.book.needs(ids):
@@ -452,7 +457,8 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         known = np.array([lid in self.state.index for lid in ids], dtype=bool)
         if known.any():
             where = np.flatnonzero(known)
-            indices = np.array([self.state.index[ids[i]] for i in where], dtype=np.int64)
+            # Cast: a known sighting's id is in the index, so it is not None.
+            indices = np.array([self.state.index[cast(LandmarkId, ids[i])] for i in where], dtype=np.int64)
             if self.config.update == "joint":
                 nis[where], accepted = self.update_structured(indices, z_all[where], R_all[where], m_all[where])
             else:
@@ -465,7 +471,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
             rejected[where[~accepted]] = True
         new: list[LandmarkId] = []
         for i in np.flatnonzero(~known & ~held):
-            lid = ids[i]
+            lid = cast(LandmarkId, ids[i])  # not held: it has an id
             if lid in self.state.index:  # seen twice in this step: the first sighting initialised it
                 nis[i : i + 1], ok = self.update_structured(
                     np.array([self.state.index[lid]]), z_all[i : i + 1], R_all[i : i + 1], m_all[i : i + 1]
@@ -483,7 +489,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         self.state.step_new += new
 
     def _associate(
-        self, step_index: int, ids: tuple[LandmarkId | None, ...], z: Array, R: Array, model: NDArray[np.int8]
+        self, step_index: int, ids: Sequence[LandmarkId | None], z: Array, R: Array, model: NDArray[np.int8]
     ) -> list[LandmarkId | None]:
         """Ids for the sightings to associate (all of them, or those without one) against the filter's belief."""
         dropped = self.book.expire(step_index)

@@ -13,7 +13,7 @@ a step of a later time begins. With one robot, nothing here runs but the swap's 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,7 +68,8 @@ class SeveralRobots:
         order[:3], order[3 * k : 3 * k + 3] = order[3 * k : 3 * k + 3], order[:3].copy()
         self.x = self.x[order]
         self.P = self.P[np.ix_(order, order)]
-        for column in (robots, self.state.robot_steps, self.state.robot_times):
+        columns: tuple[list[Any], ...] = (robots, self.state.robot_steps, self.state.robot_times)
+        for column in columns:
             column[0], column[k] = column[k], column[0]
 
     def _add_robot(self, step: Step) -> None:
@@ -120,7 +121,8 @@ class SeveralRobots:
         if now:
             self.state.waiting = [w for w in waiting if not (w.seen == step.robot and w.t == step.t)]
         for robot, z, R in zip(step.robots_seen, step.z_robots, step.z_robots_cov):
-            sighting = WaitingSighting(step.index, step.robot, robot, step.t, z, R)
+            # Cast: a step with robot sightings names its robot (a stream's robots are all named).
+            sighting = WaitingSighting(step.index, cast(RobotId, step.robot), robot, step.t, z, R)
             known = robot in self.state.robots
             if known and self.state.robot_times[self.state.robots.index(robot)] == step.t:
                 now.append(sighting)

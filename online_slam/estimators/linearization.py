@@ -49,7 +49,7 @@ PERP = np.array([[0.0, -1.0], [1.0, 0.0]])
 """Rotation by +90 degrees, ``J``: ``d (R(theta) v) / d theta = J R(theta) v``."""
 
 
-def heading_column(to: Array, origin: Array) -> Array:
+def heading_column(to: Array, origin: Array | float) -> Array:
     """``J (to - origin)``: how a point ``to`` moves per radian of a turn about ``origin``, shape (..., 2)."""
     d = np.asarray(to, dtype=float) - np.asarray(origin, dtype=float)
     return np.stack([-d[..., 1], d[..., 0]], -1)

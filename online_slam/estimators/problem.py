@@ -6,8 +6,9 @@ at the step's time (:class:`RobotSightings`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -78,7 +79,7 @@ class RobotSightings:
         """Which sightings link two poses (the seen robot had a pose at the step's time), shape (R,)."""
         return np.array(self.seen_pose, dtype=np.int64) >= 0
 
-    def factors(self) -> dict[str, Array]:
+    def factors(self) -> dict[str, NDArray[Any]]:
         """The linked sightings as the robot-sighting arrays of a :class:`FactorGraph` ({} when there are none)."""
         linked = np.flatnonzero(self.linked())
         if not len(linked):
@@ -122,9 +123,9 @@ class ProblemLog(Checkpointed):
     """Odometry increments, each shape (3,)."""
     _odo_cov: list[Array] = field(default_factory=list)
     """Their covariances, each shape (3, 3)."""
-    _obs_pose: list[Array] = field(default_factory=list)
+    _obs_pose: list[NDArray[np.int64]] = field(default_factory=list)
     """Sightings in chunks (one per call): the pose of each, shape (k,)."""
-    _obs_landmark: list[Array] = field(default_factory=list)
+    _obs_landmark: list[NDArray[np.int64]] = field(default_factory=list)
     """The landmark index of each (-1: without id), shape (k,)."""
     _obs_z: list[Array] = field(default_factory=list)
     """The measurements ``[range, bearing]`` or ``[dx, dy]``, shape (k, 2)."""
@@ -136,7 +137,7 @@ class ProblemLog(Checkpointed):
     """Index of each landmark id in ``landmark_ids``."""
     _cached_obs: int = field(init=False)
     """Observation chunks the concatenations cover."""
-    _cat_obs: tuple[Array, ...] = field(init=False)
+    _cat_obs: tuple[NDArray[Any], ...] = field(init=False)
     """Concatenated observation arrays (see :meth:`_observation_arrays`)."""
     _cached_odo: int = field(init=False)
     """Odometry entries the concatenations cover."""
@@ -157,7 +158,7 @@ class ProblemLog(Checkpointed):
         self._cached_obs, self._cat_obs = 0, ()
         self._cached_odo, self._cat_odo = 0, ()
 
-    def _observation_arrays(self) -> tuple[Array, ...]:
+    def _observation_arrays(self) -> tuple[NDArray[Any], ...]:
         """Every sighting's pose, landmark index, z, covariance, square-root information and model tag, concatenated."""
         n = len(self._obs_pose)
         if not self._cat_obs or self._cached_obs < n:
@@ -192,9 +193,9 @@ class ProblemLog(Checkpointed):
         """Initial landmark values, shape (M, 2)."""
         return np.array(self._landmarks).reshape(-1, 2)
 
-    def landmark_indices(self, ids: tuple[LandmarkId, ...]) -> NDArray[np.int64]:
-        """Indices of known landmarks (-1 for unknown ids)."""
-        return np.array([self._landmark_index.get(i, -1) for i in ids], dtype=np.int64)
+    def landmark_indices(self, ids: Sequence[LandmarkId | None]) -> NDArray[np.int64]:
+        """Indices of known landmarks (-1 for unknown ids, and for None)."""
+        return np.array([self._landmark_index.get(i, -1) if i is not None else -1 for i in ids], dtype=np.int64)
 
     def add(self, step: Step) -> Array:
         """Record a step; return its initial pose value, shape (3,)."""
@@ -211,7 +212,7 @@ class ProblemLog(Checkpointed):
             pose = compose(self.poses[self._newest.get(step.robot, -1)], step.odometry)
             if self.keep_factors:
                 self._odo_delta.append(step.odometry)
-                self._odo_cov.append(step.odometry_cov)
+                self._odo_cov.append(cast(Array, step.odometry_cov))  # a step with odometry has its covariance
         self.poses.append(pose)
         self.robots.append(step.robot)
         self._newest[step.robot] = step.index
@@ -259,7 +260,7 @@ class ProblemLog(Checkpointed):
     def frozen(self) -> ProblemLog:
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
-        lists = {name: list(v) for name, v in values.items() if isinstance(v, list)}
+        lists: dict[str, Any] = {name: list(v) for name, v in values.items() if isinstance(v, list)}
         copy = replace(self, **lists, starts=dict(self.starts), seen=self.seen.frozen())
         copy._cached_obs, copy._cat_obs = self._cached_obs, self._cat_obs
         copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
@@ -286,7 +287,7 @@ class ProblemLog(Checkpointed):
         odo_delta, odo_sqrt = self._odometry_arrays()
         if labels is not None:
             obs_landmark = np.asarray(labels, dtype=np.int64)
-        used = obs_landmark >= 0
+        used: NDArray[Any] = obs_landmark >= 0  # a mask, or the sightings' indices in pose order
         if len(obs_pose) > 1 and np.any(np.diff(obs_pose) < 0):  # sightings added at earlier poses: pose order
             used = np.flatnonzero(used)
             used = used[np.argsort(obs_pose[used], kind="stable")]
@@ -294,6 +295,7 @@ class ProblemLog(Checkpointed):
             n, len(self.landmark_ids) if n_landmarks is None else n_landmarks, fixed_poses=fixed, **prior_args
         )
         odo_from, odo_to = self._chains()
+        robot_factors: dict[str, Any] = self.seen.factors()
         return replace(
             base,
             odo_from=odo_from,
@@ -305,10 +307,10 @@ class ProblemLog(Checkpointed):
             obs_z=obs_z[used],
             obs_sqrt_info=obs_sqrt[used],
             obs_model=obs_model[used],
-            **self.seen.factors(),
+            **robot_factors,
         )
 
-    def _priors(self) -> tuple[list[int], dict[str, object]]:
+    def _priors(self) -> tuple[list[int], dict[str, Any]]:
         """The start poses held fixed, and the prior factors of the others (keyword arguments of the graph)."""
         starts = ({} if self.prior is None else {0: self.prior}) | self.starts
         fixed = [i for i, (_, cov) in starts.items() if cov is None]
@@ -332,10 +334,11 @@ class ProblemLog(Checkpointed):
             if k not in self.starts and k > 0:
                 pairs.append((newest[robot], k))
             newest[robot] = k
-        return (
+        return cast(  # the two columns of the pairs
+            "tuple[NDArray[np.int64], NDArray[np.int64]]",
             tuple(np.array(c, dtype=np.int64).reshape(-1) for c in zip(*pairs))
             if pairs
-            else (np.zeros(0, np.int64),) * 2
+            else (np.zeros(0, np.int64),) * 2,
         )
 
 

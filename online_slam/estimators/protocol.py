@@ -10,9 +10,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.frontend.steps import Step
-from online_slam.sources.events import LandmarkId
+from online_slam.sources.events import LandmarkId, RobotId
 
 Array = NDArray[np.float64]
+
+RobotPose = tuple[int, float, Array, Array]
+"""A robot's newest pose in an estimator: its step index, its time, ``[x, y, theta]`` (3,), its covariance (3, 3)."""
 
 
 @dataclass(frozen=True)
@@ -67,11 +70,17 @@ class Estimator(Protocol):
     sightings of that newest pose. Results depend only on what was given, in which calls: the engine
     (:class:`~online_slam.engine.Engine`) gives each complete step in one ``step`` call unless a query asked for
     the newest pose earlier.
+
+    The engine reads ``several_robots`` with ``getattr``, False where it is missing: an estimator of one's own
+    without it runs, and leaves the engine when a second robot begins.
     """
 
     name: str
+    """The estimator's name, unique among the estimators of one engine (e.g. ``ekf``, ``smoother W=20 K=1``)."""
     online: bool
     """True when step snapshots are real-time estimates (online figures are computed from them)."""
+    several_robots: bool
+    """True when it takes several robots' steps in one stream (one index over all robots' poses)."""
 
     def step(self, step: Step) -> Snapshot:
         """Consume the next step (indices arrive in order 0, 1, 2, ...) and report the current estimate."""
@@ -103,4 +112,27 @@ class Estimator(Protocol):
 
     def finish(self) -> Estimate:
         """End of stream: return the final estimate."""
+        ...
+
+
+@runtime_checkable
+class SlamEstimator(Estimator, Protocol):
+    """An estimator that :class:`~online_slam.slam.Slam` runs (the EKF, the sliding-window smoother): an
+    :class:`Estimator` that also gives its whole current state at any query, without changing it (N poses so far,
+    M landmarks)."""
+
+    def landmark_marginals(self) -> Array:
+        """The current 2x2 marginal covariance of every landmark, shape (M, 2, 2), in the order of a snapshot's
+        ``landmark_ids`` taken now (NaN where the estimator's system is singular)."""
+        ...
+
+    def trajectory_parts(self) -> tuple[Array, Array]:
+        """The current estimate of every pose so far in two parts, shapes (N0, 3) and (N - N0, 3): the poses that no
+        longer change (a read-only view of the estimator's own array) and those that still may (a copy); with
+        several robots, (0, 3) and every pose in step order. Their concatenation is :meth:`trajectory`."""
+        ...
+
+    def robot_poses(self) -> dict[RobotId | None, RobotPose]:
+        """Each robot's newest pose by robot (None: the stream's one unnamed robot): its step index, its time, its
+        estimate ``[x, y, theta]`` (3,) and its covariance (3, 3), as copies."""
         ...

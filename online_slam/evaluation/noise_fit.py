@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -153,12 +154,17 @@ def _horizon_scale(steps: list[Step], truth: GroundTruth, n: int) -> float | Non
     for first in range(0, len(steps) - n, n):
         if first not in truth.poses or first + n not in truth.poses:
             continue
-        delta, cov = steps[first + 1].odometry, steps[first + 1].odometry_cov
+        delta, cov = _increment(steps[first + 1])
         for step in steps[first + 2 : first + n + 1]:
-            delta, cov = compose_increments(delta, cov, step.odometry, step.odometry_cov)
+            delta, cov = compose_increments(delta, cov, *_increment(step))
         error = odometry_residual_with_jacobians(truth.poses[first], truth.poses[first + n], delta)[0]
         q.append(float(error @ np.linalg.solve(cov, error)))
     return float(np.mean(q)) / 3.0 if len(q) >= 3 else None
+
+
+def _increment(step: Step) -> tuple[Array, Array]:
+    """A step's odometry increment and its covariance (cast: every step after the first has them)."""
+    return cast(Array, step.odometry), cast(Array, step.odometry_cov)
 
 
 def _sighting_residuals(steps: list[Step], truth: GroundTruth) -> tuple[Array, Array, list]:
@@ -169,7 +175,7 @@ def _sighting_residuals(steps: list[Step], truth: GroundTruth) -> tuple[Array, A
         if pose is None or not np.isfinite(pose[2]):
             continue
         for landmark, z, cov in zip(step.landmarks, step.z, step.z_cov):
-            position = truth.landmarks.get(landmark)
+            position = truth.landmarks.get(landmark) if landmark is not None else None
             if position is None:
                 continue
             error = z - range_bearing(pose, position)

@@ -5,6 +5,7 @@ theirs). The map is shared: every robot gets the map's landmark RMSE."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,7 +65,7 @@ def odometry_per_robot(
     }
 
 
-def _online(series: Series, steps: NDArray[np.int64], seconds: Array) -> dict[str, object]:
+def _online(series: Series, steps: NDArray[np.int64], seconds: Array) -> dict[str, Any]:
     """The online figures of one robot's steps."""
     nees = series.nees[steps]
     ms = seconds[steps] * 1e3
@@ -104,6 +105,6 @@ def per_robot(
             endpoint_gap_m=endpoint_gap(estimate.poses[idx]),
             landmark_rmse_m=overall.landmark_rmse_m,
             total_s=float(np.sum(seconds[idx])),
-            **online,  # type: ignore[arg-type]
+            **online,
         )
     return out

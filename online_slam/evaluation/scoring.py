@@ -120,7 +120,7 @@ def online_figures(
     error_m, nees = np.full(n, np.nan), np.full(n, np.nan)
     sigma = np.array([np.sqrt(np.trace(c[:2, :2])) if c is not None else np.nan for c in covariances])
     nees_mean = None
-    if errors.indices is not None:
+    if errors.indices is not None and errors.transform is not None:
         idx = errors.indices
         true_poses = np.array([truth.poses[i] for i in idx])
         moved = apply_transform(errors.transform, poses[idx])

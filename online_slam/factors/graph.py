@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -570,6 +571,7 @@ class DenseAssembler:
             g = np.einsum("kmi,km->ki", J, r).ravel()
             h_value.append(h if keep_h is None else h[keep_h])
             g_value.append(g if keep_g is None else g[keep_g])
-        H = np.bincount(self._h_index, np.concatenate(h_value), minlength=n * n).reshape(n, n)
-        g = np.bincount(self._g_index, np.concatenate(g_value), minlength=n)
+        # Casts: bincount with weights sums them in float64 (numpy's stubs give it integers).
+        H = cast(Array, np.bincount(self._h_index, np.concatenate(h_value), minlength=n * n)).reshape(n, n)
+        g = cast(Array, np.bincount(self._g_index, np.concatenate(g_value), minlength=n))
         return H, g, total

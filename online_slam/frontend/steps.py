@@ -19,9 +19,9 @@ increments composed and their covariance propagated), up to distance, angle and 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +40,7 @@ from online_slam.sources.events import (
     Scan,
     Start,
     Truth,
+    Vector,
 )
 
 Array = NDArray[np.float64]
@@ -100,8 +101,8 @@ class Step:
     """Increment ``[dx, dy, dtheta]`` from the previous pose in its frame, shape (3,); None for step 0."""
     odometry_cov: Array | None
     """Covariance of ``odometry``, shape (3, 3); None for step 0."""
-    landmarks: tuple[LandmarkId, ...]
-    """Ids of the observed landmarks, length k."""
+    landmarks: tuple[LandmarkId | None, ...]
+    """Ids of the observed landmarks (None: unknown, for the estimator to associate), length k."""
     z: Array
     """Observations, shape (k, 2): ``[range, bearing]``, or ``[dx, dy]`` in the robot frame (see ``z_model``)."""
     z_cov: Array
@@ -121,8 +122,8 @@ class Step:
     """Range and bearing to each seen robot's position, shape (m, 2)."""
     z_robots_cov: Array = field(default_factory=lambda: _NO_ROBOT_Z_COV)
     """Their covariances, shape (m, 2, 2)."""
-    z_model: NDArray[np.int8] | None = None
-    """Model tag of each observation (:mod:`online_slam.models.observation`), shape (k,); None given: every
+    z_model: NDArray[np.int8] = None  # type: ignore[assignment]  # not given: __post_init__ puts zeros, never None
+    """Model tag of each observation (:mod:`online_slam.models.observation`), shape (k,); not given: every
     observation is range-bearing (the step then holds zeros)."""
 
     def __post_init__(self) -> None:
@@ -167,7 +168,8 @@ class PendingStep:
     z_robots: list[tuple[float, float]] = field(default_factory=list)
     z_robots_cov: list[Array] = field(default_factory=list)
     closed: bool = False  # its robot's next pose has begun: no line can reach it any more
-    _frozen: tuple | None = field(default=None, init=False, repr=False, compare=False)  # freeze's cache
+    # freeze's cache: (observations, merges, robot sightings) and the step frozen then
+    _frozen: tuple[tuple[int, int, int], Step] | None = field(default=None, init=False, repr=False, compare=False)
 
     def z_covariances(self) -> Array:
         """Observation covariances, shape (k, 2, 2): ``diag(sigma^2)`` (vectorized) or the full matrix given."""
@@ -276,7 +278,7 @@ class FrontEnd:
         while (last := self.close()) is not None:
             yield last
 
-    def push(self, event: Event) -> Step | None:
+    def push(self, event: Event | Scan) -> Step | None:
         """Consume one event.
 
         Args:
@@ -285,7 +287,7 @@ class FrontEnd:
         Returns:
             The step this event completed (the previous pose, when an odometry event starts a new one), or None.
         """
-        config = self.config
+        config = cast(FrontEndConfig, self.config)  # never None after __post_init__
         if config.odometry_noise_scale != 1.0 or config.sensor_noise_scale != 1.0:
             event = scaled_event(event, config.odometry_noise_scale, config.sensor_noise_scale)
         if isinstance(event, Odometry):
@@ -307,12 +309,13 @@ class FrontEnd:
             self._count("robot_observation")
             pending = self._newest(event.robot, event.t)
             pending.robots_seen.append(event.robot_seen)
-            pending.z_robots.append((event.range, event.bearing))
+            # Cast: a sighting of a robot gives range and bearing (the validator refuses xy).
+            pending.z_robots.append(cast("tuple[float, float]", (event.range, event.bearing)))
             pending.z_robots_cov.append(event.covariance)
         elif isinstance(event, Observation):
             self._count("observation")
             pending = self._newest(event.robot, event.t)
-            if self.config.first_observation_only:
+            if config.first_observation_only:
                 if event.landmark in self._seen:
                     self._count("dropped_repeat_observation")
                     return None
@@ -331,22 +334,22 @@ class FrontEnd:
         elif isinstance(event, Scan):
             self.counts["observation"] = self.counts.get("observation", 0) + len(event.landmarks)
             pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
-            keep = range(len(event.landmarks))
-            if self.config.first_observation_only:
-                keep = [i for i, lid in enumerate(event.landmarks) if lid not in self._seen and not self._seen.add(lid)]
+            keep: Sequence[int] = range(len(event.landmarks))
+            if config.first_observation_only:
+                keep = self._first_sightings(event.landmarks)
                 dropped = len(event.landmarks) - len(keep)
                 self.counts["dropped_repeat_observation"] = self.counts.get("dropped_repeat_observation", 0) + dropped
             self.sightings += len(keep)
-            z = zip(event.ranges, event.bearings) if event.xy is None else event.xy
+            z: Iterable[tuple[float, float]] = zip(event.ranges, event.bearings) if event.xy is None else event.xy
             pending.z_model.extend([RANGE_BEARING if event.xy is None else POSITION] * len(keep))
             if len(keep) == len(event.landmarks):
                 pending.landmarks.extend(event.landmarks)
                 pending.z.extend(z)
                 pending.z_noise.extend(event.noise)
             else:
-                z = list(z)
+                z_list = list(z)
                 pending.landmarks.extend(event.landmarks[i] for i in keep)
-                pending.z.extend(z[i] for i in keep)
+                pending.z.extend(z_list[i] for i in keep)
                 pending.z_noise.extend(event.noise[i] for i in keep)
             if event.noise and isinstance(event.noise[0][0], tuple):
                 pending.full_covariance = True
@@ -364,6 +367,15 @@ class FrontEnd:
             self.header = event
         return self._give_out()
 
+    def _first_sightings(self, landmarks: Iterable[LandmarkId | None]) -> list[int]:
+        """Which sightings are of landmarks not sighted before, by position (those landmarks count as sighted now)."""
+        keep = []
+        for i, lid in enumerate(landmarks):
+            if lid not in self._seen:
+                self._seen.add(lid)
+                keep.append(i)
+        return keep
+
     def _newest(self, robot: RobotId | None, t: float) -> PendingStep:
         """The newest pose of ``robot`` (a first pose at the origin when the stream begins without a start)."""
         if self.pending is None:
@@ -375,7 +387,7 @@ class FrontEnd:
 
     def _tail(self) -> PendingStep:
         """The newest pose of all robots (there is one)."""
-        return self.later[-1] if self.later else self.pending  # type: ignore[return-value]
+        return self.later[-1] if self.later else cast(PendingStep, self.pending)  # called once a pose began
 
     def _give_out(self) -> Step | None:
         """The oldest pose if it is complete (it leaves the front-end), else None."""
@@ -390,10 +402,11 @@ class FrontEnd:
         if event.cov is not None:
             return event.covariance
         cached = self._sigma_covariance
-        if cached is None or cached[0] != event.sigma:
+        sigma = cast(Vector, event.sigma)  # no cov: the validator set sigma
+        if cached is None or cached[0] != sigma:
             matrix = event.covariance
             matrix.flags.writeable = False
-            cached = self._sigma_covariance = (event.sigma, matrix)
+            cached = self._sigma_covariance = (sigma, matrix)
         return cached[1]
 
     def close(self) -> Step | None:
@@ -420,8 +433,10 @@ class FrontEnd:
 
     def _merge(self, pending: PendingStep, event: Odometry) -> bool:
         """Fold the odometry event into the pending step if keyframing allows it."""
-        limits = self.config.keyframing
+        limits = cast(FrontEndConfig, self.config).keyframing  # never None after __post_init__
         if limits is None or pending.odometry is None or pending.landmarks or pending.robots_seen or pending.sealed:
+            return False
+        if pending.odometry_cov is None:  # never with odometry (both are None on a start pose alone)
             return False
         delta, cov = compose_increments(pending.odometry, pending.odometry_cov, np.array(event.delta), event.covariance)
         if (

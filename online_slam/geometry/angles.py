@@ -21,7 +21,7 @@ def wrap(angle: ArrayLike) -> NDArray[np.float64]:
     """
     if isinstance(angle, float):  # one number (numpy's float64 is a float): the same arithmetic, 15-25x cheaper
         w = (angle + _PI) % _TWO_PI - _PI  # Python's float % is numpy's remainder (fmod, then the divisor's sign)
-        return np.float64(w - _TWO_PI if w >= _PI else w)  # type: ignore[return-value]
+        return np.float64(w - _TWO_PI if w >= _PI else w)
     a = np.asarray(angle, dtype=float)
     w = (a + np.pi) % (2.0 * np.pi) - np.pi
     # Floating point can round (a + pi) % 2pi up to exactly 2pi's neighbour and give +pi; fold it back.

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 from online_slam.errors import InputError
 from online_slam.importers import registry
@@ -17,7 +18,7 @@ from online_slam.wording import did_you_mean
 
 
 def open_source(
-    spec: str | Path, on_error: Callable[[InputError], None] | None = None, **dataset_options: object
+    spec: str | Path, on_error: Callable[[InputError], None] | None = None, **dataset_options: Any
 ) -> tuple[str, Iterator[Event]]:
     """Open a source lazily.
 

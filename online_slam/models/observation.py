@@ -9,6 +9,8 @@ rows have an angle (the bearing) to wrap.
 
 from __future__ import annotations
 
+from typing import TypeVar, cast
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -22,6 +24,8 @@ from online_slam.models.range_bearing import (
 )
 
 Array = NDArray[np.float64]
+_Columns = TypeVar("_Columns", bound=tuple[Array, ...])
+"""A tuple of per-sighting arrays (values and Jacobians) of one model."""
 
 RANGE_BEARING = 0
 """Tag of a range-bearing sighting ``[range, bearing]``."""
@@ -43,9 +47,10 @@ def _which(model: ArrayLike) -> tuple[NDArray[np.bool_], bool, bool]:
     return xy, not some or not bool(xy.all()), some
 
 
-def _merge(xy: NDArray[np.bool_], rb: tuple[Array, ...], pos: tuple[Array, ...]) -> tuple[Array, ...]:
+def _merge(xy: NDArray[np.bool_], rb: _Columns, pos: _Columns) -> _Columns:
     """Per sighting the position model's values where ``xy``, else the range-bearing ones."""
-    return tuple(np.where(xy.reshape(xy.shape + (1,) * (b.ndim - xy.ndim)), b, a) for a, b in zip(rb, pos))
+    merged = tuple(np.where(xy.reshape(xy.shape + (1,) * (b.ndim - xy.ndim)), b, a) for a, b in zip(rb, pos))
+    return cast(_Columns, merged)  # as many columns as given
 
 
 def predict(pose: ArrayLike, landmark: ArrayLike, model: ArrayLike) -> Array:
@@ -76,7 +81,7 @@ def predict_with_jacobians(pose: ArrayLike, landmark: ArrayLike, model: ArrayLik
         return position_with_jacobians(pose, landmark)
     with np.errstate(divide="ignore", invalid="ignore"):  # range-bearing at a position sighting's landmark
         rb = range_bearing_with_jacobians(pose, landmark)
-    return _merge(xy, rb, position_with_jacobians(pose, landmark))  # type: ignore[return-value]
+    return _merge(xy, rb, position_with_jacobians(pose, landmark))
 
 
 def wrap_bearings(e: Array, model: ArrayLike) -> Array:
@@ -121,7 +126,7 @@ def landmark_from_sighting_with_jacobians(
     if not has_rb:
         return landmark_from_position_with_jacobians(pose, z)
     rb = landmark_from_observation_with_jacobians(pose, z)
-    return _merge(xy, rb, landmark_from_position_with_jacobians(pose, z))  # type: ignore[return-value]
+    return _merge(xy, rb, landmark_from_position_with_jacobians(pose, z))
 
 
 def distance(z: ArrayLike, model: ArrayLike) -> Array:

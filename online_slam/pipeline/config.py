@@ -39,7 +39,7 @@ class ReplayConfig:
     """Settings of the batch solver."""
     alignment: str = "anchor"
     """Frame for errors: ``anchor`` (first pose with truth) or ``se2`` (least-squares rigid alignment)."""
-    dataset: dict = field(default_factory=dict)
+    dataset: dict[str, Any] = field(default_factory=dict)
     """Options for dataset sources: ``format``, ``robot`` (MRCLAM), ``truth``, ``dt``, ``convention``."""
     association: str = "auto"
     """Data association: ``known`` (the stream's ids; a sighting without one is associated by JCBB), ``nn`` or

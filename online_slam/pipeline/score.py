@@ -30,7 +30,10 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
     for estimator in sorted(run.estimators, key=lambda e: isinstance(e, BatchEstimator)):
         started = time.perf_counter()
         initial = initial_values(config.batch, estimates) if isinstance(estimator, BatchEstimator) else None
-        estimate = estimator.finish(initial) if initial is not None else estimator.finish()
+        if isinstance(estimator, BatchEstimator) and initial is not None:
+            estimate = estimator.finish(initial)
+        else:
+            estimate = estimator.finish()
         final_s = time.perf_counter() - started
         estimates[estimator.name] = estimate
         figures[estimator.name], online = _score_estimator(run, estimator, estimate, final_s, config.alignment)

@@ -73,6 +73,7 @@ def open_events(
     """
     skipped = SkippedLines(on_skip)
     on_error = skipped if config.on_error == "skip" else None
+    events: Iterable[Event]
     if isinstance(source, (str, Path)):
         label, events = open_source(source, on_error, **importer_options(source, config.dataset))
     else:

@@ -309,7 +309,7 @@ def legend(fig: Any, comparison: Comparison, look: dict[str, Look]) -> Any:
     from matplotlib.patches import Patch
 
     r = comparison.results
-    handles = [
+    handles: list[Line2D | Patch] = [
         Line2D([], [], color=s.color, ls=s.dashes, lw=s.width + 0.3, marker=s.marker, ms=5,
                label=_label(name, comparison.rows.get(name)))
         for name, s in look.items()
@@ -346,7 +346,8 @@ def comparison_figure(comparison: Comparison) -> Any:
     ax_final = fig.add_subplot(grid[1, 1], label="final error")
     strips = grid[0, 1].subgridspec(max(1, len(r.series)), 1)
     names = list(r.series) or [""]
-    online = [fig.add_subplot(cell, sharex=ax_final, label=f"online error {n}") for cell, n in zip(strips, names)]
+    cells = [strips[k] for k in range(len(names))]  # one row each
+    online = [fig.add_subplot(cell, sharex=ax_final, label=f"online error {n}") for cell, n in zip(cells, names)]
     ax_nees, ax_lat = fig.add_subplot(grid[2, 0], label="nees"), fig.add_subplot(grid[2, 1], label="latency")
     draw_map(ax_map, r, look)
     errors = draw_online_error(online, r, look) + draw_final_error(ax_final, r, look)

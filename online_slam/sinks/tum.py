@@ -66,7 +66,7 @@ def write_tum(directory: str | Path, results: Results) -> list[Path]:
     return written
 
 
-Trajectory = tuple[Array, Array, Array]
+Trajectory = tuple[NDArray[np.int_], Array, Array]
 """Step indices (K,), times (K,) and poses (K, 3) of one trajectory, in the table's frame."""
 
 

@@ -11,6 +11,7 @@ Nielsen's rule: shrink after a good step, grow after a rejected one.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import qdldl
@@ -227,7 +228,8 @@ class _Problem:
         """Solve ``(H + lam diag(H)) dx = -g``; raises ValueError / LinAlgError when it is not positive definite."""
         diagonal = np.maximum(H.diagonal(), 1e-12)
         if self.assemble is None:
-            return ldl.solve(H.tocsc() + sp.diags(lam * diagonal, format="csc"), -g)
+            sparse = cast("sp.spmatrix", H)  # without an assembler, H is sparse
+            return ldl.solve(sparse.tocsc() + sp.diags(lam * diagonal, format="csc"), -g)
         return la.cho_solve(la.cho_factor(H + np.diag(lam * diagonal)), -g)
 
 

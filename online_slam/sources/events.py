@@ -12,7 +12,7 @@ robot is an ``Observation`` with ``robot_seen`` instead of ``landmark``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -172,7 +172,8 @@ class Observation:
     @property
     def z(self) -> tuple[float, float]:
         """The measurement: ``(range, bearing)``, or ``(dx, dy)`` for a position sighting."""
-        return (self.range, self.bearing) if self.xy is None else self.xy  # type: ignore[return-value]
+        # Cast: the validator sets both range and bearing when xy is None, and gives xy two values.
+        return cast("tuple[float, float]", (self.range, self.bearing) if self.xy is None else self.xy)
 
     @property
     def model(self) -> int:
@@ -245,13 +246,13 @@ class Scan:
 
     t: float
     """Time of the observations."""
-    landmarks: tuple[LandmarkId, ...]
-    """Identifiers of the observed landmarks, length k."""
+    landmarks: tuple[LandmarkId | None, ...]
+    """Identifiers of the observed landmarks (None: unknown), length k."""
     ranges: tuple[float, ...]
     """Distances, metres (> 0), length k."""
     bearings: tuple[float, ...]
     """Angles from the heading, radians, length k."""
-    noise: tuple
+    noise: tuple[Vector | Matrix, ...]
     """Per observation, its sigma (2 values) or its 2x2 covariance (nested tuples), length k."""
     xy: tuple[tuple[float, float], ...] | None = None
     """Positions ``(dx, dy)`` in the robot frame, length k, for a scan of position sightings (then ``ranges``

@@ -15,7 +15,7 @@ import sys
 import zlib
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import IO
+from typing import IO, cast
 
 from online_slam.errors import InputError
 from online_slam.sources.events import Event
@@ -99,14 +99,14 @@ def write_stream(destination: str | Path | IO[str], events: Iterable[Event]) -> 
     file at the path is left as it was.
     """
     if hasattr(destination, "write"):
-        return _write_lines(destination, events)  # type: ignore[arg-type]
+        return _write_lines(cast("IO[str]", destination), events)  # it has write: an open text file
     if str(destination) == "-":
         return _write_lines(sys.stdout, events)
     p = Path(destination)
     part = p.with_name(p.name + ".part")
     opener = gzip.open if p.suffix == ".gz" else open
     try:
-        with opener(part, "wt", encoding="utf-8") as handle:  # type: ignore[operator]
+        with opener(part, "wt", encoding="utf-8") as handle:
             count = _write_lines(handle, events)
         os.replace(part, p)  # onto a folder: IsADirectoryError, and the partial file goes too
     except BaseException:

@@ -13,7 +13,7 @@ import json
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, cast, overload
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from online_slam.sources.events import (
     Header,
     LandmarkId,
     LandmarkTruth,
+    Matrix,
     Observation,
     Odometry,
     RobotId,
@@ -234,21 +235,22 @@ class EventValidator(RobotRules):
         if fast is not None:  # the common case, checked at once
             self._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
             t_value = self.time({"t": t}, 0)
-            shared = self.noise({noise_key: noise}, 2, 0)
-            one = shared[0] if shared[0] is not None else shared[1]
+            sigma_value, cov_value = self.noise({noise_key: noise}, 2, 0)
+            # Cast: the record holds sigma or cov (noise is not None), so noise() returned one of them.
+            shared = sigma_value if sigma_value is not None else cast(Matrix, cov_value)
             self.state = self._pending
-            return Scan(t_value, tuple(landmarks), fast[0], fast[1], (one,) * k, fast[2])
+            return Scan(t_value, tuple(landmarks), fast[0], fast[1], (shared,) * k, fast[2])
         # one sighting at a time on a trial validator: the exact error of the first bad one, or all of them
         trial = EventValidator(self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content))
         trial._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
         t_value = trial.time({"t": t}, 0)
-        events = []
+        events: list[Observation] = []
         for i in range(k):
             record = {"type": "observation", "t": t, "landmark": landmarks[i]}
             record.update({"xy": xy[i]} if xy is not None else {"range": ranges[i], "bearing": bearings[i]})
             record[noise_key] = noise[i] if per_sighting else noise
             try:
-                events.append(trial.parse_record(record))
+                events.append(cast(Observation, trial.parse_record(record)))  # an observation record's event
             except InputError as exc:
                 head, bracket, rest = exc.field.partition("[")
                 field = (
@@ -259,10 +261,14 @@ class EventValidator(RobotRules):
                 raise self.fail(0, field, exc.message) from None
         self.state = trial.state if events else trial._pending  # no sighting: the time check alone
         self.state.seen_content = True
-        noises = tuple(e.sigma if e.cov is None else e.cov for e in events)
+        # Casts: a valid observation has sigma or cov, and either xy (two values) or range and bearing.
+        noises = cast("tuple[Vector | Matrix, ...]", tuple(e.sigma if e.cov is None else e.cov for e in events))
         if xy is not None:
-            return Scan(t_value, tuple(landmarks), (), (), noises, tuple(e.xy for e in events))  # type: ignore[misc]
-        return Scan(t_value, tuple(landmarks), tuple(e.range for e in events), tuple(e.bearing for e in events), noises)
+            positions = cast("tuple[tuple[float, float], ...]", tuple(e.xy for e in events))
+            return Scan(t_value, tuple(landmarks), (), (), noises, positions)
+        measured_ranges = cast("tuple[float, ...]", tuple(e.range for e in events))
+        measured_bearings = cast("tuple[float, ...]", tuple(e.bearing for e in events))
+        return Scan(t_value, tuple(landmarks), measured_ranges, measured_bearings, noises)
 
     def parse_odometry(self, t: Any, delta: Any, sigma: Any = None, cov: Any = None) -> Odometry:
         """Validate one odometry reading given as arguments (the library API's path; same rules as a line).
@@ -282,7 +288,7 @@ class EventValidator(RobotRules):
             record["sigma"] = sigma
         if cov is not None:
             record["cov"] = cov
-        return self.parse_record(record)
+        return cast(Odometry, self.parse_record(record))  # an odometry record's event
 
     def _scan_shape(self, k: int, ranges: Any, bearings: Any, xy: Any) -> None:
         """Check that a scan gives k ranges and k bearings, or k positions (and not both)."""
@@ -298,7 +304,9 @@ class EventValidator(RobotRules):
                 raise self.fail(0, key, message)
 
     @staticmethod
-    def _scan_fast(landmarks: Any, ranges: Any, bearings: Any, xy: Any) -> tuple[tuple, tuple, tuple | None] | None:
+    def _scan_fast(
+        landmarks: Any, ranges: Any, bearings: Any, xy: Any
+    ) -> tuple[tuple[float, ...], tuple[float, ...], tuple[tuple[float, float], ...] | None] | None:
         """Ranges, bearings and positions (None for range-bearing sightings) as float tuples when every sighting
         plainly passes, else None (check one by one)."""
         for lid in landmarks:
@@ -419,6 +427,14 @@ class EventValidator(RobotRules):
         self._pending.seen_content = True
         return t
 
+    @overload
+    def landmark(
+        self, record: dict[str, Any], line: int, optional: Literal[False] = False, key: str = "landmark"
+    ) -> LandmarkId: ...
+    @overload
+    def landmark(
+        self, record: dict[str, Any], line: int, optional: bool, key: str = "landmark"
+    ) -> LandmarkId | None: ...
     def landmark(
         self, record: dict[str, Any], line: int, optional: bool = False, key: str = "landmark"
     ) -> LandmarkId | None:

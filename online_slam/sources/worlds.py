@@ -466,7 +466,7 @@ def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
         if not isinstance(event, Observation) or event.robot_seen is not None:  # robot sightings stay clean
             yield event
             continue
-        ranges.append(event.range if event.xy is None else float(np.hypot(*event.xy)))
+        ranges.append(event.z[0] if event.xy is None else float(np.hypot(event.xy[0], event.xy[1])))  # z: range first
         u = rng.uniform()
         if u < c.wrong_ids and len(ids) > 1:
             others = [lid for lid in ids if lid != event.landmark]
@@ -485,7 +485,7 @@ def contaminate(events: Iterable[Event], c: Contamination) -> Iterator[Event]:
 def _scaled(event: Observation, factor: float) -> dict[str, Any]:
     """The fields of a sighting moved ``factor`` times as far along its ray (a range spike)."""
     if event.xy is None:
-        return {"range": event.range * factor}
+        return {"range": event.z[0] * factor}  # z: (range, bearing)
     return {"xy": (event.xy[0] * factor, event.xy[1] * factor)}
 
 

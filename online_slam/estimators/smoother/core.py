@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,6 +59,7 @@ from online_slam.factors.graph import FactorGraph, observation_chi2
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.solvers.least_squares import SolveResult
+from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -282,7 +283,7 @@ class SlidingWindowSmoother(SeveralRobots):
         Without association (every sighting has an id, ids used) this is the step itself.
         """
         a, w = self.association, self.window
-        ids = step.landmarks[start:]
+        ids: tuple[LandmarkId | None, ...] | list[LandmarkId | None] = step.landmarks[start:]  # or as associated
         needed = a.book.needs(ids)
         if start == 0:
             a.resolved = None
@@ -443,7 +444,8 @@ class SlidingWindowSmoother(SeveralRobots):
             self.relinearization.decisions.append((o, ~keep))
             if not keep.all():  # judged outliers are never folded into the prior
                 self.association.solved = None  # the solved information holds them
-                sightings = tuple(a[keep] for a in sightings) if keep.any() else None  # type: ignore[assignment]
+                # Cast: the same five columns, without the outliers.
+                sightings = cast(Sightings, tuple(a[keep] for a in sightings)) if keep.any() else None
         return sightings
 
     # -- global relinearization ------------------------------------------------------------------

@@ -5,12 +5,13 @@ See :mod:`online_slam.estimators.smoother` for the design. With one robot nothin
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.estimators.smoother.prior import Prior, RobotFold, initial_prior, marginalize
+from online_slam.estimators.smoother.prior import Prior, RobotFold, Sightings, initial_prior, marginalize
 from online_slam.estimators.smoother.state import SmootherState
 from online_slam.factors.graph import robot_sighting_residual_with_jacobians, sqrt_information
 from online_slam.geometry.angles import wrap
@@ -62,6 +63,8 @@ class SeveralRobots:
     state: SmootherState
     _reject_bound: float
     config: Any
+    solve: Callable[..., dict[str, float]]
+    _sightings_to_fold: Callable[[int], Sightings | None]
 
     def robot_poses(self) -> dict[RobotId | None, tuple[int, float, Array, Array]]:
         """Each robot's newest pose by robot: (its step index, its time, ``[x, y, theta]`` (3,), its covariance (3, 3)),
@@ -102,7 +105,7 @@ class SeveralRobots:
         if o is None:
             return False
         if w.unsolved:  # never marginalize a pose before it was optimized
-            self.solve()  # type: ignore[attr-defined]
+            self.solve()
         self._marginalize_pose(o, marginalized, frozenset())
         return True
 
@@ -127,7 +130,7 @@ class SeveralRobots:
             prior,
             values,
             w.landmarks,
-            self._sightings_to_fold(o),  # type: ignore[attr-defined]
+            self._sightings_to_fold(o),
             (delta, W),
             (n1, w.poses[n1]),
             self.config.robust.loss,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -142,12 +143,13 @@ class Window:
                 if previous != self.indices[-1]:  # another robot's pose is the newest: keep its covariance
                     self.robot_cov[self.indices[-1]] = self.pose_cov
                     cov = self.robot_cov.pop(previous, self.pose_cov)
+            odometry_cov = cast(Array, step.odometry_cov)  # a step with odometry has its covariance
             pose, F, G = compose_with_jacobians(self.poses[previous], step.odometry)
-            self.pose_cov = F @ cov @ F.T + G @ step.odometry_cov @ G.T
+            self.pose_cov = F @ cov @ F.T + G @ odometry_cov @ G.T
             self.odometry[i] = (
                 np.array(step.odometry),
-                np.array(step.odometry_cov),
-                sqrt_information(step.odometry_cov),
+                np.array(odometry_cov),
+                sqrt_information(odometry_cov),
             )
         self.indices.append(i)
         self.poses[i] = pose
@@ -168,7 +170,8 @@ class Window:
         i = step.index
         pose = self.poses[i]
         indices = []
-        for lid, z, model in zip(step.landmarks[start:], step.z[start:], step.z_model[start:]):
+        ids = cast("tuple[LandmarkId, ...]", step.landmarks[start:])  # a resolved step: every sighting has its id
+        for lid, z, model in zip(ids, step.z[start:], step.z_model[start:]):
             if lid not in self.index:
                 self.index[lid] = len(self.landmark_ids)
                 self.landmark_ids.append(lid)
@@ -190,7 +193,8 @@ class Window:
     def _merge(self, pose: int, factors: Sightings) -> None:
         """Append sightings to a window pose's."""
         if pose in self.observations:
-            factors = tuple(np.concatenate([a, b]) for a, b in zip(self.observations[pose], factors))  # type: ignore[assignment]
+            merged = tuple(np.concatenate([a, b]) for a, b in zip(self.observations[pose], factors))
+            factors = cast(Sightings, merged)  # the same five columns, longer
         self.observations[pose] = factors
 
     def drop_oldest(self) -> None:
@@ -313,7 +317,7 @@ def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, 
     return graph, local
 
 
-def robot_arrays(factors: list[tuple[int, int, Array, Array, int]], local: dict[int, int]) -> dict[str, Array]:
+def robot_arrays(factors: list[tuple[int, int, Array, Array, int]], local: dict[int, int]) -> dict[str, NDArray[Any]]:
     """Robot sightings as the robot-sighting arrays of a :class:`FactorGraph` over local pose indices ({} when
     there are none)."""
     if not factors:

@@ -255,7 +255,8 @@ def read_acfr(
         },
     )
     yield Start(t=start, pose=tuple(map(float, start_pose)))
-    bounds = np.searchsorted(kept[:, 0], np.r_[times, np.inf], side="left")
+    ends: NDArray[np.float64] = np.r_[times, np.inf]
+    bounds = np.searchsorted(kept[:, 0], ends, side="left")
     for k, t in enumerate(times):
         if k > 0:
             v = variances[k - 1]

@@ -86,9 +86,9 @@ def read_g2o(path: str | Path, dt: float = 1.0) -> Iterator[Event]:
         if pose not in chain:
             break
         nxt, v, number = chain[pose]
-        cov = covariance_from(name, number, "I11", _symmetric(v[5:], 3), information=True)
+        odometry_cov = covariance_from(name, number, "I11", _symmetric(v[5:], 3), information=True)
         step += 1
-        yield Odometry(t=step * dt, delta=(v[2], v[3], v[4]), cov=cov)
+        yield Odometry(t=step * dt, delta=(v[2], v[3], v[4]), cov=odometry_cov)
         pose = nxt
     if sightings:
         orphan = min(sightings)
@@ -130,7 +130,7 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
             if not poses:
                 poses = [np.zeros(3)]
             if event.xy is None:
-                r, b = event.range, event.bearing
+                r, b = event.z  # (range, bearing): no xy
                 point = np.array([r * np.cos(b), r * np.sin(b)])
                 J = np.array([[np.cos(b), -r * np.sin(b)], [np.sin(b), r * np.cos(b)]])  # d(x, y)/d(range, bearing)
                 info = np.linalg.inv(J @ event.covariance @ J.T)
@@ -154,7 +154,7 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
         lines += by_pose.get(k, [])
     text = "\n".join(lines) + "\n"
     if hasattr(destination, "write"):
-        destination.write(text)  # type: ignore[union-attr]
+        destination.write(text)
     else:
         Path(destination).write_text(text, encoding="utf-8")
     return len(lines)

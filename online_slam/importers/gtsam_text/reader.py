@@ -128,9 +128,9 @@ def read_gtsam_text(
                 raise InputError(name, number, "j", f"pose {j} already exists (loop-closure edges are not supported)")
             steps[j] = len(steps)
             current = j
-            cov = covariance_from(name, number, "n11", odometry_covariance(v[5:], conv))
+            odometry_cov = covariance_from(name, number, "n11", odometry_covariance(v[5:], conv))
             t = steps[j] * dt
-            yield Odometry(t=t, delta=(v[2], v[3], v[4]), cov=cov)
+            yield Odometry(t=t, delta=(v[2], v[3], v[4]), cov=odometry_cov)
             if twin is not None:
                 tv = numbers(str(truth), twin[0], twin[1][1:], EDGE)
                 true_pose = compose(true_pose, tv[2:5])

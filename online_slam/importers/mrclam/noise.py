@@ -228,11 +228,12 @@ def fit_increment_terms(e: IncrementErrors, start: MrclamNoise, windows: Sequenc
     With ``windows`` (increments over longer spans, :func:`window_errors`), a composite likelihood: they carry
     :data:`WINDOWS_SHARE` of the weight, split evenly between them, and ``e`` the rest.
     """
-    zero = {"x_per_m": 0.0, "y_per_m": 0.0, "theta_per_rad2": 0.0}
+    zero: dict[str, Any] = {"x_per_m": 0.0, "y_per_m": 0.0, "theta_per_rad2": 0.0}
     weights = [1.0] + [WINDOWS_SHARE / (1.0 - WINDOWS_SHARE) * len(e.dt) / (len(w.dt) * len(windows)) for w in windows]
 
     def model(log_terms: Array) -> MrclamNoise:
-        return replace(start, **zero, **dict(zip(TERMS, map(float, np.exp(log_terms)))))
+        fitted: dict[str, Any] = dict(zip(TERMS, map(float, np.exp(log_terms))))
+        return replace(start, **zero, **fitted)
 
     def cost(log_terms: Array) -> float:
         noise = model(log_terms)
@@ -339,7 +340,7 @@ def fit_camera(data: RobotData, landmark_xy: dict[int, Array]) -> Camera:
     logged, bearing = rows[use, 2], rows[use, 3]
 
     def misfit(q: Array) -> Array:
-        x, y = camera_point(tuple(q), logged, bearing)  # type: ignore[arg-type]
+        x, y = camera_point(tuple(q), logged, bearing)
         return np.concatenate([x - seen[:, 0], y - seen[:, 1]])
 
     scale, forward, left, bearing_scale = (

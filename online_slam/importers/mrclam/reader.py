@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
@@ -446,7 +447,8 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     yield Start(t=float(times[0]), pose=tuple(map(float, start)), sigma=(cfg.start_sigma,) * 3)
     for subject, x, y, _, _ in landmarks:
         yield LandmarkTruth(int(subject), (float(x), float(y)))
-    bounds = np.searchsorted(kept[:, 0], np.r_[times, np.inf])
+    ends: NDArray[np.float64] = np.r_[times, np.inf]
+    bounds = np.searchsorted(kept[:, 0], ends)
     for k, t in enumerate(times):
         if k > 0:
             yield Odometry(

@@ -68,12 +68,12 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
         cov = tuple(tuple(map(float, row)) for row in covariances[k - 1])
         odometry = Odometry(t=float(times[k]), delta=tuple(map(float, increments[k - 1])), cov=cov, robot=robot)
         yield float(times[k]), _ODOMETRY, robot, odometry
-    for k in np.flatnonzero(covered):
+    for j in np.flatnonzero(covered):
         yield (
-            float(times[k]),
+            float(times[j]),
             _TRUTH,
             robot,
-            Truth(t=float(times[k]), pose=tuple(map(float, true_poses[k])), robot=robot),
+            Truth(t=float(times[j]), pose=tuple(map(float, true_poses[j])), robot=robot),
         )
     camera, rows, sigmas = camera_sightings(cfg, robot, data.measurements, data.subjects)
     for row, subject, sigma in zip(rows, data.subjects, sigmas):

@@ -40,7 +40,7 @@ import urllib.parse
 import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pyarrow as pa
@@ -266,7 +266,8 @@ class RerunSink:
 
     def _viewer(self) -> str:
         """The viewer's address; raises when nothing answers there, before the replay does any work."""
-        address = self.config.connect if self.config.connect != "default" else DEFAULT_VIEWER
+        connect = cast(str, self.config.connect)  # a live sink: connect is given
+        address = connect if connect != "default" else DEFAULT_VIEWER
         problem = viewer_unreachable(address)
         if problem is not None:
             raise OnlineSlamError(
@@ -275,7 +276,7 @@ class RerunSink:
             )
         return address
 
-    def _where(self) -> str:
+    def _where(self) -> str | None:
         return self.config.connect if self.config.connect != "default" else f"the default address {DEFAULT_VIEWER}"
 
     def _appearance(self) -> None:
@@ -313,7 +314,7 @@ class RerunSink:
     def _track_style(self, root: str, color: tuple[int, int, int], label: str | None) -> None:
         """Colour and sizes of a pose arrow (labelled unless ``label`` is None), its path and its covariance."""
         log, colors = self.rec.log, [color]
-        labels = {"labels": [label], "show_labels": True} if label is not None else {}
+        labels: dict[str, Any] = {"labels": [label], "show_labels": True} if label is not None else {}
         log(f"{root}/pose", rr.Arrows2D.from_fields(colors=colors, radii=[0.02], **labels), static=True)
         for part in ("path", "path_recent"):
             log(f"{root}/{part}", rr.LineStrips2D.from_fields(colors=colors, radii=[0.015]), static=True)
@@ -475,7 +476,7 @@ class RerunSink:
             return
         column = np.array(step_robots[: len(poses)], dtype=object)
         for robot in dict.fromkeys(step_robots):
-            part, color = self._robot(robot), self.robots[robot][1]  # type: ignore[index]
+            part, color = self._robot(robot), self.robots[cast(RobotId, robot)][1]  # several robots: all named
             strip = poses[column == robot, :2]
             self.rec.log(f"{root}/{part}/path", rr.LineStrips2D([strip], colors=[color], labels=[f"{name} {robot}"]))
 
