@@ -15,16 +15,16 @@ import importlib.util
 import os
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.compare_config import CompareConfig
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.protocol import Estimate
-from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.evaluation.metrics import apply_transform
 from online_slam.evaluation.results import Results, Row, Series
 from online_slam.evaluation.scoring import evaluate, nees_bounds, online_figures, share_in_bounds
@@ -36,40 +36,6 @@ from online_slam.sources.events import Event
 from online_slam.sources.worlds import WORLDS, World
 
 Array = NDArray[np.float64]
-
-PEERS = ("isam2",)
-"""Peers Monte Carlo can run beside the estimators: ``isam2``, GTSAM's iSAM2 (full smoothing, relinearized
-incrementally; :func:`~online_slam.gtsam_peer.isam2_online`, factorized by QR), each step reading the newest pose
-and its ``marginalCovariance``."""
-
-
-@dataclass(frozen=True)
-class CompareConfig:
-    """What ``online-slam compare`` runs."""
-
-    windows: tuple[int, ...] = (WindowConfig.size,)
-    """Smoother window sizes W; every (W, K) pair is run."""
-    relinearize_every: tuple[int, ...] = (SmootherConfig.relinearize_every,)
-    """Smoother relinearization periods K."""
-    replay: ReplayConfig = field(default_factory=lambda: ReplayConfig(estimators=("ekf", "batch")))
-    """Everything else (EKF and batch settings, front-end, alignment); its smoother settings seed each (W, K)."""
-    runs: int = 1
-    """Monte Carlo runs over noise seeds (simulated worlds only); 1 = just the given stream."""
-    workers: int | None = None
-    """Processes for Monte Carlo runs (default: all cores)."""
-    peers: tuple[str, ...] = ()
-    """Peers (:data:`PEERS`) run on every Monte Carlo run's stream, beside the estimators: their figures over
-    steps join the online estimators' (Monte Carlo only, so ``runs`` >= 2)."""
-
-    def __post_init__(self) -> None:
-        if any(w < 1 for w in self.windows) or any(k < 1 for k in self.relinearize_every):
-            raise ValueError("windows and relinearize_every must be >= 1")
-        if self.runs < 1 or (self.workers is not None and self.workers < 1):
-            raise ValueError("runs and workers must be >= 1")
-        if any(p not in PEERS for p in self.peers) or len(set(self.peers)) != len(self.peers):
-            raise ValueError(f"peers must be distinct names of {', '.join(PEERS)}, not {', '.join(self.peers)}")
-        if self.peers and self.runs < 2:
-            raise ValueError("a peer runs in Monte Carlo runs: give runs >= 2")
 
 
 @dataclass(frozen=True)

@@ -6,21 +6,19 @@ The table :data:`OPTIONS` is the only place an option is described. From it come
 (:func:`replay_config`, used by the CLI, ``Slam`` and sweeps) and the docs' option list (:func:`markdown`,
 ``docs/options.md``). Defaults come from the configuration dataclasses, never typed by hand; an option that is
 no configuration field (``robust``, the dataset's) holds its own default here. So that ``--help`` loads no
-numerical library, the dataclasses' defaults (and the choices defined beside them) are read through
-:mod:`online_slam.option_defaults`, a module generated from the dataclasses that a test keeps current.
+numerical library, the configuration dataclasses live in import-light modules (:data:`CONFIGS`), whose fields
+are read directly.
 
-After changing the table or a configuration default, regenerate the page and the defaults:
-``python -c "from online_slam.options import markdown; print(markdown(), end='')" > docs/options.md``,
-``python -c "from online_slam.options import defaults_module as m; print(m(), end='')"
-> online_slam/option_defaults.py``.
+After changing the table or a configuration default, regenerate the page:
+``python -c "from online_slam.options import markdown; print(markdown(), end='')" > docs/options.md``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import importlib
-import json
 import math
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -29,7 +27,6 @@ from typing import TYPE_CHECKING, Any, cast
 
 from online_slam.errors import ConfigError
 from online_slam.importers import registry
-from online_slam.option_defaults import CHOICES, DEFAULTS
 from online_slam.sources.worlds import WORLDS
 
 if TYPE_CHECKING:
@@ -49,29 +46,33 @@ ESTIMATOR_OWNERS = frozenset({"ekf", "smoother", "batch", "front-end", "associat
 _SHARED = frozenset({"front-end", "association"})
 """Owners whose options apply to every estimator."""
 CONFIGS = {
-    "ReplayConfig": "online_slam.pipeline",
-    "Checkpointing": "online_slam.pipeline",
-    "CompareConfig": "online_slam.compare",
-    "BatchConfig": "online_slam.estimators.batch",
-    "EkfConfig": "online_slam.estimators.ekf",
-    "AssociationConfig": "online_slam.estimators.landmark_book",
-    "SmootherConfig": "online_slam.estimators.smoother",
-    "WindowConfig": "online_slam.estimators.smoother",
-    "GlobalConfig": "online_slam.estimators.smoother",
+    "ReplayConfig": "online_slam.pipeline.config",
+    "Checkpointing": "online_slam.pipeline.config",
+    "CompareConfig": "online_slam.compare_config",
+    "BatchConfig": "online_slam.estimators.batch_config",
+    "EkfConfig": "online_slam.estimators.ekf_config",
+    "AssociationConfig": "online_slam.estimators.association_config",
+    "SmootherConfig": "online_slam.estimators.smoother.config",
+    "WindowConfig": "online_slam.estimators.smoother.config",
+    "GlobalConfig": "online_slam.estimators.smoother.config",
     "RobustLoss": "online_slam.factors.robust",
     "FrontEndConfig": "online_slam.frontend.steps",
     "KeyframeConfig": "online_slam.frontend.steps",
-    "SolverConfig": "online_slam.solvers.least_squares",
+    "SolverConfig": "online_slam.solvers.config",
 }
-"""The module of each configuration dataclass an option's default is read from (imported only to read it)."""
+"""The import-light module of each configuration dataclass an option's default is read from."""
 CHOICE_HOMES = {
-    "association": ("online_slam.estimators.landmark_book", "ASSOCIATION_CHOICES"),
+    "association": ("online_slam.estimators.association_config", "ASSOCIATION_CHOICES"),
     "robust": ("online_slam.estimators.presets", "ROBUST_CHOICES"),
-    "ekf_linearization": ("online_slam.estimators.linearization", "LINEARIZATIONS"),
+    "ekf_linearization": ("online_slam.estimators.ekf_config", "LINEARIZATIONS"),
     "smoother_linearization": ("online_slam.estimators.smoother.config", "LINEARIZATIONS"),
-    "peer": ("online_slam.compare", "PEERS"),
+    "peer": ("online_slam.compare_config", "PEERS"),
 }
 """Where the choices of an option are defined: (module, name)."""
+CHOICES: dict[str, tuple[str, ...]] = {
+    name: getattr(importlib.import_module(home), attr) for name, (home, attr) in CHOICE_HOMES.items()
+}
+"""Allowed values of the options whose choices the estimators define, read from where they are defined."""
 
 
 @dataclass(frozen=True)
@@ -130,10 +131,10 @@ class Option:
 
     @property
     def value(self) -> Any:
-        """The default value (the configuration field's, from :mod:`online_slam.option_defaults`)."""
+        """The default value (the configuration field's, read from its dataclass)."""
         if self.field is None or self.unset:
             return self.default
-        value = DEFAULTS[self.name]
+        value = field_default(self.field)
         return ",".join(value) if isinstance(value, tuple) else value
 
     @property
@@ -148,12 +149,13 @@ class Option:
     def shown_default(self) -> str:
         """The default as a user reads it (``0.35 rad (20.1 deg)``, ``off``...)."""
         if self.unset and self.field is not None:
-            return f"{self.unset}; {readable(DEFAULTS[self.name], self.unit)} once another is given"
+            return f"{self.unset}; {readable(field_default(self.field), self.unit)} once another is given"
         if self.unset or self.value is None:
             return self.unset
         return readable(self.value, self.unit)
 
 
+@functools.cache
 def field_default(field: tuple[str, str]) -> Any:
     """A configuration field's default value (its factory's product when it has one), read from the dataclass."""
     cls = getattr(importlib.import_module(CONFIGS[field[0]]), field[0])
@@ -178,7 +180,7 @@ def readable(value: Any, unit: str = "") -> str:
 
 def _estimator(name: str, help: str, group: str, owner: str, field: tuple[str, str], **kw: Any) -> Option:
     """An estimator option read from a configuration field (its type is the field default's)."""
-    kind = type(DEFAULTS.get(name, ""))  # a new option is a str until option_defaults.py is regenerated
+    kind = type(field_default(field))
     return Option(name, help, group, (owner,), kind=kind, field=field, **kw)
 
 
@@ -590,41 +592,3 @@ def markdown() -> str:
             row = (flags, kind, shown, owners, commands, told.replace("|", "\\|"))
             lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
-
-
-def defaults_module() -> str:
-    """The text of :mod:`online_slam.option_defaults`: the options' defaults and choices, read from the code."""
-    defaults = {name: field_default(o.field) for name, o in OPTIONS.items() if o.field is not None}
-    choices = {name: getattr(importlib.import_module(home), attr) for name, (home, attr) in CHOICE_HOMES.items()}
-    lines = [
-        '"""The defaults of the options read from configuration fields, and choices defined beside them.',
-        "",
-        "Generated from the dataclasses by :func:`online_slam.options.defaults_module` (its module docstring says",
-        "how) so that ``--help`` needs no numerical library; tests/test_options.py checks it is current.",
-        '"""',
-        "",
-        "from __future__ import annotations",
-        "",
-        "import math",
-        "",
-        "DEFAULTS: dict[str, object] = {",
-        *(f"    {_literal(name)}: {_literal(value)}," for name, value in defaults.items()),
-        "}",
-        '"""Default of each option that reads a configuration field, by option name."""',
-        "CHOICES: dict[str, tuple[str, ...]] = {",
-        *(f"    {_literal(name)}: {_literal(value)}," for name, value in choices.items()),
-        "}",
-        '"""Allowed values of the options whose choices the estimators define."""',
-    ]
-    return "\n".join(lines) + "\n"
-
-
-def _literal(value: Any) -> str:
-    """Python source of a default as ruff formats it (double quotes, ``math.inf`` for infinity)."""
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, tuple):
-        return "(" + ", ".join(map(_literal, value)) + ("," if len(value) == 1 else "") + ")"
-    if isinstance(value, float) and math.isinf(value):
-        return "math.inf" if value > 0 else "-math.inf"
-    return repr(value)

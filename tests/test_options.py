@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -13,10 +15,10 @@ from online_slam.cli.main import build_parser
 from online_slam.estimators.batch import BatchConfig
 from online_slam.estimators.smoother import WindowConfig
 from online_slam.options import (
+    CONFIGS,
     GROUPS,
     OPTIONS,
     Option,
-    defaults_module,
     estimator_options,
     field_default,
     flag,
@@ -38,13 +40,19 @@ def test_the_docs_option_list_is_the_tables_rendering() -> None:
     assert DOCS.read_text(encoding="utf-8") == markdown()
 
 
-def test_the_generated_defaults_are_the_configurations() -> None:
-    """online_slam/option_defaults.py (what --help shows without importing the estimators) cannot drift from the
-    dataclasses: regenerate it as the module docstring of online_slam.options says."""
-    assert (DOCS.parents[1] / "online_slam" / "option_defaults.py").read_text(encoding="utf-8") == defaults_module()
-    for option in estimator_options().values():  # their type is read from the generated defaults
+def test_defaults_are_read_from_the_configurations_in_light_modules() -> None:
+    """No generated copy: each option's default and type are its dataclass field's, and every configuration
+    module imports without the numerical libraries (so that --help does not load them)."""
+    for option in estimator_options().values():
         if option.field is not None:
             assert option.kind is type(field_default(option.field)), option.name
+    code = (
+        "import sys, importlib\n"
+        f"for m in {sorted(set(CONFIGS.values()))!r}: importlib.import_module(m)\n"
+        "print(sorted({n.split('.')[0] for n in sys.modules} & {'scipy', 'filterpy', 'qdldl'}))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "[]", done.stdout + done.stderr
 
 
 def test_every_option_has_a_group_a_unique_flag_and_lands_on_a_real_field() -> None:

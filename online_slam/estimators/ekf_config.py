@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from online_slam.estimators.landmark_book import AssociationConfig
-from online_slam.estimators.linearization import LINEARIZATIONS
+from online_slam.estimators.association_config import AssociationConfig
+
+LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
+"""Where the EKF evaluates its Jacobians (see the module docstring)."""
 
 
 @dataclass(frozen=True)

@@ -41,8 +41,6 @@ from online_slam.estimators.kalman import mirror_upper
 
 Array = NDArray[np.float64]
 
-LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
-"""Where the EKF evaluates its Jacobians (see the module docstring)."""
 FIRST_ESTIMATES = ("fej", "oc")
 """The linearizations that need the newest pose as predicted and each landmark's first estimate."""
 PERP = np.array([[0.0, -1.0], [1.0, 0.0]])

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from online_slam.estimators.batch import BatchConfig
-from online_slam.estimators.smoother import RobustConfig, SmootherConfig
+from online_slam.estimators.batch_config import BatchConfig
+from online_slam.estimators.smoother.config import RobustConfig, SmootherConfig
 from online_slam.factors.robust import RobustLoss
 
 ROBUST_CHOICES = ("auto", "none", "huber", "cauchy")

@@ -4,17 +4,33 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from online_slam.errors import OnlineSlamError
-from online_slam.estimators.batch import BatchConfig, BatchEstimator
-from online_slam.estimators.ekf import EkfSlam
+from online_slam.estimators.association_config import ASSOCIATION_CHOICES
+from online_slam.estimators.batch_config import BatchConfig
 from online_slam.estimators.ekf_config import EkfConfig
-from online_slam.estimators.landmark_book import ASSOCIATION_CHOICES
-from online_slam.estimators.presets import smoother_label
-from online_slam.estimators.protocol import Estimator
-from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
+from online_slam.estimators.smoother.config import SmootherConfig
 from online_slam.frontend.steps import FrontEndConfig
+
+if TYPE_CHECKING:
+    from online_slam.estimators.protocol import Estimator
+
+
+@dataclass(frozen=True)
+class Checkpointing:
+    """Where and how often a replay saves its whole state (see :func:`~online_slam.pipeline.replay`)."""
+
+    directory: Path
+    """Folder of the checkpoint (``replay.ckpt`` inside it, replaced atomically each time)."""
+    every: int = 100
+    """Steps between checkpoints (>= 1)."""
+
+    def __post_init__(self) -> None:
+        if self.every < 1:
+            raise OnlineSlamError("--checkpoint-every must be >= 1")
+
 
 ESTIMATORS = ("ekf", "smoother", "batch")
 """Names of the estimators ``replay`` can run (all run by default)."""
@@ -85,6 +101,10 @@ def _associating(config: Any, method: str) -> Any:
 
 def make_estimator(name: str, config: ReplayConfig) -> Estimator:
     """Build an estimator by name."""
+    from online_slam.estimators.batch import BatchEstimator
+    from online_slam.estimators.ekf import EkfSlam
+    from online_slam.estimators.smoother import SlidingWindowSmoother
+
     if name == "ekf":
         return EkfSlam(config.ekf)
     if name == "smoother":
@@ -96,6 +116,9 @@ def make_estimator(name: str, config: ReplayConfig) -> Estimator:
 
 def build_estimators(config: ReplayConfig) -> list[Estimator]:
     """The estimators a replay with this configuration runs, in table order (extra smoothers after the rest)."""
+    from online_slam.estimators.presets import smoother_label
+    from online_slam.estimators.smoother import SlidingWindowSmoother
+
     estimators = [make_estimator(n, config) for n in config.estimators]
     for extra in config.extra_smoothers:
         estimators.append(SlidingWindowSmoother(extra, name=smoother_label(extra)))

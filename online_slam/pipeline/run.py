@@ -20,7 +20,7 @@ from online_slam.estimators.batch import BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.protocol import Snapshot
 from online_slam.faults import crash_point
-from online_slam.pipeline.config import ReplayConfig, build_estimators
+from online_slam.pipeline.config import Checkpointing, ReplayConfig, build_estimators
 from online_slam.pipeline.source import OpenedSource
 from online_slam.sinks.protocol import ProgressSink, ReplayProgress, ReplaySink
 from online_slam.sources.events import Event, LandmarkId
@@ -31,20 +31,6 @@ Array = NDArray[np.float64]
 CHECKPOINT_FILE = "replay.ckpt"
 """Name of the checkpoint file inside a checkpoint folder."""
 _FINGERPRINT_EVENTS = 1000
-
-
-@dataclass(frozen=True)
-class Checkpointing:
-    """Where and how often a replay saves its whole state (see :func:`~online_slam.pipeline.replay`)."""
-
-    directory: Path
-    """Folder of the checkpoint (``replay.ckpt`` inside it, replaced atomically each time)."""
-    every: int = 100
-    """Steps between checkpoints (>= 1)."""
-
-    def __post_init__(self) -> None:
-        if self.every < 1:
-            raise OnlineSlamError("--checkpoint-every must be >= 1")
 
 
 @dataclass(eq=False)

@@ -59,7 +59,24 @@ background global relinearization), :mod:`.relinearize` (its whole-history math)
 data), :mod:`.robots` (several robots), :mod:`.core` (the estimator).
 """
 
-from online_slam.estimators.smoother.config import GlobalConfig, RobustConfig, SmootherConfig, WindowConfig
-from online_slam.estimators.smoother.core import SlidingWindowSmoother
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from online_slam.lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from online_slam.estimators.smoother.config import GlobalConfig, RobustConfig, SmootherConfig, WindowConfig
+    from online_slam.estimators.smoother.core import SlidingWindowSmoother
+
+_HOMES = {
+    "GlobalConfig": "online_slam.estimators.smoother.config",
+    "RobustConfig": "online_slam.estimators.smoother.config",
+    "SmootherConfig": "online_slam.estimators.smoother.config",
+    "WindowConfig": "online_slam.estimators.smoother.config",
+    "SlidingWindowSmoother": "online_slam.estimators.smoother.core",
+}
+"""Each public name's module (imported on first use)."""
 
 __all__ = ["GlobalConfig", "RobustConfig", "SlidingWindowSmoother", "SmootherConfig", "WindowConfig"]
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
-from online_slam.estimators.landmark_book import AssociationConfig
+from online_slam.estimators.association_config import AssociationConfig
 from online_slam.factors.robust import RobustLoss, outlier_threshold
-from online_slam.solvers.least_squares import SolverConfig
+from online_slam.solvers.config import SolverConfig
 
 LINEARIZATIONS = ("standard", "fej", "invariant")
 """Where the smoother may evaluate the Jacobians of the prior's variables (:attr:`SmootherConfig.linearization`)."""
