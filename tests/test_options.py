@@ -26,9 +26,11 @@ from online_slam.options import (
     replay_config,
 )
 from online_slam.pipeline import ReplayConfig
+from online_slam.sinks.recording.writer import RerunConfig
 from online_slam.slam import OPTIONS as SLAM_OPTIONS
 from online_slam.slam import _configs
 from online_slam.solvers.least_squares import SolverConfig
+from online_slam.sources.meet import MeetConfig
 from online_slam.sources.worlds import GridConfig
 from online_slam.sweep import SETTINGS, make_cells
 
@@ -165,6 +167,8 @@ def test_estimator_names_are_case_insensitive_as_in_slam() -> None:
         (BatchConfig, {"initial": "odom"}),
         (SolverConfig, {"step_tolerance": -1.0}),
         (GridConfig, {"model": "bearing"}),
+        (MeetConfig, {"robots": 0}),
+        (RerunConfig, {"flush_every": 0}),
     ],
 )
 def test_every_config_refuses_a_value_it_would_misread(config: type, fields: dict) -> None:

@@ -59,6 +59,12 @@ class MeetConfig:
     dt: float = 1.0
     """Time between poses, seconds."""
 
+    def __post_init__(self) -> None:
+        if self.robots < 1 or self.poses < 2 or self.landmarks < 1:
+            raise ValueError("the meet world needs robots >= 1, poses >= 2 and landmarks >= 1")
+        if not (self.dt > 0 and self.step > 0 and self.sensor_range > 0):
+            raise ValueError("the meet world's dt, step and sensor range must be > 0")
+
 
 def _loops(c: MeetConfig) -> Array:
     """True poses of every robot, shape (robots, poses, 3): loop k around centre k, alternate directions, each

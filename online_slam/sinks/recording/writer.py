@@ -142,6 +142,10 @@ class RerunConfig:
     """Per-step data is buffered and sent as columns every this many steps (and at least every 0.25 s when
     streaming to a viewer)."""
 
+    def __post_init__(self) -> None:
+        if self.map_every < 1 or self.flush_every < 1:
+            raise ValueError("map_every and flush_every must be >= 1")
+
 
 @functools.cache
 def _strip_datatype() -> pa.DataType:
