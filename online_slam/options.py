@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, cast
 from online_slam.errors import ConfigError
 from online_slam.importers import registry
 from online_slam.sources.worlds import WORLDS
+from online_slam.wording import counted
 
 if TYPE_CHECKING:
     from online_slam.pipeline import ReplayConfig
@@ -37,8 +38,7 @@ GROUPS = ("input", "estimators", "EKF", "smoother", "association", "outliers", "
 ADVANCED = frozenset({
     "align", "first_observation_only", "keyframe_angle", "keyframe_time", "max_iterations", "gate_probability",
     "gate_persistence", "ekf_update", "ekf_linearization", "window_distance", "window_max", "relinearize_every",
-    "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "robust_scale",
-    "convention",
+    "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "convention",
 })  # fmt: skip
 """The research knobs (:attr:`Option.advanced`): what a user seldom sets; ``--help-all`` shows them."""
 ESTIMATOR_OWNERS = frozenset({"ekf", "smoother", "batch", "front-end", "association"})
@@ -479,7 +479,7 @@ def add_options(parser: argparse.ArgumentParser, command: str, lists: Iterable[s
             hidden.append((action, action.help))
             action.help = argparse.SUPPRESS
     if hidden:
-        told = f"show this help with the {len(hidden)} advanced options (research knobs) too"
+        told = f"show this help with {counted(len(hidden), 'advanced option')} (research knobs) too"
         parser.add_argument("--help-all", action=_HelpAll, hidden=hidden, help=told)
 
 

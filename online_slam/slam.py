@@ -188,8 +188,10 @@ def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | Smoot
         raise ConfigError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
     for key, value in options.items():
         if key not in OPTIONS:
-            hint = did_you_mean(key, OPTIONS)
-            raise ConfigError(f"unknown option {key!r}{hint}; options: {', '.join(sorted(OPTIONS))}")
+            takes = sorted(name for name, o in OPTIONS.items() if o.fits(estimator))
+            raise ConfigError(
+                f"unknown option {key!r}{did_you_mean(key, takes)}; {estimator} options: {', '.join(takes)}"
+            )
         option = OPTIONS[key]
         check_value(option, value)
         if not option.fits(estimator):

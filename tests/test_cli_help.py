@@ -114,3 +114,16 @@ def test_a_recording_given_as_a_stream_points_to_inspect(tmp_path: Path) -> None
     assert "a Rerun recording, not a stream: read it with 'online-slam inspect'" in one_error(
         cli("replay", str(recording))
     )
+
+
+def test_format_is_refused_where_it_does_not_apply_or_fit() -> None:
+    assert "square: --format applies to dataset files, not to a built-in world" in one_error(
+        cli("replay", "square", "--format", "mrclam")
+    )  # it was ignored
+    line = one_error(cli("replay", str(Path(__file__).parents[1] / "replay" / "square.jsonl"), "--format", "g2o"))
+    assert "--format g2o: not g2o data" in line
+
+
+def test_a_misspelt_advanced_flag_points_to_help_all() -> None:
+    line = one_error(cli("replay", "square", "--window-distanc", "3"))
+    assert "did you mean --window-distance?" in line and "--help-all lists it" in line

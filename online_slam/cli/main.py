@@ -15,6 +15,7 @@ from typing import Any, NoReturn
 
 from online_slam.cli import compare, convert, inspect, replay, simulate, sweep
 from online_slam.errors import OnlineSlamError
+from online_slam.options import ADVANCED
 from online_slam.sources.worlds import WORLDS
 from online_slam.version import __version__
 from online_slam.wording import did_you_mean
@@ -83,7 +84,11 @@ def unknown(extras: list[str], parser: argparse.ArgumentParser, commands: dict[s
     if owners:
         named = ", ".join(owners[:-1]) + " and " + owners[-1] if len(owners) > 1 else owners[0]
         return f"{given} is an option of {named}, not of {parser.prog.split()[-1]}"
-    return f"unknown option {given}{did_you_mean(given, _flags(parser))}"
+    hint = did_you_mean(given, _flags(parser))
+    advanced = {"--" + name.replace("_", "-") for name in ADVANCED}
+    if hint and hint.removeprefix(" (did you mean ").removesuffix("?)") in advanced:
+        hint += "; an advanced option: --help-all lists it"
+    return f"unknown option {given}{hint}"
 
 
 def _flags(parser: argparse.ArgumentParser) -> list[str]:

@@ -40,7 +40,15 @@ def open_source(
     text = str(spec)
     options = {k: v for k, v in dataset_options.items() if v is not None}
     is_world = text in WORLDS and not Path(text).exists()
-    kind = options.pop("format", None) or (registry.detect(text) if text != "-" and not is_world else None)
+    forced = options.pop("format", None)
+    if forced is not None and (is_world or text == "-"):
+        what = "a built-in world" if is_world else "standard input"
+        raise InputError(text, 0, "", f"--format applies to dataset files, not to {what}")
+    kind = forced or (registry.detect(text) if text != "-" and not is_world else None)
+    if forced is not None and Path(text).exists() and registry.detect(text) not in (None, forced):
+        raise InputError(text, 0, "", f"--format {forced}: this is {registry.detect(text)} data (drop --format)")
+    if forced is not None and Path(text).exists() and not registry.importers()[forced].detect(Path(text)):
+        raise InputError(text, 0, "", f"--format {forced}: not {forced} data ({registry.importers()[forced].summary})")
     _check_options(text, kind, is_world, options)
     if is_world:
         return text, WORLDS[text].events()
