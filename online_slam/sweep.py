@@ -268,7 +268,7 @@ def sweep(
                 os.environ.update(single)
                 try:
                     # the workers' statistical profiler samples the running task's stack 100 times a second; our
-                    # tasks are pure Python, and it slowed them (MRCLAM W=100: 7.6 s -> 13.8-16.7 s per replay)
+                    # tasks are pure Python, and it about doubled their time
                     with dask.config.set({"distributed.worker.profile.enabled": False}):
                         cluster = LocalCluster(
                             n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None

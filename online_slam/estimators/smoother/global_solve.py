@@ -57,7 +57,8 @@ class GlobalJob:
     released: int = 0
     """Landmarks released from the prior when it started (``Progress.released``). If consensus released more
     before the hand-over, its solution is of a map since corrected: the hand-over solves again at once instead
-    (issue 31's waypoint world: applied, a stale solution put the online error at 0.6 m for 200 steps)."""
+    (a stale solution, applied, pulled the online estimate back to the wrong map for hundreds of steps;
+    benchmarks/RESULTS.md, "Refused hand-overs judged again")."""
     thread: threading.Thread | None = field(default=None, init=False)
     """The thread solving it, until it is joined (:func:`finish_job`)."""
 
