@@ -529,5 +529,6 @@ class RerunSink:
         try:  # a viewer that never answers must not hang the run (rerun-sdk 0.41 can wait for it forever)
             rec.flush(timeout_sec=VIEWER_FLUSH_S) if self.live else rec.flush()
         except RuntimeError as exc:  # e.g. no viewer at the address: the results must not be lost over it
-            self.error = f"rerun: could not deliver the recording to the viewer at {self._where()} ({exc})"
+            where = f"the viewer at {self._where()}" if self.live else f"the file {self.config.path}"
+            self.error = f"rerun: could not deliver the recording to {where} ({exc})"
         rec.disconnect()
