@@ -105,3 +105,15 @@ def test_compare_and_convert_skip_too(streams, tmp_path: Path) -> None:
     assert cli("convert", "stream", str(dirty), "-o", str(out_dirty), "--on-error", "skip").returncode == 0
     assert cli("convert", "stream", str(clean), "-o", str(out_clean)).returncode == 0
     assert out_dirty.read_text() == out_clean.read_text()
+
+
+def test_a_stop_request_ends_the_replay_and_scores_what_came_before() -> None:
+    """``replay(stop=...)``, what Ctrl-C sets: the figures of the poses so far, ``error`` "interrupted"."""
+    import online_slam
+    from online_slam.reports.table import notes
+
+    steps = []
+    results = online_slam.replay("square", stop=lambda: steps.append(1) or len(steps) >= 10)
+    assert results.error == "interrupted" and results.poses == 11
+    assert results.estimators["batch"].final_rmse_m is not None
+    assert "stopped early: interrupted; figures cover the 11 poses before it" in notes(results)

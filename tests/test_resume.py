@@ -172,3 +172,26 @@ def test_a_checkpoint_that_cannot_be_written_stops_the_replay_and_keeps_the_last
     assert results.poses == 151 and written == [50, 100]  # the pose pending at the failure is kept
     assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"] == 100
     assert sorted(p.name for p in folder.iterdir()) == ["replay.ckpt"]
+
+
+@pytest.mark.slow
+def test_an_interrupt_keeps_the_work_and_a_checkpoint_to_resume_from(stream, tmp_path: Path) -> None:
+    """Ctrl-C (SIGINT after step 550, at a point the machine's speed does not decide): exit 130 with the table, the
+    JSON of the 551 poses so far and a checkpoint written there; resuming gives the uninterrupted figures."""
+    path, whole = stream
+    folder, partial = tmp_path / "ck", tmp_path / "partial.json"
+    stopped = subprocess.run(
+        [*EXE, "replay", str(path), "--json", str(partial), "--checkpoint", str(folder), "--checkpoint-every", "100"],
+        capture_output=True, text=True, env={**os.environ, CRASH_VARIABLE: "steps:550:INT"}, timeout=300,
+    )  # fmt: skip
+    assert stopped.returncode == 130, stopped.stderr
+    assert "stopped early: interrupted; figures cover the 551 poses" in stopped.stdout
+    assert "online-slam: interrupted after 551 poses" in stopped.stderr and "Traceback" not in stopped.stderr
+    document = json.loads(partial.read_text())
+    assert document["error"] == "interrupted" and document["poses"] == 551
+    assert set(document["estimators"]) == {"ekf", "smoother", "batch"}
+    assert read_checkpoint(folder / "replay.ckpt", "replay")["engine"]["state"]["steps"] == 550
+    out = tmp_path / "resumed.json"
+    done = cli("replay", str(path), "--resume", str(folder), "--json", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert_same_figures(json.loads(out.read_text()), whole)

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -130,10 +134,12 @@ def run(args: argparse.Namespace) -> int:
         check_folder("--checkpoint", args.checkpoint)
     checkpoint = Checkpointing(Path(args.checkpoint), args.checkpoint_every) if args.checkpoint else None
     sinks = sinks_from(args, config)
-    results = replay(
-        args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume,
-        on_noise_fit=None if args.quiet else lambda fit: print_noise_fit(fit, args.json == "-"),
-    )  # fmt: skip
+    with interrupts() as stopped:
+        results = replay(
+            args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume,
+            on_noise_fit=None if args.quiet else lambda fit: print_noise_fit(fit, args.json == "-"),
+            stop=stopped.is_set,
+        )  # fmt: skip
     if not args.quiet:  # with --json - stdout is the JSON's: the table goes to stderr
         print(format_results(results), file=sys.stderr if args.json == "-" else sys.stdout)
     if args.json:
@@ -142,7 +148,33 @@ def run(args: argparse.Namespace) -> int:
         from online_slam.sinks.tum import write_tum
 
         write_tum(args.tum, results)
-    failures = [results.error] + [getattr(sink, "error", None) for sink in sinks]
+    interrupted = results.error == "interrupted"
+    failures = [None if interrupted else results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):
         print(f"online-slam: error: {failure}", file=sys.stderr)
+    if interrupted:
+        print(f"online-slam: interrupted after {results.poses} poses; their figures are above", file=sys.stderr)
+        return 130
     return 2 if any(failures) else 0
+
+
+@contextlib.contextmanager
+def interrupts() -> Iterator[threading.Event]:
+    """SIGINT and SIGTERM set the event (the replay ends at the next step and keeps its work); a second one
+    interrupts at once, as before. Outside the main thread (no handlers can be set there) nothing changes."""
+    stopped = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stopped
+        return
+
+    def handle(signum: int, frame: object) -> None:
+        if stopped.is_set():
+            raise KeyboardInterrupt
+        stopped.set()
+
+    saved = {sig: signal.signal(sig, handle) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stopped
+    finally:
+        for sig, previous in saved.items():
+            signal.signal(sig, previous)

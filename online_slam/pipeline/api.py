@@ -28,6 +28,7 @@ def replay(
     resume: str | Path | None = None,
     validate: bool = True,
     on_noise_fit: Callable[[NoiseFit], None] | None = None,
+    stop: Callable[[], bool] | None = None,
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -48,6 +49,8 @@ def replay(
             generates (its worlds), whose checks would only cost time.
         on_noise_fit: With ``--noise fit`` (``config.dataset["noise"] == "fit"``), told of the fit before the
             replay, which runs with its scales (see :mod:`online_slam.pipeline.noise`).
+        stop: Asked after each step; True ends the replay there, scored like a stream that ended there, with
+            ``Results.error`` ``"interrupted"`` (how ``online-slam replay`` keeps its work on Ctrl-C).
 
     Returns:
         The results. When the input turns bad part-way, or a checkpoint cannot be written, the results cover
@@ -66,7 +69,7 @@ def replay(
             on_noise_fit(fit)
     watched = any(isinstance(sink, ProgressSink) for sink in sinks)
     opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate, count=watched)
-    run = ReplayRun(opened, cfg, sinks, checkpoint)
+    run = ReplayRun(opened, cfg, sinks, checkpoint, stop)
     if resume is not None:
         run.resume(resume)
     run.run()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -116,6 +116,10 @@ class _Resumption:
     """Theirs when the checkpoint was written."""
 
 
+INTERRUPTED = "interrupted"
+"""``Results.error`` of a run ended by a stop request (SIGINT, SIGTERM): what came before is scored as usual."""
+
+
 class ReplayRun:
     """A replay as it runs: the engine (front-end, dead reckoning, estimators), what is recorded of each estimator,
     the position in the source and the lines skipped; it writes checkpoints of all of it and resumes from one.
@@ -126,6 +130,8 @@ class ReplayRun:
         sinks: Given every step with all estimators' snapshots (``wall_s`` set); those that are progress sinks
             are also told where the run stands, out of ``opened.total``.
         checkpoint: Where and how often to write checkpoints (None: never).
+        stop: Asked after each step; True ends the run there as if the stream had ended, ``error`` saying
+            :data:`INTERRUPTED` (a signal handler's flag: Ctrl-C keeps the work).
     """
 
     def __init__(
@@ -134,6 +140,7 @@ class ReplayRun:
         config: ReplayConfig,
         sinks: Sequence[ReplaySink] = (),
         checkpoint: Checkpointing | None = None,
+        stop: Callable[[], bool] | None = None,
     ) -> None:
         self.source = opened.name
         """The source's name."""
@@ -164,6 +171,7 @@ class ReplayRun:
         self._total = opened.total
         self._checkpoint = checkpoint
         self._resumption: _Resumption | None = None
+        self._stop = stop
 
     def resume(self, folder: str | Path) -> None:
         """Continue from the checkpoint in ``folder`` (:meth:`run` then reads again what it had consumed).
@@ -206,7 +214,13 @@ class ReplayRun:
         try:
             for event in self._events:
                 self._position.take(event)
-                self._take(self.engine.push(event))
+                record = self.engine.push(event)
+                self._take(record)
+                if record is not None and self._stop is not None and self._stop():  # at a step's end
+                    self.error = INTERRUPTED
+                    if self._checkpoint is not None:  # resumable from here, not only from the last periodic one
+                        self._save(self._checkpoint)
+                    break
         except InputError as exc:
             if self.engine.steps == 0 and self.engine.frontend.pending is None:
                 raise

@@ -190,7 +190,9 @@ def notes(results: Results) -> list[str]:
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
         out.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
-    if results.error:
+    if results.error == "interrupted":
+        out.append(f"stopped early: interrupted; figures cover the {counted(results.poses, 'pose')} before it")
+    elif results.error:
         out.append(f"stopped early at bad input; figures cover the {counted(results.poses, 'pose')} before it")
     return out
 
