@@ -9,10 +9,9 @@ The names below are imported on first use, so that ``import online_slam`` (and `
 load the numerical libraries.
 """
 
-import importlib as _importlib
-import importlib.util as _importlib_util
 import typing as _typing
 
+from online_slam.lazy import lazy_exports as _lazy_exports
 from online_slam.version import __version__
 
 if _typing.TYPE_CHECKING:
@@ -57,17 +56,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> _typing.Any:
-    """A public name, imported from its module on first use (or a subpackage, as ``online_slam.sources``)."""
-    if name not in _HOMES:
-        if _importlib_util.find_spec(f"{__name__}.{name}") is None:
-            raise AttributeError(f"module 'online_slam' has no attribute {name!r}")
-        return _importlib.import_module(f"{__name__}.{name}")
-    value = getattr(_importlib.import_module(_HOMES[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """The public API only (helpers and submodules stay out of ``dir(online_slam)`` and tab completion)."""
-    return sorted(__all__)
+__getattr__, __dir__ = _lazy_exports(__name__, _HOMES)

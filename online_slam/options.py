@@ -40,7 +40,8 @@ ADVANCED = frozenset({
     "gate_persistence", "ekf_update", "ekf_linearization", "window_distance", "window_max", "relinearize_every",
     "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "convention",
 })  # fmt: skip
-"""The research knobs (:attr:`Option.advanced`): what a user seldom sets; ``--help-all`` shows them."""
+"""The research knobs, by option name: what a user seldom sets. ``--help`` leaves them out, ``--help-all`` shows
+them and docs/options.md marks them."""
 ESTIMATOR_OWNERS = frozenset({"ekf", "smoother", "batch", "front-end", "association"})
 """Owners of the estimator options: those ``replay``, ``compare``, ``sweep`` and ``Slam`` all accept."""
 _SHARED = frozenset({"front-end", "association"})
@@ -114,8 +115,6 @@ class Option:
     """Value of a flag given without its optional value."""
     short: str = ""
     """A one-letter spelling besides the flag (``-o``), or empty."""
-    advanced: bool = False
-    """A research knob: left out of ``--help`` (``--help-all`` shows it) and marked in docs/options.md."""
     parse: Callable[[str], Any] | None = None
     """How the command line's text becomes a value, when not by ``kind`` (``--robot``: a number or ``all``)."""
 

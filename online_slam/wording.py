@@ -6,8 +6,8 @@ import difflib
 from collections.abc import Iterable
 
 
-def did_you_mean(given: str, known: Iterable[str]) -> str:
-    """`` (did you mean X?)`` for the known spelling closest to ``given``, or an empty string when none is close.
+def closest(given: str, known: Iterable[str]) -> str | None:
+    """The known spelling closest to ``given``, or None when none is close.
 
     A name that ``given`` begins (``--out`` for ``--output``; the shortest such) comes first, then the most
     similar one.
@@ -16,7 +16,13 @@ def did_you_mean(given: str, known: Iterable[str]) -> str:
     lower = given.lower()
     started = sorted((k for k in by_lower if k.startswith(lower) and k != lower), key=len)
     close = started or difflib.get_close_matches(lower, list(by_lower), n=1, cutoff=0.6)
-    return f" (did you mean {by_lower[close[0]]}?)" if close else ""
+    return by_lower[close[0]] if close else None
+
+
+def did_you_mean(given: str, known: Iterable[str]) -> str:
+    """`` (did you mean X?)`` for :func:`closest`'s spelling, or an empty string when none is close."""
+    close = closest(given, known)
+    return f" (did you mean {close}?)" if close is not None else ""
 
 
 def counted(n: int, noun: str) -> str:

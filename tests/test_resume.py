@@ -14,6 +14,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from conftest import assert_close
 
 from online_slam.checkpoint import FORMAT_VERSION, read_checkpoint
 from online_slam.faults import CRASH_VARIABLE
@@ -37,17 +38,7 @@ def figures(document: dict) -> dict:
 
 
 def assert_same_figures(a: dict, b: dict, tolerance: float = 1e-9) -> None:
-    def walk(x, y, where: str) -> None:
-        if isinstance(x, dict):
-            assert set(x) == set(y), where
-            for k in x:
-                walk(x[k], y[k], f"{where}.{k}")
-        elif isinstance(x, float) and isinstance(y, float):
-            assert abs(x - y) <= tolerance * max(1.0, abs(x)), f"{where}: {x} != {y}"
-        else:
-            assert x == y, f"{where}: {x!r} != {y!r}"
-
-    walk(figures(a), figures(b), "results")
+    assert_close(figures(a), figures(b), rtol=tolerance, where="results")
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from online_slam.errors import OnlineSlamError
 from online_slam.options import ADVANCED
 from online_slam.sources.worlds import WORLDS
 from online_slam.version import __version__
-from online_slam.wording import did_you_mean
+from online_slam.wording import closest, did_you_mean
 
 COMMANDS = {
     "replay": replay,
@@ -84,11 +84,13 @@ def unknown(extras: list[str], parser: argparse.ArgumentParser, commands: dict[s
     if owners:
         named = ", ".join(owners[:-1]) + " and " + owners[-1] if len(owners) > 1 else owners[0]
         return f"{given} is an option of {named}, not of {parser.prog.split()[-1]}"
-    hint = did_you_mean(given, _flags(parser))
-    advanced = {"--" + name.replace("_", "-") for name in ADVANCED}
-    if hint and hint.removeprefix(" (did you mean ").removesuffix("?)") in advanced:
-        hint += "; an advanced option: --help-all lists it"
-    return f"unknown option {given}{hint}"
+    close = closest(given, _flags(parser))
+    if close is None:
+        return f"unknown option {given}"
+    advanced = close.removeprefix("--").replace("-", "_") in ADVANCED
+    return f"unknown option {given} (did you mean {close}?)" + (
+        "; an advanced option: --help-all lists it" if advanced else ""
+    )
 
 
 def _flags(parser: argparse.ArgumentParser) -> list[str]:

@@ -121,6 +121,7 @@ def print_noise_fit(fit: NoiseFit, stderr: bool) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay, print the table, write JSON; exit 2 if the input turned bad part-way."""
+    from online_slam.evaluation.results import INTERRUPTED
     from online_slam.pipeline import Checkpointing, replay
     from online_slam.reports.table import format_results
 
@@ -148,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
         from online_slam.sinks.tum import write_tum
 
         write_tum(args.tum, results)
-    interrupted = results.error == "interrupted"
+    interrupted = results.error == INTERRUPTED
     failures = [None if interrupted else results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):
         print(f"online-slam: error: {failure}", file=sys.stderr)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import blas
@@ -28,8 +30,14 @@ def mirror_upper(F: Array) -> None:
         j = min(i + MIRROR_BLOCK, n)
         F[j:, i:j] = F[i:j, j:].T
         block = F[i:j, i:j]
-        upper = np.triu_indices(j - i, 1)
+        upper = _upper(j - i)
         block.T[upper] = block[upper]
+
+
+@functools.cache
+def _upper(size: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The strict upper triangle's indices of a (size, size) block (computed once per size: every update uses them)."""
+    return np.triu_indices(size, 1)
 
 
 def stacked_jacobian(J_pose: Array, J_landmark: Array, pose_first: bool = True) -> Array:

@@ -20,6 +20,10 @@ def _finite_or_none(value: float | None) -> float | None:
     return float(value)
 
 
+INTERRUPTED = "interrupted"
+"""``Results.error`` of a replay ended by a stop request (SIGINT, SIGTERM): what came before is scored as usual."""
+
+
 @dataclass(frozen=True)
 class OdometryResult:
     """Dead-reckoning figures (composed odometry from the start pose)."""

@@ -45,10 +45,12 @@ def open_source(
         what = "a built-in world" if is_world else "standard input"
         raise InputError(text, 0, "", f"--format applies to dataset files, not to {what}")
     kind = forced or (registry.detect(text) if text != "-" and not is_world else None)
-    if forced is not None and Path(text).exists() and registry.detect(text) not in (None, forced):
-        raise InputError(text, 0, "", f"--format {forced}: this is {registry.detect(text)} data (drop --format)")
     if forced is not None and Path(text).exists() and not registry.importers()[forced].detect(Path(text)):
-        raise InputError(text, 0, "", f"--format {forced}: not {forced} data ({registry.importers()[forced].summary})")
+        detected = registry.detect(text)
+        told = f"; it reads as {detected} data (drop --format)" if detected else ""
+        raise InputError(
+            text, 0, "", f"--format {forced}: not {forced} data ({registry.importers()[forced].summary}){told}"
+        )
     _check_options(text, kind, is_world, options)
     if is_world:
         return text, WORLDS[text].events()

@@ -19,6 +19,7 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
 from online_slam.estimators.protocol import Snapshot
+from online_slam.evaluation.results import INTERRUPTED
 from online_slam.faults import crash_point
 from online_slam.pipeline.config import Checkpointing, ReplayConfig, build_estimators
 from online_slam.pipeline.source import OpenedSource
@@ -116,10 +117,6 @@ class _Resumption:
     """Theirs when the checkpoint was written."""
 
 
-INTERRUPTED = "interrupted"
-"""``Results.error`` of a run ended by a stop request (SIGINT, SIGTERM): what came before is scored as usual."""
-
-
 class ReplayRun:
     """A replay as it runs: the engine (front-end, dead reckoning, estimators), what is recorded of each estimator,
     the position in the source and the lines skipped; it writes checkpoints of all of it and resumes from one.
@@ -131,7 +128,7 @@ class ReplayRun:
             are also told where the run stands, out of ``opened.total``.
         checkpoint: Where and how often to write checkpoints (None: never).
         stop: Asked after each step; True ends the run there as if the stream had ended, ``error`` saying
-            :data:`INTERRUPTED` (a signal handler's flag: Ctrl-C keeps the work).
+            :data:`~online_slam.evaluation.results.INTERRUPTED` (a signal handler's flag: Ctrl-C keeps the work).
     """
 
     def __init__(

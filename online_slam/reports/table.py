@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from online_slam.evaluation.results import EstimatorResult, Results, Row
+from online_slam.evaluation.results import INTERRUPTED, EstimatorResult, Results, Row
 from online_slam.evaluation.scoring import nees_bounds
 from online_slam.wording import counted
 
@@ -190,7 +190,7 @@ def notes(results: Results) -> list[str]:
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
         out.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
-    if results.error == "interrupted":
+    if results.error == INTERRUPTED:
         out.append(f"stopped early: interrupted; figures cover the {counted(results.poses, 'pose')} before it")
     elif results.error:
         out.append(f"stopped early at bad input; figures cover the {counted(results.poses, 'pose')} before it")
