@@ -125,8 +125,10 @@ def drive(estimator: object, events: Iterable) -> tuple[Array, Array, list, dict
     seconds, poses, steps = [], [], []
     name = estimator.name  # type: ignore[attr-defined]
     for event in [*events, None]:
-        record = engine.push(event) if event is not None else engine.close()
-        if record is not None:
+        records = engine.push(event) if event is not None else [engine.close()]
+        for record in records:
+            if record is None:
+                continue
             seconds.append(record.seconds[name])
             poses.append(record.snapshots[name].pose)
             steps.append(record.step)

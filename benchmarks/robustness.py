@@ -49,7 +49,7 @@ class RobustnessRow:
 def _isam2(events: list[Event], cauchy: float) -> tuple[float, float]:
     """GTSAM iSAM2 with a Cauchy kernel on the same steps: its online and final position RMSE."""
     engine = Engine([])
-    steps = [r.step for r in (engine.push(e) for e in events) if r is not None]
+    steps = [r.step for e in events for r in engine.push(e)]
     last = engine.close()
     steps += [last.step] if last is not None else []
     truth = np.array([engine.frontend.truth.poses[s.index] for s in steps])

@@ -46,7 +46,7 @@ import numpy as np
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.version import __version__
 
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 """Version of the checkpoint layout; files of another version are refused."""
 
 

@@ -53,6 +53,8 @@ class EngineState:
     """Wall time each estimator spent on the pending step so far, by name."""
     left: list[str] = field(default_factory=list)
     """Estimators that left when a second robot began (they take one robot at a time)."""
+    times: list[float] = field(default_factory=list)
+    """Time of every complete step, in index order."""
 
 
 @dataclass(eq=False)
@@ -87,6 +89,9 @@ class Engine:
         self.frontend = FrontEnd(frontend)
         self.state = EngineState()
         self.records = records
+        self.previous: dict[str, Snapshot] = {}
+        """Without ``records``: each estimator's snapshot after the newest complete step (a query that does not
+        show the estimators the pending step reads it; empty after a restore)."""
         self._latest: dict[str, Snapshot] = {}
 
     @property
@@ -99,15 +104,22 @@ class Engine:
         """Observations in complete steps so far."""
         return self.state.observations
 
-    def push(self, event: Event | Scan) -> StepRecord | None:
+    def push(self, event: Event | Scan) -> list[StepRecord]:
         """Consume one validated event (or a scan of the library API).
 
         Returns:
-            The step it completed (an odometry event completes the previous pose), with every estimator's
-            snapshot, or None.
+            The steps it completed, in index order, each with every estimator's snapshot: usually none or one (an
+            odometry event completes the previous pose); more when it splits an increment at sightings between
+            ticks or releases held lines. Empty without ``records``.
         """
+        records = []
         completed = self.frontend.push(event)
-        return None if completed is None else self._complete(completed)
+        while completed is not None:
+            record = self._complete(completed)
+            if record is not None:
+                records.append(record)
+            completed = self.frontend.next_complete()
+        return records
 
     def sync(self) -> Mapping[str, Snapshot]:
         """Bring every estimator up to the newest event; their current snapshots by name ({} before any pose).
@@ -164,8 +176,9 @@ class Engine:
         self._deliver(step)
         self.state.steps += 1
         self.state.observations += len(step.landmarks)
+        self.state.times.append(step.t)
         if not self.records:
-            self.state.given, self._latest = -1, {}
+            self.state.given, self.previous, self._latest = -1, self._latest, {}
             return None
         for estimator in self.estimators:  # after a checkpoint was loaded mid-step, nothing new to deliver
             if estimator.name not in self._latest:
@@ -185,6 +198,6 @@ class Engine:
         self.estimators = [e for e in self.estimators if e.name not in saved.state.left]
         if sorted(saved.estimators) != sorted(e.name for e in self.estimators):
             raise ValueError("the checkpoint holds other estimators")
-        self.state, self.frontend, self._latest = saved.state, saved.frontend, {}
+        self.state, self.frontend, self._latest, self.previous = saved.state, saved.frontend, {}, {}
         for estimator in self.estimators:
             estimator.load_state(saved.estimators[estimator.name])

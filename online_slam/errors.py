@@ -33,6 +33,7 @@ class InputError(OnlineSlamError, ValueError):
         """A short category of the error, for counts of skipped lines (e.g. ``time_order``, ``not_finite``)."""
         message, field = self.message, self.field
         rules = (
+            (message.startswith("late by"), "late"),
             (message.startswith("invalid JSON"), "invalid_json"),
             (message.startswith("expected a JSON object"), "not_an_object"),
             (message.startswith("unknown event type"), "unknown_type"),
@@ -52,6 +53,11 @@ class InputError(OnlineSlamError, ValueError):
         where = f"{self.source}:{self.line}" if self.line else self.source
         what = f"{self.field}: {self.message}" if self.field else self.message
         return f"{where}: {what}"
+
+
+class LateInput(InputError):
+    """A line older than the newest one by more than the latency budget (``--max-latency``): skipped and counted,
+    never an end of the run."""
 
 
 class ConfigError(OnlineSlamError, ValueError):

@@ -222,6 +222,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("sensor_noise_scale", "multiply every sighting's covariance of the source by S", "input",
                "front-end", ("FrontEndConfig", "sensor_noise_scale"), metavar="S", positive=True,
                lands=("frontend.sensor_noise_scale",)),
+    Option("max_latency", "lines may arrive up to S seconds late (a reorder buffer puts them in time order, "
+           "delaying the estimate by S); later ones are skipped and counted", "input", ("front-end",), kind=float,
+           field=("FrontEndConfig", "max_latency"), unset="0 for files, 0.5 s for stdin", metavar="S", unit="s",
+           lands=("frontend.max_latency",)),
     Option("on_error", "a bad line of a stream: stop there, or report it on stderr and skip it", "input",
            ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin",
            lands=("on_error",), commands=_DATASET),

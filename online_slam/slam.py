@@ -19,25 +19,28 @@ estimator that does sets ``several_robots`` and gives each robot's newest pose b
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, EngineCheckpoint
-from online_slam.errors import ConfigError, InputError, OnlineSlamError
+from online_slam.errors import ConfigError, InputError, LateInput, OnlineSlamError
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.protocol import Estimator, SlamEstimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
-from online_slam.frontend.steps import FrontEndConfig
+from online_slam.frontend.steps import TIME_TOLERANCE, FrontEndConfig, PendingStep
+from online_slam.models.motion import Increment, predict_pose
 from online_slam.options import Option, check_value, estimator_options, replay_config
 from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
@@ -101,10 +104,13 @@ class SlamEstimate:
     """Each named robot's newest pose at the query (empty when the events name no robot)."""
     step_robots: list[RobotId] = field(default_factory=list)
     """The robot of every pose begun by the query, in index order (only appended to afterwards)."""
+    trajectory_times: Array = field(default_factory=lambda: _read_only(np.zeros(0)))
+    """Time of each row of ``trajectory``, seconds, shape (N,) (with keyframing, the kept poses' times)."""
 
     @property
     def t(self) -> float:
-        """Time of the newest pose, seconds (NaN before any pose)."""
+        """Time of ``pose``, seconds (NaN before any pose): the newest pose's, or the time it was predicted to (the
+        query's ``at``, or the newest odometry not yet in a pose)."""
         return self.snapshot.t
 
     @property
@@ -114,7 +120,7 @@ class SlamEstimate:
 
     @cached_property
     def pose(self) -> Array:
-        """Newest pose ``[x, y, theta]``, shape (3,) (NaN before any pose)."""
+        """Newest pose ``[x, y, theta]``, shape (3,) (NaN before any pose), predicted to ``t``."""
         return _locked(self.snapshot.pose)
 
     @cached_property
@@ -269,7 +275,9 @@ class Slam:
             EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
         )
         self._engine = Engine([self._estimator], frontend, records=False)
-        self._validator = EventValidator("Slam")
+        self._validator = EventValidator("Slam", max_latency=frontend.max_latency or 0.0)
+        self.late: int = 0
+        """Lines skipped as later than ``max_latency`` (a warning the first time; never an error)."""
         self._step_robots: list[RobotId] = []
 
     # -- events --------------------------------------------------------------------------------------
@@ -305,7 +313,12 @@ class Slam:
             self._push("add_odometry", {"type": "odometry", "t": t, "delta": delta}, sigma, cov, robot)
             return
         self._validator.name = "Slam.add_odometry"
-        self._engine.push(self._validator.parse_odometry(plain(t), plain(delta), plain(sigma), plain(cov)))
+        try:
+            odometry = self._validator.parse_odometry(plain(t), plain(delta), plain(sigma), plain(cov))
+        except LateInput as exc:
+            self._skip_late(exc)
+            return
+        self._engine.push(odometry)
 
     def add_observation(
         self,
@@ -399,9 +412,13 @@ class Slam:
         measured = ranges if xy is None else xy
         if landmarks is None and isinstance(measured, (list, tuple, np.ndarray)):
             landmarks = [None] * len(measured)
-        scan = self._validator.parse_scan(
-            plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov), plain(xy)
-        )
+        try:
+            scan = self._validator.parse_scan(
+                plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov), plain(xy)
+            )
+        except LateInput as exc:
+            self._skip_late(exc)
+            return
         self._engine.push(scan)
 
     def add(self, event: Event | Mapping[str, Any]) -> None:
@@ -442,7 +459,11 @@ class Slam:
             record["cov"] = plain(cov)
         self._validator.name = f"Slam.{method}"
         before = self._validator.state
-        event: Event = self._validator.parse_record(record)
+        try:
+            event: Event = self._validator.parse_record(record)
+        except LateInput as exc:
+            self._skip_late(exc)
+            return
         try:
             self._check_robots(event)
         except OnlineSlamError:
@@ -452,6 +473,12 @@ class Slam:
         robot = getattr(event, "robot", None)
         if robot is not None and len(self._step_robots) < self.poses:  # a robot's pose began
             self._step_robots.append(robot)
+
+    def _skip_late(self, error: LateInput) -> None:
+        """A line beyond ``max_latency``: skipped and counted in :attr:`late`, with one warning."""
+        self.late += 1
+        if self.late == 1:
+            warnings.warn(f"{error}; skipped (Slam.late counts them)", stacklevel=3)
 
     def _check_robots(self, event: Event) -> None:
         """Refuse what the estimator could not take: a second robot for one of one robot, a robot sighting of a
@@ -470,23 +497,87 @@ class Slam:
                 raise self._validator.fail(0, "robot_seen", message)
 
     # -- queries -------------------------------------------------------------------------------------
-    def estimate(self, landmark_covs: bool = True) -> SlamEstimate:
-        """The current estimate, including every event added so far.
+    def estimate(self, landmark_covs: bool = True, at: float | None = None) -> SlamEstimate:
+        """The current estimate, including every event added so far (sightings stamped after the newest pose wait
+        for the odometry that spans their time).
+
+        A query never creates a pose: with keyframing, odometry that may still merge into the pending keyframe
+        stays out of the estimator, and the newest pose is predicted with it instead (as with odometry held back
+        by ``max_latency``). So querying after every event gives the poses a replay gives.
 
         Args:
             landmark_covs: Also give each landmark's 2x2 marginal covariance (the smoother computes them on
                 request: one linearization of its window; pass False to skip).
+            at: Predict the pose to this time (seconds, not before the newest pose) from the newest pose with the
+                odometry given so far, at constant twist past it; None: to the newest odometry's time.
 
         Returns:
             The estimate; before any event an empty one (``index`` -1, no trajectory, no landmarks).
+
+        Raises:
+            InputError: ``at`` before the newest pose, or ``at`` with several robots.
         """
-        snapshot = self._engine.sync().get(self._estimator.name)
-        if snapshot is None:
-            return _empty_estimate(self._estimator, landmark_covs)
+        engine = self._engine
+        pending = engine.frontend.pending
+        name = self._estimator.name
+        increments: list[Increment] = []
+        if pending is not None and self._may_merge(pending) and name in engine.previous:
+            snapshot = engine.previous[name]  # the pose before: the pending keyframe may still move
+            increments.append(cast(Increment, (pending.t_begin, pending.t, pending.odometry, pending.odometry_cov)))
+        else:
+            found = engine.sync().get(name)
+            if found is None:
+                return _empty_estimate(self._estimator, landmark_covs)
+            snapshot = found
+        if pending is not None:
+            increments += self._held_increments(pending, increments[-1][1] if increments else snapshot.t)
+        snapshot = self._predicted(snapshot, increments, at)
         covs = _read_only(self._estimator.landmark_marginals()) if landmark_covs else None
         frozen, tail = self._estimator.trajectory_parts()
         tail.flags.writeable = False
-        return SlamEstimate(snapshot, covs, (frozen, tail), self._robot_poses(snapshot), self._step_robots)
+        times = engine.state.times + ([pending.t] if pending is not None and engine.state.given >= 0 else [])
+        n = len(frozen) + len(tail)
+        times_array = _read_only(np.array(times[:n], dtype=float))
+        robots = self._robot_poses(snapshot)
+        return SlamEstimate(snapshot, covs, (frozen, tail), robots, self._step_robots, times_array)
+
+    def _may_merge(self, pending: PendingStep) -> bool:
+        """Whether keyframing may still fold more odometry into the pending pose (no estimator has seen it)."""
+        frontend = self._engine.frontend
+        return (
+            cast(FrontEndConfig, frontend.config).keyframing is not None
+            and not pending.sealed
+            and pending.odometry is not None
+            and not pending.landmarks
+            and not pending.robots_seen
+            and not frontend.later
+            and self._engine.state.given < 0
+        )
+
+    def _held_increments(self, pending: PendingStep, t: float) -> list[Increment]:
+        """The odometry held back by ``max_latency`` after time ``t``, as increments (one robot)."""
+        out: list[Increment] = []
+        for odometry in self._engine.frontend.held_odometry(pending.robot):
+            out.append((t, odometry.t, np.array(odometry.delta), odometry.covariance))
+            t = odometry.t
+        return out
+
+    def _predicted(self, snapshot: Snapshot, increments: list[Increment], at: float | None) -> Snapshot:
+        """The snapshot with its pose moved on by the increments, to ``at`` or to their end."""
+        if at is None and not increments:
+            return snapshot
+        if at is not None:
+            if len(self._validator.state.robots) > 1:
+                raise InputError("Slam.estimate", 0, "at", "predicting to a time takes one robot")
+            if not at >= snapshot.t - TIME_TOLERANCE:
+                raise InputError("Slam.estimate", 0, "at", f"at={at} is before the newest pose (t={snapshot.t})")
+        to = at if at is not None else increments[-1][1]
+        motion = None
+        pending = self._engine.frontend.pending
+        if not increments and pending is not None and pending.odometry is not None:  # go on as the pose came
+            motion = cast(Increment, (pending.t_begin, pending.t, pending.odometry, pending.odometry_cov))
+        pose, cov = predict_pose(snapshot.pose, snapshot.pose_cov, snapshot.t, increments, to, motion)
+        return dataclasses.replace(snapshot, t=float(to), pose=pose, pose_cov=cov)
 
     def _robot_poses(self, snapshot: Snapshot) -> Mapping[RobotId, NewestPose]:
         """Each named robot's newest pose: the snapshot's with one robot, the estimator's with several."""

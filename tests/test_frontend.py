@@ -36,12 +36,54 @@ def test_square_world_steps() -> None:
     assert fe.header is not None and fe.header.name == "square"
 
 
-def test_observation_goes_to_newest_pose_at_or_before_its_time() -> None:
-    events = [obs(0.0, "a"), odo(1.0), obs(1.5, "b"), obs(1.9, "c"), odo(2.0), obs(2.0, "d")]
+def test_a_sighting_between_ticks_gets_a_pose_at_its_own_time() -> None:
+    turn = (1.0, 0.2, 0.4)
+    events = [obs(0.0, "a"), odo(1.0), obs(1.5, "b"), obs(1.9, "c"), obs(1.9, "e"), odo(2.0, turn), obs(2.0, "d")]
     steps = list(FrontEnd().steps(events))
-    assert [s.landmarks for s in steps] == [("a",), ("b", "c"), ("d",)]
-    assert [s.t for s in steps] == [0.0, 1.0, 2.0]
-    assert steps[1].z.shape == (2, 2) and steps[1].z_cov.shape == (2, 2, 2)
+    assert [s.landmarks for s in steps] == [("a",), (), ("b",), ("c", "e"), ("d",)]
+    assert [s.t for s in steps] == [0.0, 1.0, 1.5, 1.9, 2.0]
+    assert [s.index for s in steps] == list(range(5))
+    assert steps[3].z.shape == (2, 2) and steps[3].z_cov.shape == (2, 2, 2)
+    # the increment 1.0 -> 2.0 is split at 1.5 and 1.9: the parts compose to it exactly, covariance included
+    delta, cov = steps[2].odometry, steps[2].odometry_cov
+    for step in steps[3:]:
+        delta, cov = compose_increments(delta, cov, step.odometry, step.odometry_cov)
+    np.testing.assert_allclose(delta, turn, atol=1e-12)
+    np.testing.assert_allclose(cov, np.diag(np.square(SIG3)), atol=1e-14)
+    # constant twist: the first part is half the motion's twist, and carries half the covariance's trace
+    assert steps[2].odometry[2] == pytest.approx(0.2) and np.trace(steps[2].odometry_cov) == pytest.approx(
+        0.5 * np.sum(np.square(SIG3)), rel=0.05
+    )
+
+
+def test_lines_of_one_time_attach_to_its_pose_in_any_order() -> None:
+    start = Start(t=0.0, pose=(0.0, 0.0, 0.0))
+    odometry_first = [start, odo(1.0), obs(1.0, "a"), Truth(1.0, (1, 0, 0)), odo(2.0), obs(2.0, "b")]
+    sightings_first = [start, obs(1.0, "a"), Truth(1.0, (1, 0, 0)), odo(1.0), obs(2.0, "b"), odo(2.0)]
+    fronts = FrontEnd(), FrontEnd()
+    one, other = (list(fe.steps(events)) for fe, events in zip(fronts, (odometry_first, sightings_first)))
+    assert [(s.t, s.landmarks) for s in one] == [(s.t, s.landmarks) for s in other]
+    assert [(s.t, s.landmarks) for s in one] == [(0.0, ()), (1.0, ("a",)), (2.0, ("b",))]
+    for a, b in zip(one, other):
+        np.testing.assert_array_equal(a.z, b.z)
+    assert fronts[0].truth.poses.keys() == fronts[1].truth.poses.keys() == {1}
+
+
+def test_sightings_after_the_last_odometry_attach_to_the_last_pose_and_are_counted() -> None:
+    fe = FrontEnd()
+    steps = list(fe.steps([odo(1.0), obs(1.5, "a"), obs(1.7, "b")]))
+    assert [(s.t, s.landmarks) for s in steps] == [(1.0, ()), (1.0, ("a", "b"))]
+    assert fe.counts["after_last_odometry"] == 2
+
+
+def test_a_reorder_buffer_puts_late_lines_at_their_time() -> None:
+    ordered = [odo(0.1 * k) for k in range(1, 11)] + [obs(0.1 * k + 0.04, f"l{k}") for k in range(1, 10)]
+    ordered.sort(key=lambda e: e.t)
+    late = sorted(ordered, key=lambda e: e.t + (0.15 if isinstance(e, Observation) else 0.0))  # arrival order
+    assert late != ordered
+    want = [(s.t, s.landmarks) for s in FrontEnd().steps(ordered)]
+    got = [(s.t, s.landmarks) for s in FrontEnd(FrontEndConfig(max_latency=0.2)).steps(late)]
+    assert got == want
 
 
 def test_start_prior_and_default_origin() -> None:

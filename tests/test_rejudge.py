@@ -15,7 +15,7 @@ from online_slam.sources.worlds import square_world
 
 def _square_graph_at_truth():
     engine = Engine([])
-    steps = [r.step for r in (engine.push(e) for e in square_world()) if r is not None]
+    steps = [r.step for e in square_world() for r in engine.push(e)]
     last = engine.close()
     steps += [last.step] if last is not None else []
     log = ProblemLog()

@@ -457,6 +457,8 @@ def test_a_bad_sighting_rejects_the_whole_scan() -> None:
         slam.add_observations(100.0, [1, 2], [1.0], [0.1, 0.2], sigma=[0.1, 0.01])
     assert _fingerprint(slam) == before
     slam.add_observations(100.0, [1, "new"], [1.0, 2.0], [0.1, 0.2], cov=np.diag([0.01, 1e-4]))
+    assert "new" not in slam.estimate().landmarks  # after the newest pose: it waits for the odometry spanning t=100
+    slam.add_odometry(101.0, [0.5, 0.0, 0.0], sigma=[0.05, 0.05, 0.01])
     assert "new" in slam.estimate().landmarks
 
 

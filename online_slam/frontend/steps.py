@@ -18,6 +18,8 @@ increments composed and their covariance propagated), up to distance, angle and 
 
 from __future__ import annotations
 
+import dataclasses
+import heapq
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -27,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.frontend.noise import check_scale, scaled_event
-from online_slam.models.motion import compose_increments
+from online_slam.models.motion import compose_increments, split_increment
 from online_slam.models.observation import POSITION, RANGE_BEARING
 from online_slam.sources.events import (
     Event,
@@ -79,10 +81,16 @@ class FrontEndConfig:
     """Multiply every odometry covariance by this (see :mod:`online_slam.frontend.noise`); 1 leaves it."""
     sensor_noise_scale: float = 1.0
     """Multiply every sighting's covariance by this; 1 leaves it."""
+    max_latency: float | None = None
+    """Lines may arrive up to this many seconds older than the newest line's time: they are held back (a reorder
+    buffer) and given on in time order; older ones are skipped and counted. 0: no buffer (time going back is an
+    input error). None: 0, but :data:`STDIN_LATENCY` for a replay of standard input."""
 
     def __post_init__(self) -> None:
         check_scale("odometry_noise_scale", self.odometry_noise_scale)
         check_scale("sensor_noise_scale", self.sensor_noise_scale)
+        if self.max_latency is not None and not 0.0 <= self.max_latency < math.inf:  # NaN fails too
+            raise ValueError("max_latency must be a finite number of seconds >= 0")
 
 
 @dataclass(frozen=True)
@@ -226,14 +234,36 @@ class PendingStep:
         }
 
 
+Held = Odometry | Observation | Scan | Truth | Start
+"""A timed line the front-end may hold back: in the reorder buffer, or ahead of its robot's newest pose."""
+Ahead = Observation | Scan | Truth
+"""A line stamped after its robot's newest pose: it waits for the odometry that spans its time."""
+
+STDIN_LATENCY = 0.5
+"""Seconds a line of standard input may arrive late (``--max-latency`` not given): a camera and its detector lag
+the odometry by tens to a few hundred milliseconds; half a second holds them with a margin and delays a live
+estimate by as much (the newest pose is still predicted with the held odometry: ``Slam.estimate``)."""
+
+TIME_TOLERANCE = 1e-6
+"""Seconds within which two times are the same pose's: a sighting this close to a pose attaches to it, a later one
+gets a pose at its own time (a split increment far shorter would carry a near-zero covariance)."""
+
+
 @dataclass(eq=False)
 class FrontEnd:
     """Turns events into steps, one event at a time; collects header, truth and counts on the way.
 
-    :meth:`push` takes one validated event and returns the step it completed, if any (an odometry event
-    completes the newest pose); :attr:`pending` is the newest pose, still open for observations; :meth:`close`
-    completes it at the end of the stream. :meth:`steps` wraps the three for an iterable of events. Its fields
-    set by ``__init__`` are its whole state (a checkpoint holds them).
+    :meth:`push` takes one validated event and returns the oldest step now complete, if any (an odometry event
+    completes the newest pose); :meth:`next_complete` gives the others one by one (a split increment completes
+    several); :attr:`pending` is the newest pose, still open for observations; :meth:`close` completes it at the
+    end of the stream. :meth:`steps` wraps them for an iterable of events. Its fields set by ``__init__`` are its
+    whole state (a checkpoint holds them).
+
+    Sightings between odometry ticks: a sighting stamped after its robot's newest pose waits (``ahead``) for the
+    odometry that spans its time; that increment is then split at each such time (constant twist,
+    :func:`~online_slam.models.motion.split_increment`), so the sighting gets a pose at its own time. Lines of one
+    time attach to the pose at that time in any order. With ``max_latency`` > 0, lines first wait in a reorder
+    buffer (``held``) until they are that much older than the newest line, and leave it in time order.
     """
 
     config: FrontEndConfig | None = None
@@ -248,9 +278,17 @@ class FrontEnd:
     """The oldest pose not yet given out (None before the first event): with one robot, the newest pose;
     ``pending.sealed`` once an estimator has seen it."""
     later: list[PendingStep] = field(default_factory=list)
-    """Poses of several robots begun after ``pending``, in index order (empty with one robot)."""
+    """Poses begun after ``pending`` (several robots, or a split increment), in index order."""
     sightings: int = 0
     """Sightings put into steps so far (their numbers, in step order, are 0 .. sightings - 1)."""
+    ahead: list[Ahead] = field(default_factory=list)
+    """Sightings and truth stamped after their robot's newest pose, in time order, until its next odometry."""
+    held: list[tuple[float, int, Held]] = field(default_factory=list)
+    """The reorder buffer: a heap of (time, arrival number, line), with ``max_latency`` > 0."""
+    arrivals: int = 0
+    """Lines put into the reorder buffer so far."""
+    newest_t: float = -math.inf
+    """Newest time of a line so far (with ``max_latency`` > 0)."""
     _seen: set[LandmarkId | None] = field(default_factory=set)
     """Landmarks sighted so far (kept for ``first_observation_only``)."""
     _sigma_covariance: tuple[tuple[float, ...], Array] | None = field(default=None, init=False, repr=False)
@@ -259,8 +297,8 @@ class FrontEnd:
     def __post_init__(self) -> None:
         self.config = self.config or FrontEndConfig()
 
-    def _count(self, key: str) -> None:
-        self.counts[key] = self.counts.get(key, 0) + 1
+    def _count(self, key: str, n: int = 1) -> None:
+        self.counts[key] = self.counts.get(key, 0) + n
 
     def steps(self, events: Iterable[Event]) -> Iterator[Step]:
         """Turn events into steps.
@@ -273,8 +311,9 @@ class FrontEnd:
         """
         for event in events:
             step = self.push(event)
-            if step is not None:
+            while step is not None:
                 yield step
+                step = self.next_complete()
         while (last := self.close()) is not None:
             yield last
 
@@ -285,40 +324,73 @@ class FrontEnd:
             event: The next validated event.
 
         Returns:
-            The step this event completed (the previous pose, when an odometry event starts a new one), or None.
+            The oldest step now complete (the previous pose, when an odometry event starts a new one), or None;
+            :meth:`next_complete` gives the others.
         """
         config = cast(FrontEndConfig, self.config)  # never None after __post_init__
         if config.odometry_noise_scale != 1.0 or config.sensor_noise_scale != 1.0:
             event = scaled_event(event, config.odometry_noise_scale, config.sensor_noise_scale)
+        if config.max_latency and isinstance(event, (Odometry, Observation, Scan, Truth, Start)):
+            self.newest_t = max(self.newest_t, event.t)
+            heapq.heappush(self.held, (event.t, self.arrivals, event))
+            self.arrivals += 1
+            due = self.newest_t - config.max_latency
+            while self.held and self.held[0][0] < due:
+                self._take(heapq.heappop(self.held)[2])
+        else:
+            self._take(event)
+        return self._give_out()
+
+    def next_complete(self) -> Step | None:
+        """The next complete step not yet given out, or None (call after :meth:`push` until it gives None)."""
+        return self._give_out()
+
+    def held_odometry(self, robot: RobotId | None = None) -> list[Odometry]:
+        """Odometry of ``robot`` not yet in a step: in the reorder buffer, in time order."""
+        return [e for _, _, e in sorted(self.held, key=lambda h: (h[0], h[1])) if isinstance(e, Odometry)
+                and e.robot == robot]  # fmt: skip
+
+    def _take(self, event: Event | Scan) -> None:
+        """Put one event (in time order) into the poses."""
         if isinstance(event, Odometry):
             self._count("odometry")
-            pending = self._newest(event.robot, event.t)
-            if pending is not self._tail() or not self._merge(pending, event):
-                pending.closed = True
-                self.later.append(
-                    PendingStep(
-                        index=self._tail().index + 1,
-                        t=event.t,
-                        t_begin=pending.t,
-                        odometry=np.array(event.delta),
-                        odometry_cov=self._odometry_covariance(event),
-                        robot=pending.robot,
-                    )
-                )
+            self._odometry(event)
+        elif isinstance(event, (Observation, Scan, Truth)):
+            if isinstance(event, Scan):
+                self._count("observation", len(event.landmarks))
+            else:
+                self._count("truth" if isinstance(event, Truth) else
+                            "robot_observation" if event.robot_seen is not None else "observation")  # fmt: skip
+            robot = None if isinstance(event, Scan) else event.robot
+            pose = self._newest(robot, event.t)
+            if event.t > pose.t + TIME_TOLERANCE:
+                self.ahead.append(event)
+            else:
+                self._attach(event, pose)
+        elif isinstance(event, Start):
+            self._start_pose(event, event.t)
+        elif isinstance(event, LandmarkTruth):
+            self._count("landmark_truth")
+            self.truth.landmarks[event.landmark] = np.array(event.position)
+        elif isinstance(event, Header):
+            self.header = event
+
+    def _attach(self, event: Ahead, pending: PendingStep) -> None:
+        """Attach a sighting (or a truth) to the pose at its time."""
+        config = cast(FrontEndConfig, self.config)
+        if isinstance(event, Truth):
+            if abs(event.t - pending.t) <= TIME_TOLERANCE:
+                self.truth.poses[pending.index] = np.array(event.pose)
         elif isinstance(event, Observation) and event.robot_seen is not None:
-            self._count("robot_observation")
-            pending = self._newest(event.robot, event.t)
             pending.robots_seen.append(event.robot_seen)
             # Cast: a sighting of a robot gives range and bearing (the validator refuses xy).
             pending.z_robots.append(cast("tuple[float, float]", (event.range, event.bearing)))
             pending.z_robots_cov.append(event.covariance)
         elif isinstance(event, Observation):
-            self._count("observation")
-            pending = self._newest(event.robot, event.t)
             if config.first_observation_only:
                 if event.landmark in self._seen:
                     self._count("dropped_repeat_observation")
-                    return None
+                    return
                 self._seen.add(event.landmark)
             if event.truth_outlier is not None:
                 self.truth.outliers[self.sightings] = event.truth_outlier
@@ -331,41 +403,72 @@ class FrontEnd:
             pending.z_noise.append(event.sigma if event.cov is None else event.cov)
             if event.cov is not None:
                 pending.full_covariance = True
-        elif isinstance(event, Scan):
-            self.counts["observation"] = self.counts.get("observation", 0) + len(event.landmarks)
-            pending = self.pending if self.pending is not None else self._start_pose(None, event.t)
-            keep: Sequence[int] = range(len(event.landmarks))
-            if config.first_observation_only:
-                keep = self._first_sightings(event.landmarks)
-                dropped = len(event.landmarks) - len(keep)
-                self.counts["dropped_repeat_observation"] = self.counts.get("dropped_repeat_observation", 0) + dropped
-            self.sightings += len(keep)
-            z: Iterable[tuple[float, float]] = zip(event.ranges, event.bearings) if event.xy is None else event.xy
-            pending.z_model.extend([RANGE_BEARING if event.xy is None else POSITION] * len(keep))
-            if len(keep) == len(event.landmarks):
-                pending.landmarks.extend(event.landmarks)
-                pending.z.extend(z)
-                pending.z_noise.extend(event.noise)
-            else:
-                z_list = list(z)
-                pending.landmarks.extend(event.landmarks[i] for i in keep)
-                pending.z.extend(z_list[i] for i in keep)
-                pending.z_noise.extend(event.noise[i] for i in keep)
-            if event.noise and isinstance(event.noise[0][0], tuple):
-                pending.full_covariance = True
-        elif isinstance(event, Truth):
-            self._count("truth")
-            pending = self._newest(event.robot, event.t)
-            if event.t == pending.t:
-                self.truth.poses[pending.index] = np.array(event.pose)
-        elif isinstance(event, Start):
-            self._start_pose(event, event.t)
-        elif isinstance(event, LandmarkTruth):
-            self._count("landmark_truth")
-            self.truth.landmarks[event.landmark] = np.array(event.position)
-        elif isinstance(event, Header):
-            self.header = event
-        return self._give_out()
+        else:
+            self._attach_scan(event, pending)
+
+    def _attach_scan(self, event: Scan, pending: PendingStep) -> None:
+        keep: Sequence[int] = range(len(event.landmarks))
+        if cast(FrontEndConfig, self.config).first_observation_only:
+            keep = self._first_sightings(event.landmarks)
+            self._count("dropped_repeat_observation", len(event.landmarks) - len(keep))
+        self.sightings += len(keep)
+        z: Iterable[tuple[float, float]] = zip(event.ranges, event.bearings) if event.xy is None else event.xy
+        pending.z_model.extend([RANGE_BEARING if event.xy is None else POSITION] * len(keep))
+        if len(keep) == len(event.landmarks):
+            pending.landmarks.extend(event.landmarks)
+            pending.z.extend(z)
+            pending.z_noise.extend(event.noise)
+        else:
+            z_list = list(z)
+            pending.landmarks.extend(event.landmarks[i] for i in keep)
+            pending.z.extend(z_list[i] for i in keep)
+            pending.z_noise.extend(event.noise[i] for i in keep)
+        if event.noise and isinstance(event.noise[0][0], tuple):
+            pending.full_covariance = True
+
+    def _odometry(self, event: Odometry) -> None:
+        """A new pose at the event's time (or the event merged into the newest pose by keyframing); the sightings
+        waiting between the two poses get poses of their own on the split increment."""
+        pending = self._newest(event.robot, event.t)
+        waiting = [e for e in self.ahead if (None if isinstance(e, Scan) else e.robot) == event.robot]
+        if waiting:
+            self.ahead = [e for e in self.ahead if (None if isinstance(e, Scan) else e.robot) != event.robot]
+        cut = event.t - TIME_TOLERANCE
+        splits: list[float] = []
+        for e in waiting:
+            if not isinstance(e, Truth) and e.t < cut and (not splits or e.t > splits[-1] + TIME_TOLERANCE):
+                splits.append(e.t)
+        delta, cov = np.array(event.delta), self._odometry_covariance(event)
+        poses = []
+        if splits:
+            t_begin = pending.t
+            pending.closed = True
+            for t_split in splits:
+                part, part_cov, delta, cov = split_increment(delta, cov, (t_split - t_begin) / (event.t - t_begin))
+                poses.append(self._begin(t_split, t_begin, part, part_cov, pending.robot, closed=True))
+                t_begin = t_split
+            poses.append(self._begin(event.t, t_begin, delta, cov, pending.robot))
+        elif pending is not self._tail() or not self._merge(pending, event):
+            pending.closed = True
+            poses.append(self._begin(event.t, pending.t, delta, cov, pending.robot))
+        else:
+            poses.append(pending)
+        for e in waiting:
+            at = [pose for pose in poses if pose.t <= e.t + TIME_TOLERANCE]
+            if not at or e.t - at[-1].t > TIME_TOLERANCE:  # a truth between poses, or a line past this odometry
+                if e.t > cut:
+                    self.ahead.append(e)
+                continue
+            self._attach(e, at[-1])
+
+    def _begin(
+        self, t: float, t_begin: float, delta: Array, cov: Array, robot: RobotId | None, closed: bool = False
+    ) -> PendingStep:
+        """Begin a pose after the newest of all robots."""
+        pose = PendingStep(index=self._tail().index + 1, t=t, t_begin=t_begin, odometry=delta, odometry_cov=cov,
+                           robot=robot, closed=closed)  # fmt: skip
+        self.later.append(pose)
+        return pose
 
     def _first_sightings(self, landmarks: Iterable[LandmarkId | None]) -> list[int]:
         """Which sightings are of landmarks not sighted before, by position (those landmarks count as sighted now)."""
@@ -411,10 +514,25 @@ class FrontEnd:
 
     def close(self) -> Step | None:
         """End of stream: the oldest pose not yet given out, complete (None when none is left); call it until it
-        gives None (with one robot, once more after the newest pose)."""
+        gives None (with one robot, once more after the newest pose).
+
+        Lines still in the reorder buffer are taken first; sightings stamped after their robot's last odometry
+        attach to its newest pose (no odometry spans their time), counted as ``after_last_odometry``.
+        """
+        while self.held:
+            self._take(heapq.heappop(self.held)[2])
+        waiting, self.ahead = self.ahead, []
+        for event in waiting:
+            pose = self._newest(None if isinstance(event, Scan) else event.robot, event.t)
+            if not isinstance(event, Truth):
+                self._count("after_last_odometry", len(event.landmarks) if isinstance(event, Scan) else 1)
+                event = dataclasses.replace(event, t=pose.t)
+            self._attach(event, pose)
         pending = self.pending
         if pending is not None:
             pending.closed = True
+            for pose in self.later:  # no line can reach any pose any more
+                pose.closed = True
         return self._give_out()
 
     def _start_pose(self, start: Start | None, t: float) -> PendingStep:

@@ -123,3 +123,48 @@ def inverse(a: ArrayLike) -> Array:
     """
     a = np.asarray(a, dtype=float)
     return between(a, np.zeros_like(a))
+
+
+def _v_terms(theta: Array) -> tuple[Array, Array]:
+    """``sin(t)/t`` and ``(1 - cos(t))/t`` of SE(2)'s left Jacobian V, with their Taylor series near 0."""
+    small = np.abs(theta) < 1e-6
+    safe = np.where(small, 1.0, theta)
+    t2 = theta * theta
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, theta / 2.0 - theta * t2 / 24.0, (1.0 - np.cos(safe)) / safe)
+    return a, b
+
+
+def exp(xi: ArrayLike) -> Array:
+    """The pose reached by moving with constant twist ``xi = [vx, vy, omega]`` (body frame) for unit time.
+
+    Args:
+        xi: Twists, shape (..., 3).
+
+    Returns:
+        Increments ``[dx, dy, dtheta]``, shape (..., 3), heading wrapped.
+    """
+    xi = np.asarray(xi, dtype=float)
+    a, b = _v_terms(xi[..., 2])
+    x = a * xi[..., 0] - b * xi[..., 1]
+    y = b * xi[..., 0] + a * xi[..., 1]
+    return np.stack([x, y, wrap(xi[..., 2])], -1)
+
+
+def log(d: ArrayLike) -> Array:
+    """The constant twist that reaches the increment ``d`` in unit time (inverse of :func:`exp` for headings in
+    [-pi, pi)).
+
+    Args:
+        d: Increments, shape (..., 3).
+
+    Returns:
+        Twists ``[vx, vy, omega]``, shape (..., 3).
+    """
+    d = np.asarray(d, dtype=float)
+    theta = wrap(d[..., 2])
+    a, b = _v_terms(theta)
+    det = a * a + b * b  # V = [[a, -b], [b, a]], never singular for |theta| < 2 pi
+    vx = (a * d[..., 0] + b * d[..., 1]) / det
+    vy = (-b * d[..., 0] + a * d[..., 1]) / det
+    return np.stack([vx, vy, theta], -1)

@@ -18,7 +18,10 @@ from online_slam.wording import did_you_mean
 
 
 def open_source(
-    spec: str | Path, on_error: Callable[[InputError], None] | None = None, **dataset_options: Any
+    spec: str | Path,
+    on_error: Callable[[InputError], None] | None = None,
+    max_latency: float = 0.0,
+    **dataset_options: Any,
 ) -> tuple[str, Iterator[Event]]:
     """Open a source lazily.
 
@@ -28,6 +31,7 @@ def open_source(
             GTSAM/iSAM text file, a ``.g2o`` file), converted on the fly.
         on_error: Stream files and stdin: given each bad line, which is then skipped (None: the first one
             raises). Datasets and built-in worlds ignore it (an importer stops at its first bad record).
+        max_latency: Stream files and stdin: seconds a line may lie before the newest (a later stage reorders).
         dataset_options: Passed to the dataset importer (``robot``, ``truth``, ``dt``, ``convention``, ``format``).
 
     Returns:
@@ -63,7 +67,7 @@ def open_source(
     why = registry.refusal(text)
     if why is not None:
         raise InputError(text, 0, "", why)
-    return source_name(text), read_stream(text, on_error)
+    return source_name(text), read_stream(text, on_error, max_latency)
 
 
 def _check_options(text: str, kind: str | None, is_world: bool, options: dict[str, object]) -> None:

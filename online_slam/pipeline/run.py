@@ -151,7 +151,8 @@ class ReplayRun:
         """Dead reckoning, the baseline."""
         self.estimators = build_estimators(config.with_association(opened.association))
         """The estimators, in table order."""
-        self.engine = Engine([self.odometry, *self.estimators], config.frontend)
+        frontend = dataclasses.replace(config.frontend, max_latency=opened.latency)
+        self.engine = Engine([self.odometry, *self.estimators], frontend)
         """The engine: front-end, dead reckoning and estimators."""
         self.tracks = {e.name: Track() for e in self.estimators}
         """What was recorded of each estimator, by name."""
@@ -211,9 +212,10 @@ class ReplayRun:
         try:
             for event in self._events:
                 self._position.take(event)
-                record = self.engine.push(event)
-                self._take(record)
-                if record is not None and self._stop is not None and self._stop():  # at a step's end
+                records = self.engine.push(event)
+                for record in records:
+                    self._take(record)
+                if records and self._stop is not None and self._stop():  # at a step's end
                     self.error = INTERRUPTED
                     if self._checkpoint is not None:  # resumable from here, not only from the last periodic one
                         self._save(self._checkpoint)
@@ -225,8 +227,8 @@ class ReplayRun:
         except _CheckpointFailure as exc:
             self.error, self._checkpoint = str(exc), None  # no more writes: the last one written stays
         try:
-            while (record := self.engine.close()) is not None:  # several robots: a step per robot is left
-                self._take(record)
+            while (last := self.engine.close()) is not None:  # several robots: a step per robot is left
+                self._take(last)
         except _CheckpointFailure as exc:
             self.error = str(exc)
         if self.engine.steps == 0:

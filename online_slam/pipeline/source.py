@@ -3,6 +3,7 @@ counted (``on_error="skip"``); the association method chosen (``auto``: by the s
 
 from __future__ import annotations
 
+import functools
 import gzip
 import itertools
 import zlib
@@ -10,7 +11,8 @@ from collections.abc import Callable, Iterable, Iterator, Sized
 from dataclasses import dataclass
 from pathlib import Path
 
-from online_slam.errors import InputError
+from online_slam.errors import InputError, LateInput
+from online_slam.frontend.steps import STDIN_LATENCY
 from online_slam.importers import registry
 from online_slam.importers.resolve import open_source
 from online_slam.pipeline.config import ReplayConfig
@@ -52,6 +54,9 @@ class OpenedSource:
     """The bad lines skipped while reading it."""
     total: int | None = None
     """Items it holds (see :class:`~online_slam.sinks.protocol.ReplayProgress`), when counted and countable."""
+    latency: float = 0.0
+    """Seconds its lines may arrive late (``max_latency`` resolved: :data:`~online_slam.frontend.steps.STDIN_LATENCY`
+    for stdin when not given)."""
 
 
 def open_events(
@@ -72,12 +77,17 @@ def open_events(
         InputError: A path that does not exist; a bad line before the first sighting (``on_error="stop"``).
     """
     skipped = SkippedLines(on_skip)
-    on_error = skipped if config.on_error == "skip" else None
+    latency = config.frontend.max_latency
+    if latency is None:
+        latency = STDIN_LATENCY if isinstance(source, (str, Path)) and str(source) == "-" else 0.0
+    on_error: Callable[[InputError], None] | None = skipped if config.on_error == "skip" else None
+    if on_error is None and latency > 0.0:
+        on_error = functools.partial(_late_only, skipped)
     events: Iterable[Event]
     if isinstance(source, (str, Path)):
-        label, events = open_source(source, on_error, **importer_options(source, config.dataset))
+        label, events = open_source(source, on_error, latency, **importer_options(source, config.dataset))
     else:
-        label, events = "<events>", validate_events(source, on_error) if validate else iter(source)
+        label, events = "<events>", validate_events(source, on_error, max_latency=latency) if validate else iter(source)
     total = None
     if count and not config.dataset.get("format"):  # a format named: a dataset, whose records are not events
         total, events = count_items(source, events)
@@ -85,7 +95,15 @@ def open_events(
     if method == "auto":
         has_id, events = first_sighting_has_id(events)
         method = "known" if has_id else "jcbb"
-    return OpenedSource(name or label, iter(events), method, skipped, total)
+    return OpenedSource(name or label, iter(events), method, skipped, total, latency)
+
+
+def _late_only(skipped: SkippedLines, error: InputError) -> None:
+    """``on_error="stop"`` with a latency budget: a line beyond it is skipped and counted, any other bad line
+    raises."""
+    if not isinstance(error, LateInput):
+        raise error
+    skipped(error)
 
 
 def importer_options(source: str | Path, dataset: dict) -> dict:

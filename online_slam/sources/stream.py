@@ -39,7 +39,9 @@ def _open_text(path: str | Path) -> IO[str]:
         raise InputError(str(path), 0, "", f"cannot open: {exc.strerror or exc}") from None
 
 
-def read_stream(path: str | Path, on_error: Callable[[InputError], None] | None = None) -> Iterator[Event]:
+def read_stream(
+    path: str | Path, on_error: Callable[[InputError], None] | None = None, max_latency: float = 0.0
+) -> Iterator[Event]:
     """Read a stream v1 file lazily.
 
     Args:
@@ -47,6 +49,9 @@ def read_stream(path: str | Path, on_error: Callable[[InputError], None] | None 
         on_error: None: the first bad line raises. Otherwise each bad line is given to this function and
             skipped (the validator's state is as if the line were absent); data that cannot be read on
             (truncated gzip, bytes that are not UTF-8) still raises.
+        max_latency: Seconds a line's time may lie before the newest line's (see
+            :class:`~online_slam.sources.validate.EventValidator`); an older line is a
+            :class:`~online_slam.errors.LateInput`.
 
     Yields:
         Events in file order.
@@ -56,7 +61,7 @@ def read_stream(path: str | Path, on_error: Callable[[InputError], None] | None 
     """
     name = source_name(path)
     handle = _open_text(path)
-    validator = EventValidator(name)
+    validator = EventValidator(name, max_latency=max_latency)
     number = 0
     try:
         with handle:

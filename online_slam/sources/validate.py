@@ -17,7 +17,7 @@ from typing import Any, Literal, cast, overload
 
 import numpy as np
 
-from online_slam.errors import InputError
+from online_slam.errors import InputError, LateInput
 from online_slam.sources.events import (
     OUTLIER_KINDS,
     Event,
@@ -135,8 +135,10 @@ class EventValidator(RobotRules):
         name: Source name used in error messages (a file name, ``<stdin>``, or an API method).
     """
 
-    def __init__(self, name: str, state: ValidatorState | None = None) -> None:
+    def __init__(self, name: str, state: ValidatorState | None = None, max_latency: float = 0.0) -> None:
         self.name = name
+        self.max_latency = max_latency
+        """Seconds a line may be older than the newest one (a reorder buffer holds it); 0: time never goes back."""
         self.state = state or ValidatorState()
         self._pending = ValidatorState()
         self._parsers = {kind: getattr(self, f"_{kind}") for kind in FIELDS}
@@ -241,7 +243,9 @@ class EventValidator(RobotRules):
             self.state = self._pending
             return Scan(t_value, tuple(landmarks), fast[0], fast[1], (shared,) * k, fast[2])
         # one sighting at a time on a trial validator: the exact error of the first bad one, or all of them
-        trial = EventValidator(self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content))
+        trial = EventValidator(
+            self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content), self.max_latency
+        )
         trial._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
         t_value = trial.time({"t": t}, 0)
         events: list[Observation] = []
@@ -416,10 +420,13 @@ class EventValidator(RobotRules):
     def time(self, record: dict[str, Any], line: int) -> float:
         t = self.number(record, "t", line)
         last = self._pending.last_t
-        if t < last:
+        if t < last and not t >= last - self.max_latency:
+            if self.max_latency > 0.0:
+                message = f"late by {last - t:.6g} s (at {t} after {last}): beyond --max-latency {self.max_latency:g} s"
+                raise LateInput(self.name, line, "t", message)
             everyone = " over all robots (one clock)" if self._pending.robots else ""
             raise self.fail(line, "t", f"time goes backwards ({t} after {last}); expected non-decreasing{everyone}")
-        self._pending.last_t = t
+        self._pending.last_t = max(t, last)
         if self._pending.first_pose_t is None:
             self._pending.first_pose_t = t
         elif t < self._pending.first_pose_t:
@@ -555,7 +562,10 @@ def plain(value: Any) -> Any:
 
 
 def validate_events(
-    items: Iterable[Any], on_error: Callable[[InputError], None] | None = None, name: str = "<events>"
+    items: Iterable[Any],
+    on_error: Callable[[InputError], None] | None = None,
+    name: str = "<events>",
+    max_latency: float = 0.0,
 ) -> Iterator[Event]:
     """Events given as objects (or as decoded stream-v1 records), checked one at a time by the stream's rules.
 
@@ -563,11 +573,12 @@ def validate_events(
         items: Event objects (anything with ``to_record()``) or ``dict`` records, in stream order.
         on_error: None: the first bad item raises. Otherwise each bad item is given to this function and skipped.
         name: Source name for messages; an item's 1-based position stands for its line.
+        max_latency: Seconds an item may be older than the newest (see :class:`EventValidator`).
 
     Yields:
         The validated events.
     """
-    validator = EventValidator(name)
+    validator = EventValidator(name, max_latency=max_latency)
     for position, item in enumerate(items, 1):
         try:
             if isinstance(item, Mapping):

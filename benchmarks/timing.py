@@ -1,0 +1,175 @@
+"""The front-end's timing: sightings between odometry ticks, lines that arrive late, lines of one time in any
+order, and what the reorder buffer costs per step.
+
+Sightings 40 ms after the ticks are compared with their synchronised twin (the same random draws, sightings at
+the ticks) over seeded worlds: one world's figures move with its draws (its anchor heading, its map's shape), so
+the comparison is of means over seeds. Beside them, the same asynchronous sightings attached to the earlier tick
+(what the front-end did before it split increments) show what ignoring the timing costs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from online_slam import Slam, replay
+from online_slam.evaluation.results import Results
+from online_slam.options import replay_config
+from online_slam.sources.events import Event, Observation, Odometry, Start
+from online_slam.sources.timing import TimingConfig, timing_world
+from online_slam.sources.worlds import GridConfig, grid_world
+
+ESTIMATORS = ("ekf", "smoother", "batch")
+
+
+@dataclass(frozen=True)
+class TimingRow:
+    """Mean figures of one kind of stream over the seeds."""
+
+    label: str
+    """What the stream is."""
+    online: dict[str, float]
+    """Mean online position RMSE by estimator (the batch: its final), metres."""
+    nees: dict[str, float]
+    """Mean of each run's mean NEES by online estimator."""
+
+
+def _figures(events: list[Event], **options: object) -> tuple[dict[str, float], dict[str, float], Results]:
+    """Replay with the estimators and CLI-named options: mean online RMSE (batch: final), mean NEES, results."""
+    results = replay(events, replay_config({"estimators": ",".join(ESTIMATORS), **options}))
+    rows = results.rows()
+    online = {n: float(rows[n].online_rmse_m if n != "batch" else rows[n].final_rmse_m) for n in ESTIMATORS}
+    nees = {n: float(rows[n].nees_mean) for n in ("ekf", "smoother")}
+    return online, nees, results
+
+
+def _largest_change(a: Results, b: Results) -> float:
+    """Largest relative change between two replays' figures (online, final and landmark RMSE; NEES)."""
+    change = 0.0
+    for name, row in a.rows().items():
+        other = b.rows()[name]
+        for key in ("online_rmse_m", "final_rmse_m", "landmark_rmse_m", "nees_mean"):
+            x, y = getattr(row, key), getattr(other, key)
+            if x is not None and y is not None and x == x and x != 0:
+                change = max(change, abs(y - x) / abs(x))
+    return change
+
+
+def attached_early(events: Iterable[Event], tick: float, offset: float) -> list[Event]:
+    """The stream with each sighting moved back to the tick before it (the front-end's old attachment)."""
+    moved = [
+        dataclasses.replace(e, t=round((e.t - offset) / tick) * tick) if isinstance(e, Observation) else e
+        for e in events
+    ]
+    return sorted(moved, key=lambda e: getattr(e, "t", -math.inf))
+
+
+def twin_rows(seeds: Sequence[int], duration: float = 60.0, offset: float = 0.04) -> list[TimingRow]:
+    """Mean figures over the seeds: synchronised, sightings ``offset`` after the ticks, and those attached early."""
+    sums: dict[str, list[tuple[dict[str, float], dict[str, float]]]] = {"twin": [], "async": [], "early": []}
+    for seed in seeds:
+        c = TimingConfig(seed=seed, duration=duration, offset=offset)
+        twin = list(timing_world(dataclasses.replace(c, offset=0.0)))
+        late = list(timing_world(c))
+        for label, events in (("twin", twin), ("async", late), ("early", attached_early(late, 0.1, offset))):
+            online, nees, _ = _figures(events)
+            sums[label].append((online, nees))
+    labels = {
+        "twin": "synchronised twin (sightings at the ticks)",
+        "async": f"sightings {offset * 1e3:.0f} ms after the ticks, split increments",
+        "early": "the same, attached to the tick before (no split)",
+    }
+    return [
+        TimingRow(
+            labels[key],
+            {n: float(np.mean([r[0][n] for r in runs])) for n in ESTIMATORS},
+            {n: float(np.mean([r[1][n] for r in runs])) for n in ("ekf", "smoother")},
+        )
+        for key, runs in sums.items()
+    ]
+
+
+@dataclass(frozen=True)
+class LatencyCheck:
+    """A stream in arrival order through the reorder buffer beside the same stream in time order."""
+
+    largest_change: float
+    """Largest relative change of a figure (online, final, landmark RMSE; NEES), replay in arrival order."""
+    skipped: int
+    """Lines skipped as too late."""
+    slam_gap_m: float
+    """Largest distance between the trajectories of ``Slam`` fed in arrival and in time order, metres (the poses
+    both have: the held one lacks the last ``budget`` seconds)."""
+    slam_lag: int
+    """Poses the held ``Slam`` has not made yet at the end (its lines within the budget are still held)."""
+    slam_now_gap_m: float
+    """Distance between the two ``Slam``'s poses predicted to the last odometry's time, metres."""
+    out_of_order: int
+    """Sighting lines that arrive after a later odometry line."""
+
+
+def latency_check(seed: int = 5, duration: float = 60.0, delay: float = 0.15, budget: float = 0.2) -> LatencyCheck:
+    """Every sighting line delayed by up to ``delay`` seconds, replayed with ``--max-latency budget``."""
+    c = TimingConfig(seed=seed, duration=duration)
+    ordered = list(timing_world(c))
+    arriving = list(timing_world(dataclasses.replace(c, delay=delay)))
+    newest, out_of_order = -math.inf, 0
+    for e in arriving:
+        if isinstance(e, Odometry):
+            newest = max(newest, e.t)
+        elif isinstance(e, Observation) and e.t < newest:
+            out_of_order += 1
+    _, _, base = _figures(ordered)
+    _, _, held = _figures(arriving, max_latency=budget)
+    skipped = sum(held.input.skipped_by_reason.values())
+    gap, lag, now = _slam_gap(ordered, arriving, budget)
+    return LatencyCheck(_largest_change(base, held), skipped, gap, lag, now, out_of_order)
+
+
+def _slam_gap(ordered: list[Event], arriving: list[Event], budget: float) -> tuple[float, int, float]:
+    """``Slam`` fed in time order (no budget) and in arrival order (``budget``), querying after each odometry:
+    the largest distance between their trajectories' common poses, the poses the held one lacks at the end, and
+    the distance between their poses predicted to the last odometry's time."""
+    estimates = []
+    last = max(e.t for e in ordered if isinstance(e, Odometry))
+    for events, latency in ((ordered, 0.0), (arriving, budget)):
+        slam = Slam("smoother", max_latency=latency)
+        for event in events:
+            slam.add(event)
+            if isinstance(event, Odometry):
+                slam.estimate(landmark_covs=False)  # a robot's loop queries as it goes
+        estimates.append((slam.estimate(landmark_covs=False), slam.estimate(landmark_covs=False, at=last)))
+    (whole, now), (held, held_now) = estimates
+    n = len(held.trajectory)
+    gap = float(np.max(np.linalg.norm(whole.trajectory[:n, :2] - held.trajectory[:, :2], axis=1)))
+    return gap, len(whole.trajectory) - n, float(np.linalg.norm(now.pose[:2] - held_now.pose[:2]))
+
+
+def same_time_change(seed: int = 5, duration: float = 60.0) -> float:
+    """Largest relative change of a figure when each sighting line comes before the odometry of its time."""
+    events = list(timing_world(TimingConfig(seed=seed, duration=duration, offset=0.0)))
+    rank = {Start: -1, Observation: 0, Odometry: 1}
+    swapped = sorted(events, key=lambda e: (getattr(e, "t", -math.inf), rank.get(type(e), 2)))
+    assert swapped != events
+    _, _, a = _figures(events)
+    _, _, b = _figures(swapped)
+    return _largest_change(a, b)
+
+
+def buffer_cost(poses: int = 2000, repeats: int = 3) -> tuple[float, float]:
+    """Seconds of a grid replay (EKF and smoother) without and with a 0.2 s reorder buffer, best of ``repeats``,
+    interleaved."""
+    events = list(grid_world(GridConfig(poses=poses)))
+    best = [math.inf, math.inf]
+    for _ in range(repeats):
+        for i, budget in enumerate((0.0, 0.2)):
+            config = replay_config({"estimators": "ekf,smoother", "max_latency": budget})
+            started = time.perf_counter()
+            replay(events, config)
+            best[i] = min(best[i], time.perf_counter() - started)
+    return best[0], best[1]
