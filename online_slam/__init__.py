@@ -20,6 +20,7 @@ if _typing.TYPE_CHECKING:
     from online_slam.pipeline import ReplayConfig, replay
     from online_slam.sinks.recording.reader import RecordingSeries, read_recording
     from online_slam.slam import RobotEstimate, Slam, SlamEstimate
+    from online_slam.sources.events import GeneratedId
 
 _HOMES = {
     "ConfigError": "online_slam.errors",
@@ -35,12 +36,14 @@ _HOMES = {
     "RobotEstimate": "online_slam.slam",
     "Slam": "online_slam.slam",
     "SlamEstimate": "online_slam.slam",
+    "GeneratedId": "online_slam.sources.events",
 }
 """Each public name's module."""
 
 __all__ = [
     "ConfigError",
     "EstimatorResult",
+    "GeneratedId",
     "InputError",
     "OdometryResult",
     "OnlineSlamError",

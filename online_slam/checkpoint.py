@@ -4,8 +4,9 @@ Every object whose state a checkpoint keeps is a dataclass (or holds its state i
 its fields into a tree of numbers, strings, lists, tuples, dicts and numpy arrays; :func:`from_tree` rebuilds
 the object from such a tree, guided by the dataclass's type hints (nested dataclasses, ``X | None``, tuples,
 lists, dicts keyed by ints, strings or tuples, sets, arrays). A field declared with ``init=False`` is derived
-(a cache, an index): it is not saved, and ``__post_init__`` rebuilds it. A class that is not a dataclass takes
-part by defining ``to_tree(self)`` and a classmethod ``from_tree(cls, tree)``. So adding a state field is one
+(a cache, an index): it is not saved, and ``__post_init__`` rebuilds it. A class takes part by its own
+``to_tree(self)`` and classmethod ``from_tree(cls, tree)`` where it defines them (a dataclass too: a hashable
+form for an id that keys a dict), else by its fields. So adding a state field is one
 edit: the field, with its default.
 
 A checkpoint file is a zip archive holding ``manifest.json`` (kind, format version, package version, and the
@@ -59,6 +60,8 @@ def to_tree(value: Any) -> Any:
     Raises:
         TypeError: A value that cannot be saved (an object array, a function, an object without ``to_tree``).
     """
+    if callable(getattr(type(value), "to_tree", None)):
+        return to_tree(value.to_tree())
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return {f.name: to_tree(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
     if isinstance(value, np.ndarray):
@@ -79,8 +82,6 @@ def to_tree(value: Any) -> Any:
         return [to_tree(v) for v in items]
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
-    if callable(getattr(type(value), "to_tree", None)):
-        return to_tree(value.to_tree())
     raise TypeError(f"cannot checkpoint a {type(value).__name__}")
 
 
@@ -109,6 +110,9 @@ def from_tree(hint: Any, tree: Any) -> Any:
         if not isinstance(tree, np.ndarray):
             raise TypeError(f"expected an array, got {type(tree).__name__}")
         return tree
+    rebuild = getattr(hint, "from_tree", None) if isinstance(hint, type) else None
+    if callable(rebuild):
+        return rebuild(tree)
     if isinstance(hint, type) and dataclasses.is_dataclass(hint):
         return _from_dataclass(hint, tree)
     if hint in _SCALARS:
@@ -116,9 +120,6 @@ def from_tree(hint: Any, tree: Any) -> Any:
     container = origin or hint
     if container in (list, tuple, dict, set, frozenset):
         return _from_container(container, args, tree)
-    rebuild = getattr(hint, "from_tree", None) if isinstance(hint, type) else None
-    if callable(rebuild):
-        return rebuild(tree)
     raise TypeError(f"cannot rebuild a {hint!r}")
 
 

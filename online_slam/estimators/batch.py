@@ -56,14 +56,39 @@ class BatchEstimator(LoggedEstimator):
         """Solve the full problem, from composed odometry or from another estimate (same poses, same ids).
 
         Without ids (``use_ids`` False) the initial estimate must carry ``info["labels"]``: the landmark id of
-        each sighting (None: not used), whose landmarks it also gives.
+        each sighting (None: not used), whose landmarks it also gives. With ids, a sighting without one takes the
+        landmark its label gives, where the initial estimate associated every such sighting (one label each, in
+        order); otherwise it is not used.
         """
         started = time.perf_counter()
         if not self.config.use_ids:
             return self._finish_associated(initial, started)
-        graph = self.log.graph()
-        poses, landmarks = np.array(self.log.poses).reshape(-1, 3), self.log.landmarks
-        return self._solve(graph, poses, landmarks, self.log.landmark_ids, initial, started)
+        index = self.log.sightings()[1]
+        ids, landmarks = list(self.log.landmark_ids), list(self.log.landmarks)
+        labels = None if initial is None else initial.info.get("labels")
+        without = np.flatnonzero(index < 0)
+        if labels is not None and len(labels) == len(without) and len(without):
+            assert initial is not None  # it gave the labels
+            index = index.copy()
+            where, given = {lid: k for k, lid in enumerate(ids)}, {lid: k for k, lid in enumerate(initial.landmark_ids)}
+            for row, lid in zip(without, labels):
+                if lid is None or lid not in given:
+                    continue
+                if lid not in where:  # a landmark the initial estimate made from sightings without ids
+                    where[lid] = len(ids)
+                    ids.append(lid)
+                    landmarks.append(initial.landmarks[given[lid]])
+                index[row] = where[lid]
+        graph = self.log.graph(labels=index, n_landmarks=len(ids))
+        poses = np.array(self.log.poses).reshape(-1, 3)
+        estimate = self._solve(graph, poses, np.array(landmarks).reshape(-1, 2), tuple(ids), initial, started)
+        if not len(without):
+            return estimate
+        used = index >= 0
+        rejected = np.zeros(len(used), dtype=bool)  # per sighting given; one not used is not rejected
+        rejected[used] = estimate.info["rejected"]
+        labels = [ids[k] if k >= 0 else None for k in index[without]]  # as an estimator's: those without ids
+        return replace(estimate, info={**estimate.info, "rejected": rejected, "labels": labels})
 
     def _finish_associated(self, initial: Estimate | None, started: float) -> Estimate:
         """Solve with the associations (and values) of another estimate."""

@@ -504,7 +504,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         positions = self.x[offset:, 0].reshape(-1, 2)
         pose = self.x[:3, 0].copy()
         return self.book.assign_ids(
-            step_index, ids, z, R, model, pose, P[:3, :3], positions, self.landmark_ids, covariance_of, self.state.index
+            step_index, ids, z, R, model, pose, P[:3, :3], positions, self.landmark_ids, covariance_of
         )
 
     def trajectory_parts(self) -> tuple[Array, Array]:

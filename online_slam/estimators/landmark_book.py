@@ -46,7 +46,7 @@ from online_slam.models.observation import (
     landmark_from_sighting,
     landmark_from_sighting_with_jacobians,
 )
-from online_slam.sources.events import LandmarkId
+from online_slam.sources.events import GeneratedId, LandmarkId
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -78,12 +78,10 @@ class LandmarkBook(Checkpointed):
     """Method, gates, confirmation."""
     inside: bool
     """Tentative landmarks live in the estimator's state (True) or in the book (False)."""
-    prefix: str = "u"
-    """Ids of new landmarks are ``f"{prefix}{n}"`` (n = 0, 1, ...), skipping ids already known."""
     _next_key: int = 0
     """Key of the next tentative landmark of the book (outside)."""
     _next_id: int = 0
-    """Number of the next landmark id given out."""
+    """Number of the next landmark id given out (:class:`GeneratedId`: never one of the stream's ids)."""
     _pending: dict[LandmarkId, list[int]] = field(default_factory=dict)
     """Inside: the estimator's tentative landmarks, id -> [sightings, first step, last step]."""
     _deleted: set[LandmarkId] = field(default_factory=set)
@@ -170,13 +168,12 @@ class LandmarkBook(Checkpointed):
         positions: Array,
         landmark_ids: Sequence[LandmarkId],
         covariance_of: CovarianceOf,
-        known: set | dict | None = None,
     ) -> list[LandmarkId | None]:
         """The sightings' ids with those to associate (all, or those without one) filled in by :meth:`assign`."""
         everything = self.config.ignores_ids
         ask = np.array([i for i, lid in enumerate(ids) if everything or lid is None], dtype=np.int64)
         assigned = self.assign(
-            step_index, pose, pose_cov, z[ask], R[ask], positions, landmark_ids, covariance_of, known, model[ask]
+            step_index, pose, pose_cov, z[ask], R[ask], positions, landmark_ids, covariance_of, model[ask]
         )
         out = list(ids)
         for i, lid in zip(ask, assigned):
@@ -193,7 +190,6 @@ class LandmarkBook(Checkpointed):
         positions: Array,
         ids: Sequence[LandmarkId],
         covariance_of: CovarianceOf,
-        known: set | dict | None = None,
         model: Any = RANGE_BEARING,
     ) -> list[LandmarkId | None]:
         """Pair one scan's sightings with landmarks (call :meth:`expire` for the step first).
@@ -204,7 +200,6 @@ class LandmarkBook(Checkpointed):
             z: Sightings, shape (k, 2); ``R`` their noise, (k, 2, 2).
             positions: Current estimates of the estimator's landmarks, shape (M, 2); ``ids`` their ids (M,).
             covariance_of: The estimator's joint covariance of the pose and some landmarks.
-            known: Ids the estimator knows (new ids avoid them); defaults to ``ids``.
             model: The sightings' model tags (k,), or one tag for all (default range-bearing).
 
         Returns:
@@ -238,14 +233,13 @@ class LandmarkBook(Checkpointed):
                 self.ambiguous += int(np.sum(~paired & ~new & near))
                 free = (~paired & ~near) | new
         if free.any():
-            known = set(ids) if known is None else known
             if self.inside:
                 for i in np.flatnonzero(free):
-                    lid = out[i] = labels[i] = self._new_id(known)
+                    lid = out[i] = labels[i] = self._new_id()
                     if self.config.confirm > 1:
                         self._pending[lid] = [1, step_index, step_index]
             else:
-                self._tentative(step_index, pose, pose_cov, (z, R, model), free, out, labels, known)
+                self._tentative(step_index, pose, pose_cov, (z, R, model), free, out, labels)
         self._labels.extend(labels)
         return out
 
@@ -294,7 +288,6 @@ class LandmarkBook(Checkpointed):
         free: NDArray[np.bool_],
         out: list,
         labels: list,
-        known: set | dict,
     ) -> None:
         """Outside: match free sightings with the book's tentative landmarks; confirm, or start new ones.
 
@@ -344,14 +337,14 @@ class LandmarkBook(Checkpointed):
                     self._sightings[key].append((step_index, z[i].copy(), R[i].copy(), int(model[i])))
                     continue
                 confirmed.append(t)
-                lid = out[i] = labels[i] = self._new_id(known)
+                lid = out[i] = labels[i] = self._new_id()
                 self._confirmed_keys[key] = lid
                 self.retro += [(lid, g, zz, RR, m) for g, zz, RR, m in self._sightings.pop(key)]
                 continue
             key = self._next_key
             self._next_key += 1
             if self.config.confirm <= 1:
-                out[i] = labels[i] = self._confirmed_keys[key] = self._new_id(known)
+                out[i] = labels[i] = self._confirmed_keys[key] = self._new_id()
                 continue
             labels[i] = -(key + 1)
             self._sightings[key] = [(step_index, z[i].copy(), R[i].copy(), int(model[i]))]
@@ -365,13 +358,10 @@ class LandmarkBook(Checkpointed):
         if confirmed:
             self._remove(np.array(confirmed, dtype=np.int64))
 
-    def _new_id(self, known: set | dict) -> LandmarkId:
+    def _new_id(self) -> GeneratedId:
         """A fresh landmark id."""
-        while f"{self.prefix}{self._next_id}" in known:
-            self._next_id += 1
-        lid = f"{self.prefix}{self._next_id}"
         self._next_id += 1
-        return lid
+        return GeneratedId(self._next_id - 1)
 
     def _remove(self, rows: Index) -> None:
         keep = np.ones(len(self._keys), dtype=bool)

@@ -101,6 +101,20 @@ class OutlierReport:
 
 
 @dataclass(frozen=True)
+class WithoutIdReport:
+    """Sightings a stream gave without a landmark id, under known association (the rest paired by their ids)."""
+
+    sightings: int
+    """Sightings without an id."""
+    associated: int
+    """Those the estimator put on a landmark of its final map; the others it did not use."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``"without_id"`` object of an estimator's results."""
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
 class Row:
     """One estimator's figures as a flat record: a line of ``compare``'s table and JSON, of a sweep's output."""
 
@@ -159,6 +173,8 @@ class EstimatorResult:
     """Sightings judged outliers (and, on marked streams, how many were true outliers), where it judges."""
     association: AssociationScore | None = None
     """How it paired sightings with landmarks, scored against the stream's ids (``--association nn|jcbb``)."""
+    without_id: WithoutIdReport | None = None
+    """Under known association, the sightings without an id and how many it used (None: every sighting had one)."""
     robots: dict[str, EstimatorResult] = field(default_factory=dict)
     """With several robots: the same figures per robot, by robot id as text (empty with one robot)."""
 
@@ -179,6 +195,8 @@ class EstimatorResult:
             out["outliers"] = self.outliers.to_json()
         if self.association is not None:
             out["association"] = {**out.get("association", {}), **self.association.to_dict()}
+        if self.without_id is not None:
+            out["without_id"] = self.without_id.to_json()
         if self.robots:
             out["robots"] = {robot: result.to_json() for robot, result in self.robots.items()}
         return out

@@ -99,6 +99,8 @@ class ReplayCheckpoint:
     """Time of each complete step."""
     sighting_ids: list[LandmarkId | None]
     """The stream's id of every sighting (association scoring)."""
+    without_id: int
+    """Sightings without an id."""
 
 
 class _CheckpointFailure(OnlineSlamError):
@@ -160,6 +162,8 @@ class ReplayRun:
         """Time of each complete step."""
         self.sighting_ids: list[LandmarkId | None] = []
         """The stream's id of every sighting, to score association by (``nn``, ``jcbb``)."""
+        self.without_id = 0
+        """Sightings the stream gave without an id (reported under known association)."""
         self.error: str | None = None
         """The input error, or failed checkpoint write, that ended the run early."""
         self._events = opened.events
@@ -193,6 +197,7 @@ class ReplayRun:
             self.tracks.update(saved.tracks)
             self.step_times.extend(saved.step_times)
             self.sighting_ids.extend(saved.sighting_ids)
+            self.without_id = saved.without_id
             self.skipped.by_reason.update(saved.skipped)
             if saved.consumed:
                 self._resumption = _Resumption(folder, saved.consumed, saved.fingerprint)
@@ -271,6 +276,7 @@ class ReplayRun:
         self.step_times.append(record.step.t)
         if self.association != "known":
             self.sighting_ids.extend(record.step.landmarks)
+        self.without_id += record.step.landmarks.count(None)
         for name, track in self.tracks.items():
             track.record(record.snapshots[name], record.seconds[name])
         if self._sinks:
@@ -285,7 +291,7 @@ class ReplayRun:
     def _save(self, checkpoint: Checkpointing) -> None:
         state = ReplayCheckpoint(
             self.source, self.settings, self._position.consumed, self._position.fingerprint, self.skipped.by_reason,
-            self.engine.checkpoint(), self.tracks, self.step_times, self.sighting_ids,
+            self.engine.checkpoint(), self.tracks, self.step_times, self.sighting_ids, self.without_id,
         )  # fmt: skip
         try:
             write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)

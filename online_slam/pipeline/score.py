@@ -13,7 +13,14 @@ from online_slam.errors import OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
 from online_slam.estimators.protocol import Estimate, Estimator
 from online_slam.evaluation.association import AssociationScore, majority, score_association, true_labels, with_true_ids
-from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
+from online_slam.evaluation.results import (
+    EstimatorResult,
+    InputReport,
+    OdometryResult,
+    Results,
+    Series,
+    WithoutIdReport,
+)
 from online_slam.evaluation.robots import final_errors, odometry_per_robot, per_robot, robot_steps, robots_gap
 from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
 from online_slam.pipeline.config import ReplayConfig
@@ -98,6 +105,7 @@ def _score_estimator(
     if labels is not None and run.association != "known":
         association, scored = _score_association(run, estimate, labels)
         rejected = None  # per used sighting, not per stream sighting
+    without_id = _without_id(run, estimate, labels) if run.association == "known" else None
     if rejected is not None:
         header = run.engine.frontend.header
         marked = bool(truth.outliers) or bool(header is not None and header.meta.get("contamination"))
@@ -122,6 +130,7 @@ def _score_estimator(
         details=details,
         outliers=outliers,
         association=association,
+        without_id=without_id,
     )
     steps = robot_steps(run.odometry.log.robots)
     if steps:  # several robots: the same figures per robot
@@ -142,6 +151,21 @@ def _score_association(
     owner = majority(labels, truth_labels)
     association = score_association(run.association, labels, truth_labels, estimate.landmark_ids, owner)
     return association, with_true_ids(estimate, owner)
+
+
+def _without_id(
+    run: ReplayRun, estimate: Estimate, labels: Sequence[LandmarkId | None] | None
+) -> WithoutIdReport | None:
+    """Under known association: the stream's sightings without an id, and how many the estimator mapped (its
+    ``labels``, one per such sighting, where it associated them); None when every sighting has an id."""
+    count = run.without_id
+    if not count:
+        return None
+    mapped = set(estimate.landmark_ids)
+    used = (
+        sum(lid is not None and lid in mapped for lid in labels) if labels is not None and len(labels) == count else 0
+    )
+    return WithoutIdReport(count, used)
 
 
 def _finite_mean(values: np.ndarray) -> float | None:

@@ -156,7 +156,8 @@ def legend(results: Results, rows: Mapping[str, Row], closure: Closure | None) -
 
 
 def notes(results: Results) -> list[str]:
-    """Lines after the legend: alignment, convergence, outliers, skipped input, an early stop."""
+    """Lines after the legend: alignment, convergence, outliers, sightings without ids, skipped input, an early
+    stop."""
     out = []
     if results.alignment != "anchor":
         out.append(f"errors after {results.alignment} alignment")
@@ -185,6 +186,13 @@ def notes(results: Results) -> list[str]:
                 else ""
             )
             out.append(f"{name}: {o.rejected} of {counted(o.sightings, 'sighting')} rejected as outliers{scored}")
+        w = result.without_id
+        if w is not None and w.associated:
+            out.append(f"{name}: {w.associated} of {counted(w.sightings, 'sighting')} without an id associated, "
+                       f"{w.sightings - w.associated} not used")  # fmt: skip
+        elif w is not None:
+            out.append(f"{name}: {counted(w.sightings, 'sighting')} without an id not used (nothing associated them: "
+                       "it pairs by id; the EKF and the smoother associate them)")  # fmt: skip
     for name in results.left:
         out.append(f"{name}: left out, it takes one robot at a time and this stream has several")
     if results.input.skipped_lines:

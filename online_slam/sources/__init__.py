@@ -2,6 +2,7 @@
 
 from online_slam.sources.events import (
     Event,
+    GeneratedId,
     Header,
     LandmarkId,
     LandmarkTruth,
@@ -26,6 +27,7 @@ from online_slam.sources.worlds import (
 __all__ = [
     "WORLDS",
     "Event",
+    "GeneratedId",
     "GridConfig",
     "WaypointConfig",
     "Header",

@@ -22,8 +22,36 @@ from online_slam.models.observation import POSITION, RANGE_BEARING
 OUTLIER_KINDS = ("wrong_id", "spike", "clutter")
 """Marks a simulator may put on a corrupted sighting (``Observation.truth_outlier``), for evaluation only."""
 
-LandmarkId = int | str
-"""Landmark identifiers: integers or strings (``3`` and ``"3"`` are different landmarks)."""
+
+@dataclass(frozen=True, order=True)
+class GeneratedId:
+    """The id an estimator gives a landmark it made from sightings without one.
+
+    It equals no int or string, so it never stands for a stream's landmark, whatever that one is called; it is
+    shown as ``new-<number>``.
+    """
+
+    number: int
+    """0, 1, ... in the order the estimator gave them out."""
+
+    def __str__(self) -> str:
+        return f"new-{self.number}"
+
+    def to_tree(self) -> tuple[str, int]:
+        """Its checkpoint form (a tagged pair: never an int or a string)."""
+        return ("new", self.number)
+
+    @classmethod
+    def from_tree(cls, tree: Any) -> GeneratedId:
+        """The id of a :meth:`to_tree` form."""
+        if not isinstance(tree, (tuple, list)) or len(tree) != 2 or tree[0] != "new" or type(tree[1]) is not int:
+            raise TypeError(f"expected a generated landmark id, got {tree!r}")
+        return cls(tree[1])
+
+
+LandmarkId = int | str | GeneratedId
+"""Landmark identifiers: a stream's are integers or strings (``3`` and ``"3"`` are different landmarks); a
+landmark an estimator made from sightings without an id has a :class:`GeneratedId`, equal to neither."""
 
 RobotId = int | str
 """Robot identifiers: integers or strings, as landmark ids (``1`` and ``"1"`` are different robots)."""

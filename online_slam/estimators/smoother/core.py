@@ -304,7 +304,6 @@ class SlidingWindowSmoother(SeveralRobots):
                 w.landmarks,
                 w.landmark_ids,
                 self.association_covariance,
-                known=w.index,
             )
         keep = np.array([lid is not None for lid in ids], dtype=bool)
         resolved = replace(
