@@ -15,7 +15,14 @@ from online_slam.estimators.protocol import Estimate, Estimator
 from online_slam.evaluation.association import AssociationScore, majority, score_association, true_labels, with_true_ids
 from online_slam.evaluation.results import EstimatorResult, InputReport, OdometryResult, Results, Series
 from online_slam.evaluation.robots import final_errors, odometry_per_robot, per_robot, robot_steps, robots_gap
-from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
+from online_slam.evaluation.scoring import (
+    evaluate,
+    nees_band,
+    online_figures,
+    outlier_report,
+    share_in_bounds,
+    truth_array,
+)
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
 from online_slam.sources.events import LandmarkId
@@ -118,6 +125,9 @@ def _score_estimator(
         nees_mean=None if online is None else online.nees_mean,
         nees_in_bounds=None if online is None else share_in_bounds(online.series.nees),
         nis_mean=None if online is None else _finite_mean(online.series.nis),
+        nis_median=None if online is None else _finite_median(online.series.nis),
+        nees_band=None if online is None else nees_band(online.series.nees),
+        landmarks=errors.landmarks,
         step_ms=None if online is None else online.latency,
         details=details,
         outliers=outliers,
@@ -147,3 +157,8 @@ def _score_association(
 def _finite_mean(values: np.ndarray) -> float | None:
     """Mean of the finite values; None when there are none."""
     return float(np.nanmean(values)) if np.isfinite(values).any() else None
+
+
+def _finite_median(values: np.ndarray) -> float | None:
+    """Median of the finite values; None when there are none."""
+    return float(np.nanmedian(values)) if np.isfinite(values).any() else None
