@@ -333,6 +333,9 @@ class Results:
     """Estimators that did not run to the end: they take one robot at a time and a second robot began."""
     step_robots: tuple[int | str | None, ...] = field(default=(), repr=False)
     """With several robots: the robot of every step, length N (empty with one robot)."""
+    warning: str | None = None
+    """Why the input looks wrong (most of the first sightings rejected or lines skipped) and its likely cause, or
+    None."""
 
     def rows(self) -> dict[str, Row]:
         """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its
@@ -354,5 +357,6 @@ class Results:
             "estimators": {name: result.to_json() for name, result in self.estimators.items()},
             "input": self.input.to_json(),
             "error": self.error,
+            "warning": self.warning,
             **({"left": list(self.left)} if self.left else {}),
         }

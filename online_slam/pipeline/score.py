@@ -69,6 +69,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         robot=header.meta.get("robot") if (header := run.engine.frontend.header) is not None else None,
         left=tuple(run.engine.state.left),
         step_robots=tuple(run.odometry.log.robots) if robots else (),
+        warning=run.warning,
     )
 
 
