@@ -106,6 +106,7 @@ class Comparison:
 def _row_json(row: Row) -> dict[str, Any]:
     """A row as ``compare --json`` writes it: its step times as one ``step_ms`` object (median, p95, max) or null."""
     figures = dict(row.__dict__)
+    figures["nees_band"] = None if row.nees_band is None else row.nees_band.to_json()
     median, p95, longest = (figures.pop(k) for k in ("step_median_ms", "step_p95_ms", "step_max_ms"))
     total_s = figures.pop("total_s")
     step_ms = None if median is None else {"median": median, "p95": p95, "max": longest}

@@ -229,6 +229,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("on_error", "a bad line of a stream: stop there, or report it on stderr and skip it", "input",
            ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin",
            lands=("on_error",), commands=_DATASET),
+    Option("strict", "exit 2 when most of the first sightings are rejected or lines skipped (wrong units? "
+           "sigmas?), keeping the figures before it; without it, one warning names the likely cause", "input",
+           ("replay",), kind=bool, field=("ReplayConfig", "strict"), lands=("strict",), commands=("replay",)),
     # -- estimators -----------------------------------------------------------------------------------------
     Option("estimators", "comma-separated estimators to run (ekf, smoother, batch)", "estimators", ("replay",),
            field=("ReplayConfig", "estimators"), metavar="NAMES", lands=("estimators",)),

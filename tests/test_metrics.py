@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from online_slam.estimators import Estimate
 from online_slam.evaluation import align_se2, anchor_transform, apply_transform, endpoint_gap, position_rmse
-from online_slam.evaluation.scoring import evaluate
+from online_slam.evaluation.scoring import evaluate, landmark_coverage, nees_band, nees_bounds
 from online_slam.frontend import GroundTruth
 
 
@@ -45,3 +46,50 @@ def test_evaluate_anchors_at_first_pose_with_truth_and_moves_landmarks_too() -> 
         errors = evaluate(estimate, truth, alignment)
         assert errors.rmse_m < 1e-12 and errors.landmark_rmse_m < 1e-12
     assert evaluate(estimate, GroundTruth(), "anchor").rmse_m is None
+
+
+def _ar1_chi_square(rng: np.random.Generator, steps: int, phi: float) -> np.ndarray:
+    """A NEES-like series: chi-square on 3 dof, mean 3, its Gaussian components AR(1) with coefficient phi."""
+    from scipy.signal import lfilter
+
+    noise = rng.standard_normal((steps, 3)) * np.sqrt(1 - phi**2)
+    noise[0] /= np.sqrt(1 - phi**2)  # the first value from the stationary law
+    z = lfilter([1.0], [1.0, -phi], noise, axis=0)
+    return np.sum(z**2, axis=1)
+
+
+@pytest.mark.parametrize(("steps", "phi"), [(300, 0.7), (1000, 0.9)])
+def test_the_nees_band_covers_a_correlated_series_mean_95_percent_of_the_time(steps: int, phi: float) -> None:
+    """The band of one run counts its steps' correlation: seeded AR(1) chi-square series of true mean 3 fall in
+    it about 95% of the time, where the band of independent steps catches far fewer."""
+    rng = np.random.default_rng(47)
+    inside = independent = 0
+    for _ in range(300):
+        series = _ar1_chi_square(rng, steps, phi)
+        band = nees_band(series)
+        assert band is not None and band.steps == steps and band.effective_steps < steps
+        inside += band.low <= series.mean() <= band.high
+        low, high = nees_bounds(steps)
+        independent += low <= series.mean() <= high
+    assert 0.90 <= inside / 300 <= 0.99
+    assert independent / 300 < 0.8
+
+
+def test_the_nees_band_of_independent_steps_is_the_chi_square_band() -> None:
+    series = np.random.default_rng(5).chisquare(3, size=2000)
+    band = nees_band(np.concatenate([series, [np.nan]]))  # a step without NEES is left out
+    assert band is not None and band.steps == 2000
+    assert band.effective_steps == pytest.approx(2000, rel=0.15)
+    assert (band.low, band.high) == pytest.approx(nees_bounds(round(band.effective_steps)), abs=0.01)
+    assert nees_band(np.full(3, np.nan)) is None
+
+
+def test_landmark_coverage_names_what_the_rmse_leaves_out() -> None:
+    truth = GroundTruth(poses={0: np.zeros(3)}, landmarks={1: np.zeros(2), 2: np.ones(2), 9: np.ones(2)})
+    coverage = landmark_coverage((1, 2, "post"), truth)
+    assert coverage is not None and coverage.scored == 2
+    assert coverage.without_truth == ("post",) and coverage.not_estimated == (9,)
+    assert coverage.to_json() == {"scored": 2, "without_truth": ["post"], "not_estimated": [9]}
+    estimate = Estimate("x", np.zeros((1, 3)), (1, 2, "post"), np.array([[0.0, 0.0], [1.0, 1.0], [5.0, 5.0]]))
+    assert evaluate(estimate, truth).landmarks == coverage
+    assert landmark_coverage((1,), GroundTruth(poses={0: np.zeros(3)})) is None

@@ -84,13 +84,35 @@ def test_without_truth_the_gap_is_shown_with_a_warning(square: Results) -> None:
 def test_legend_explains_online_final_and_the_nees_band(square: Results, mrclam: Results) -> None:
     lines = legend(format_results(square))
     assert lines[0].startswith("online: ") and "final: " in lines[0]
-    steps = int(np.isfinite(square.series["ekf"].nees).sum())
-    low, high = nees_bounds(steps)
     (nees,) = [line for line in lines if line.startswith("NEES")]
-    assert "3 if consistent" in nees and f"over {steps} steps: {low:.2f}..{high:.2f}" in nees
+    assert "3 if consistent" in nees and "correlation counted, a lower bound" in nees
     assert all(len(line) <= 120 for line in lines)
-    (nees,) = [line for line in legend(format_results(mrclam)) if line.startswith("NEES")]
-    assert "over 1012 steps: 2.85..3.15" in nees  # MRCLAM's 11.71 is far outside
+    band = square.estimators["ekf"].nees_band
+    assert band is not None and band.steps == int(np.isfinite(square.series["ekf"].nees).sum())
+    labels, rows = table(format_results(square))
+    assert rows["ekf"]["NEES band"] == f"{band.low:.2f}..{band.high:.2f}" and rows["batch"]["NEES band"] == "-"
+    ekf = mrclam.estimators["ekf"]
+    assert ekf.nees_band is not None and ekf.nees_band.steps == 1012
+    independent = nees_bounds(1012)
+    assert ekf.nees_band.high - ekf.nees_band.low > 3 * (independent[1] - independent[0])  # correlated steps
+    nis = table(format_results(mrclam))[1]["ekf"]["NIS med/mean"]
+    assert nis == f"{ekf.nis_median:.2f}/{ekf.nis_mean:.2f}" and ekf.nis_median < ekf.nis_mean
+
+
+def test_a_landmark_rmse_that_leaves_landmarks_out_says_which(square: Results) -> None:
+    assert not any("landmark RMSE:" in line for line in format_results(square).splitlines())
+    truth = {lid: xy for lid, xy in square.truth_landmarks.items() if lid != 3}
+    result = square.estimators["ekf"]
+    coverage = replace(result.landmarks, scored=result.landmarks.scored - 1, without_truth=(3,), not_estimated=(99,))
+    estimators = {name: replace(r, landmarks=coverage) for name, r in square.estimators.items()}
+    lines = format_results(replace(square, truth_landmarks=truth, estimators=estimators)).splitlines()
+    (note,) = [line for line in lines if line.startswith("landmark RMSE")]
+    assert note == "landmark RMSE: over 11 landmarks; left out 1 without truth (3); 1 with truth never mapped (99)"
+    assert square.to_json()["estimators"]["ekf"]["landmark_coverage"] == {
+        "scored": 12,
+        "without_truth": [],
+        "not_estimated": [],
+    }
 
 
 @pytest.mark.slow
@@ -108,7 +130,7 @@ def test_compare_and_replay_print_one_layout(square: Results) -> None:
     comparison = compare("square", CompareConfig(windows=(20,)))
     replayed, compared = table(format_results(square)), table(format_comparison(comparison))
     assert replayed[0] == compared[0]  # the same columns, with the same labels
-    assert {"NEES in band", "NIS"} <= set(compared[0])
+    assert {"NEES band", "steps in band", "NIS med/mean"} <= set(compared[0])
     assert set(compared[1]) == {"odometry", "ekf", "smoother W=20..120 D=18 K=1 invariant", "batch"}
     for name in ("odometry", "ekf", "batch"):
         same = {k: v for k, v in compared[1][name].items() if not k.startswith(("step", "total"))}

@@ -36,6 +36,30 @@ def report_skip(error: InputError) -> None:
     print(f"online-slam: skipped {error}", file=sys.stderr)
 
 
+SKIPS_SHOWN = 20
+"""Skipped lines told one by one; the rest are counted in the table's notes and the JSON."""
+
+
+class SkipReport:
+    """Tells the user about each skipped line on stderr, up to :data:`SKIPS_SHOWN`, then once that more are
+    counted, not shown."""
+
+    def __init__(self) -> None:
+        self.told = 0
+
+    def __call__(self, error: InputError) -> None:
+        self.told += 1
+        if self.told <= SKIPS_SHOWN:
+            report_skip(error)
+        elif self.told == SKIPS_SHOWN + 1:
+            print("online-slam: skipping more lines; they are counted below, not shown", file=sys.stderr)
+
+
+def report_warning(message: str) -> None:
+    """Tell the user, once, that the input looks wrong and why."""
+    print(f"online-slam: warning: {message}", file=sys.stderr, flush=True)
+
+
 def write_json(destination: str, document: dict) -> None:
     """Write a JSON document to a path, or to stdout for ``-``."""
     text = json.dumps(document, indent=2)
@@ -137,9 +161,9 @@ def run(args: argparse.Namespace) -> int:
     sinks = sinks_from(args, config)
     with interrupts() as stopped:
         results = replay(
-            args.source, config, sinks=sinks, on_skip=report_skip, checkpoint=checkpoint, resume=args.resume,
+            args.source, config, sinks=sinks, on_skip=SkipReport(), checkpoint=checkpoint, resume=args.resume,
             on_noise_fit=None if args.quiet else lambda fit: print_noise_fit(fit, args.json == "-"),
-            stop=stopped.is_set,
+            stop=stopped.is_set, on_warning=report_warning,
         )  # fmt: skip
     if not args.quiet:  # with --json - stdout is the JSON's: the table goes to stderr
         print(format_results(results), file=sys.stderr if args.json == "-" else sys.stdout)

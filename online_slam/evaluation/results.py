@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from online_slam.estimators.protocol import Estimate
 from online_slam.evaluation.association import AssociationScore
+from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
 
@@ -115,6 +116,43 @@ class WithoutIdReport:
 
 
 @dataclass(frozen=True)
+class NeesBand:
+    """Where one run's mean NEES lies 95% of the time for a consistent estimator, the correlation of consecutive
+    steps that the run shows counted (:func:`~online_slam.evaluation.scoring.nees_band`): a lower bound on the
+    width, as errors the whole run shares (its frame's, its map's) widen it further."""
+
+    low: float
+    """Lower end."""
+    high: float
+    """Upper end."""
+    steps: int
+    """Steps with a NEES."""
+    effective_steps: float
+    """The independent steps they are worth: ``steps`` over the integrated autocorrelation time."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``"nees_band"`` object of the results JSON."""
+        return {"low": self.low, "high": self.high, "steps": self.steps, "effective_steps": self.effective_steps}
+
+
+@dataclass(frozen=True)
+class LandmarkCoverage:
+    """Which landmarks a landmark RMSE covers, and which it leaves out."""
+
+    scored: int
+    """Landmarks of the estimate with truth: those the RMSE is over."""
+    without_truth: tuple[LandmarkId, ...]
+    """Landmarks of the estimate that have no truth (left out)."""
+    not_estimated: tuple[LandmarkId, ...]
+    """Landmarks with truth that the estimate does not hold (never sighted, or not mapped; left out)."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``"landmark_coverage"`` object of the results JSON."""
+        return {"scored": self.scored, "without_truth": list(self.without_truth),
+                "not_estimated": list(self.not_estimated)}  # fmt: skip
+
+
+@dataclass(frozen=True)
 class Row:
     """One estimator's figures as a flat record: a line of ``compare``'s table and JSON, of a sweep's output."""
 
@@ -131,7 +169,8 @@ class Row:
     nees_in_bounds: float | None
     """Share of steps whose NEES lies inside the two-sided 95% chi-square interval (3 dof)."""
     nis_mean: float | None
-    """Mean NIS of the sightings (2 = consistent), where the estimator computes one."""
+    """Mean NIS over steps (each step's mean over its sightings; 2 = consistent), where the estimator computes
+    one."""
     step_median_ms: float | None
     """Median step time, ms (None for estimators whose work is all at the end)."""
     step_p95_ms: float | None
@@ -140,6 +179,10 @@ class Row:
     """Longest step, ms."""
     total_s: float
     """Total wall time of the estimator, seconds (0 for dead reckoning)."""
+    nis_median: float | None = None
+    """Median of the same per-step NIS (an outlier does not move it; chi-square median 1.39 on 2 dof)."""
+    nees_band: NeesBand | None = None
+    """Where ``nees_mean`` lies in 95% of runs like this one for a consistent estimator."""
 
 
 @dataclass(frozen=True)
@@ -163,8 +206,14 @@ class EstimatorResult:
     """Share of steps whose NEES lies inside the two-sided 95% chi-square interval (3 dof); None when unavailable
     (in :meth:`Results.rows`, not in the replay's JSON)."""
     nis_mean: float | None = None
-    """Mean NIS of the sightings (2 = consistent), where the estimator computes one (in :meth:`Results.rows`, not
-    in the replay's JSON)."""
+    """Mean NIS over steps (each step's mean over its sightings; 2 = consistent), where the estimator computes
+    one."""
+    nis_median: float | None = None
+    """Median of the same per-step NIS: what one outlier does not move."""
+    nees_band: NeesBand | None = None
+    """The 95% band of ``nees_mean`` for a consistent estimator, consecutive steps' correlation counted."""
+    landmarks: LandmarkCoverage | None = None
+    """Which landmarks ``landmark_rmse_m`` covers (None without landmark truth)."""
     step_ms: Latency | None = None
     """Per-step wall time; None for estimators whose work is all at the end."""
     details: dict[str, Any] = field(default_factory=dict)
@@ -189,7 +238,12 @@ class EstimatorResult:
         if self.step_ms is not None:
             out["online_rmse_m"] = _finite_or_none(self.online_rmse_m)
             out["nees_mean"] = _finite_or_none(self.nees_mean)
+            out["nees_band"] = None if self.nees_band is None else self.nees_band.to_json()
+            out["nis_mean"] = _finite_or_none(self.nis_mean)
+            out["nis_median"] = _finite_or_none(self.nis_median)
             out["step_ms"] = self.step_ms.to_json()
+        if self.landmarks is not None:
+            out["landmark_coverage"] = self.landmarks.to_json()
         out.update(self.details)
         if self.outliers is not None:
             out["outliers"] = self.outliers.to_json()
@@ -216,6 +270,8 @@ class EstimatorResult:
             step_p95_ms=None if latency is None else latency.p95,
             step_max_ms=None if latency is None else latency.max,
             total_s=self.total_s,
+            nis_median=self.nis_median,
+            nees_band=self.nees_band,
         )
 
 
@@ -295,6 +351,9 @@ class Results:
     """Estimators that did not run to the end: they take one robot at a time and a second robot began."""
     step_robots: tuple[int | str | None, ...] = field(default=(), repr=False)
     """With several robots: the robot of every step, length N (empty with one robot)."""
+    warning: str | None = None
+    """Why the input looks wrong (most of the first sightings rejected or lines skipped) and its likely cause, or
+    None."""
 
     def rows(self) -> dict[str, Row]:
         """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its
@@ -316,5 +375,6 @@ class Results:
             "estimators": {name: result.to_json() for name, result in self.estimators.items()},
             "input": self.input.to_json(),
             "error": self.error,
+            "warning": self.warning,
             **({"left": list(self.left)} if self.left else {}),
         }

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from online_slam.estimators.protocol import Estimate
 from online_slam.evaluation.metrics import apply_transform, endpoint_gap
 from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Series
-from online_slam.evaluation.scoring import Errors, share_in_bounds
+from online_slam.evaluation.scoring import Errors, nees_band, share_in_bounds
 from online_slam.frontend.steps import GroundTruth
 from online_slam.sources.events import RobotId
 
@@ -75,6 +75,8 @@ def _online(series: Series, steps: NDArray[np.int64], seconds: Array) -> dict[st
         "nees_mean": float(np.nanmean(nees)) if np.isfinite(nees).any() else None,
         "nees_in_bounds": share_in_bounds(nees),
         "nis_mean": float(np.nanmean(nis)) if np.isfinite(nis).any() else None,
+        "nis_median": float(np.nanmedian(nis)) if np.isfinite(nis).any() else None,
+        "nees_band": nees_band(nees),
         "step_ms": Latency(float(np.median(ms)), float(np.percentile(ms, 95)), float(ms.max())),
     }
 
@@ -104,6 +106,7 @@ def per_robot(
             final_rmse_m=_rmse(final[idx]),
             endpoint_gap_m=endpoint_gap(estimate.poses[idx]),
             landmark_rmse_m=overall.landmark_rmse_m,
+            landmarks=overall.landmarks,
             total_s=float(np.sum(seconds[idx])),
             **online,
         )

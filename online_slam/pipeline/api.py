@@ -29,6 +29,7 @@ def replay(
     validate: bool = True,
     on_noise_fit: Callable[[NoiseFit], None] | None = None,
     stop: Callable[[], bool] | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> Results:
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
@@ -51,6 +52,9 @@ def replay(
             replay, which runs with its scales (see :mod:`online_slam.pipeline.noise`).
         stop: Asked after each step; True ends the replay there, scored like a stream that ended there, with
             ``Results.error`` ``"interrupted"`` (how ``online-slam replay`` keeps its work on Ctrl-C).
+        on_warning: Told, once, when most of the first sightings are rejected or lines skipped, with the likely
+            cause (wrong units?); also in ``Results.warning``. With ``config.strict`` the replay stops there
+            instead, ``Results.error`` saying why.
 
     Returns:
         The results. When the input turns bad part-way, or a checkpoint cannot be written, the results cover
@@ -69,7 +73,7 @@ def replay(
             on_noise_fit(fit)
     watched = any(isinstance(sink, ProgressSink) for sink in sinks)
     opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate, count=watched)
-    run = ReplayRun(opened, cfg, sinks, checkpoint, stop)
+    run = ReplayRun(opened, cfg, sinks, checkpoint, stop, on_warning)
     if resume is not None:
         run.resume(resume)
     run.run()

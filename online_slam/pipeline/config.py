@@ -65,6 +65,9 @@ class ReplayConfig:
     on_error: str = "stop"
     """A bad line of a stream file or stdin: ``stop`` the replay there (figures cover what came before), or
     ``skip`` it and go on (counted in ``Results.input``; the results equal those of the stream without it)."""
+    strict: bool = False
+    """When most of the first sightings are rejected, or lines skipped (wrong units?), stop there with an error
+    (figures cover what came before), not only warn (:mod:`~online_slam.pipeline.units`)."""
 
     def __post_init__(self) -> None:
         if self.on_error not in ("stop", "skip"):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import itertools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +23,7 @@ from online_slam.evaluation.results import INTERRUPTED
 from online_slam.faults import crash_point
 from online_slam.pipeline.config import Checkpointing, ReplayConfig, build_estimators
 from online_slam.pipeline.source import OpenedSource
+from online_slam.pipeline.units import FIRST, SuspectInput, UnitWatch, probe_with
 from online_slam.sinks.protocol import ProgressSink, ReplayProgress, ReplaySink
 from online_slam.sources.events import Event, LandmarkId
 from online_slam.wording import counted
@@ -131,6 +132,9 @@ class ReplayRun:
         checkpoint: Where and how often to write checkpoints (None: never).
         stop: Asked after each step; True ends the run there as if the stream had ended, ``error`` saying
             :data:`~online_slam.evaluation.results.INTERRUPTED` (a signal handler's flag: Ctrl-C keeps the work).
+        on_warning: Told, once, when the first sightings or lines look like wrong units
+            (:mod:`~online_slam.pipeline.units`); with ``config.strict`` the run stops there instead, ``error``
+            saying why.
     """
 
     def __init__(
@@ -140,6 +144,7 @@ class ReplayRun:
         sinks: Sequence[ReplaySink] = (),
         checkpoint: Checkpointing | None = None,
         stop: Callable[[], bool] | None = None,
+        on_warning: Callable[[str], None] | None = None,
     ) -> None:
         self.source = opened.name
         """The source's name."""
@@ -174,6 +179,13 @@ class ReplayRun:
         self._checkpoint = checkpoint
         self._resumption: _Resumption | None = None
         self._stop = stop
+        ekf = "ekf" if "ekf" in config.estimators else None
+        self.units = UnitWatch(ekf, probe_with(_ekf_run(config, opened.association)))
+        """Watches the first sightings and lines for wrong units."""
+        self.warning: str | None = None
+        """The warning about suspect input, when one was given."""
+        self._strict = config.strict
+        self._on_warning = on_warning
 
     def resume(self, folder: str | Path) -> None:
         """Continue from the checkpoint in ``folder`` (:meth:`run` then reads again what it had consumed).
@@ -217,9 +229,11 @@ class ReplayRun:
         try:
             for event in self._events:
                 self._position.take(event)
+                self.units.take(event)
                 records = self.engine.push(event)
                 for record in records:
                     self._take(record)
+                    self._suspect(self.units.step(record, self.skipped.by_reason, self._position.consumed))
                 if records and self._stop is not None and self._stop():  # at a step's end
                     self.error = INTERRUPTED
                     if self._checkpoint is not None:  # resumable from here, not only from the last periodic one
@@ -229,8 +243,10 @@ class ReplayRun:
             if self.engine.steps == 0 and self.engine.frontend.pending is None:
                 raise
             self.error = str(exc)
-        except _CheckpointFailure as exc:
-            self.error, self._checkpoint = str(exc), None  # no more writes: the last one written stays
+        except (_CheckpointFailure, SuspectInput) as exc:
+            self.error = str(exc)
+            if isinstance(exc, _CheckpointFailure):
+                self._checkpoint = None  # no more writes: the last one written stays
         try:
             while (last := self.engine.close()) is not None:  # several robots: a step per robot is left
                 self._take(last)
@@ -238,8 +254,22 @@ class ReplayRun:
             self.error = str(exc)
         if self.engine.steps == 0:
             raise InputError(self.source, 0, "", "the stream holds no pose")
+        try:
+            self._suspect(self.units.judge(self.skipped.by_reason, self._position.consumed))
+        except SuspectInput as exc:
+            self.error = self.error or str(exc)
         batch = any(isinstance(e, BatchEstimator) for e in self.estimators)
         self._tell(f"batch: solving {counted(self.engine.steps, 'pose')}" if batch else "scoring")
+
+    def _suspect(self, message: str | None) -> None:
+        """Give the warning about suspect input (once); with ``strict``, raise it instead."""
+        if message is None:
+            return
+        self.warning = message
+        if self._strict:
+            raise SuspectInput(f"{message} (--strict)")
+        if self._on_warning is not None:
+            self._on_warning(message)
 
     def _tell(self, phase: str | None = None) -> None:
         """Tell the progress sinks how much of the source is read, or what runs once it is."""
@@ -297,3 +327,35 @@ class ReplayRun:
             write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
         except OnlineSlamError as exc:  # stop here as at a bad line: report what was estimated
             raise _CheckpointFailure(str(exc)) from None
+
+
+def _ekf_run(config: ReplayConfig, association: str) -> Callable[[Iterable[Event]], tuple[Array, int]]:
+    """Runs an EKF of the replay's settings over events: its sightings' NIS in order (NaN for a landmark's first),
+    and how many of the first :data:`~online_slam.pipeline.units.FIRST` repeated ones its gate rejected."""
+
+    def run(events: Iterable[Event]) -> tuple[Array, int]:
+        from online_slam.estimators.ekf import EkfSlam
+
+        alone = dataclasses.replace(config, estimators=("ekf",), extra_smoothers=())
+        ekf = EkfSlam(alone.with_association(association).ekf)
+        engine = Engine([ekf], config.frontend)
+        nis: list[Array] = []
+        rejected = 0
+
+        def take(record: StepRecord | None) -> None:
+            nonlocal rejected
+            if record is None:
+                return
+            info = record.snapshots[ekf.name].info
+            if sum(int(np.isfinite(v).sum()) for v in nis) < FIRST:
+                rejected += len(info.get("gated", ()))
+            nis.append(np.asarray(info.get("nis", ()), dtype=float))
+
+        for event in events:
+            for record in engine.push(event):
+                take(record)
+        while (record := engine.close()) is not None:
+            take(record)
+        return (np.concatenate(nis) if nis else np.zeros(0)), rejected
+
+    return run

@@ -22,7 +22,14 @@ from online_slam.evaluation.results import (
     WithoutIdReport,
 )
 from online_slam.evaluation.robots import final_errors, odometry_per_robot, per_robot, robot_steps, robots_gap
-from online_slam.evaluation.scoring import evaluate, online_figures, outlier_report, share_in_bounds, truth_array
+from online_slam.evaluation.scoring import (
+    evaluate,
+    nees_band,
+    online_figures,
+    outlier_report,
+    share_in_bounds,
+    truth_array,
+)
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
 from online_slam.sources.events import LandmarkId
@@ -69,6 +76,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         robot=header.meta.get("robot") if (header := run.engine.frontend.header) is not None else None,
         left=tuple(run.engine.state.left),
         step_robots=tuple(run.odometry.log.robots) if robots else (),
+        warning=run.warning,
     )
 
 
@@ -126,6 +134,9 @@ def _score_estimator(
         nees_mean=None if online is None else online.nees_mean,
         nees_in_bounds=None if online is None else share_in_bounds(online.series.nees),
         nis_mean=None if online is None else _finite_mean(online.series.nis),
+        nis_median=None if online is None else _finite_median(online.series.nis),
+        nees_band=None if online is None else nees_band(online.series.nees),
+        landmarks=errors.landmarks,
         step_ms=None if online is None else online.latency,
         details=details,
         outliers=outliers,
@@ -171,3 +182,8 @@ def _without_id(
 def _finite_mean(values: np.ndarray) -> float | None:
     """Mean of the finite values; None when there are none."""
     return float(np.nanmean(values)) if np.isfinite(values).any() else None
+
+
+def _finite_median(values: np.ndarray) -> float | None:
+    """Median of the finite values; None when there are none."""
+    return float(np.nanmedian(values)) if np.isfinite(values).any() else None

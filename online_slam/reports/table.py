@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from online_slam.evaluation.results import INTERRUPTED, EstimatorResult, Results, Row
+from online_slam.evaluation.results import INTERRUPTED, EstimatorResult, LandmarkCoverage, Results, Row
 from online_slam.evaluation.scoring import nees_bounds
 from online_slam.wording import counted
 
@@ -27,6 +27,17 @@ def _n(value: float | None) -> str:
 
 def _share(value: float | None) -> str:
     return "-" if value is None else f"{100 * value:.0f}%"
+
+
+def _band(row: Row) -> str:
+    band = row.nees_band
+    if band is None or row.nees_mean is None:
+        return "-"
+    return f"{band.low:.2f}..{band.high:.2f}"
+
+
+def _nis(row: Row) -> str:
+    return "-" if row.nis_mean is None else f"{_n(row.nis_median)}/{_n(row.nis_mean)}"
 
 
 def _latency(row: Row) -> str:
@@ -51,8 +62,9 @@ COLUMNS: tuple[tuple[str, Cell], ...] = (
     ("landmark RMSE m", lambda name, row: _m(row.landmark_rmse_m)),
     ("end gap m", lambda name, row: _m(row.endpoint_gap_m)),
     ("NEES", lambda name, row: _n(row.nees_mean)),
-    ("NEES in band", lambda name, row: _share(row.nees_in_bounds)),
-    ("NIS", lambda name, row: _n(row.nis_mean)),
+    ("NEES band", lambda name, row: _band(row)),
+    ("steps in band", lambda name, row: _share(row.nees_in_bounds)),
+    ("NIS med/mean", lambda name, row: _nis(row)),
     ("step ms med/p95/max", lambda name, row: _latency(row)),
     ("total s", lambda name, row: "-" if name.split()[0] == "odometry" else f"{row.total_s:.3f}"),
 )
@@ -129,14 +141,15 @@ def legend(results: Results, rows: Mapping[str, Row], closure: Closure | None) -
     lines = [
         "online: each pose as estimated when it was the newest (what the robot knew then); final: the last estimate."
     ]
-    steps = max((int(np.isfinite(s.nees).sum()) for s in results.series.values()), default=0)
-    if steps and any(row.nees_mean is not None for row in rows.values()):
-        low, high = nees_bounds(steps)
+    if any(row.nees_mean is not None for row in rows.values()):
         one_low, one_high = nees_bounds(1)
-        lines.append(
-            f"NEES: 3 if consistent (its 95% band over {counted(steps, 'step')}: {low:.2f}..{high:.2f}); "
-            f"in band: steps within {one_low:.2f}..{one_high:.2f}; NIS: 2 if consistent."
-        )
+        lines += [
+            "NEES: 3 if consistent; band: its 95% band for one run, consecutive steps' correlation counted, a lower "
+            "bound on its",
+            "width (errors the whole run shares widen it: compare --runs measures them); steps in band: each within "
+            f"{one_low:.2f}..{one_high:.2f}.",
+            "NIS: median/mean over steps of their sightings' NIS, 2 if consistent.",
+        ]
     if any(r.robots for r in results.estimators.values()):
         lines.append("robot N: that robot's poses, in the frame of the figures over all robots; the map is shared.")
     elif closure is None:
@@ -193,6 +206,7 @@ def notes(results: Results) -> list[str]:
         elif w is not None:
             out.append(f"{name}: {counted(w.sightings, 'sighting')} without an id not used (nothing associated them: "
                        "it pairs by id; the EKF and the smoother associate them)")  # fmt: skip
+    out += coverage_notes(results)
     for name in results.left:
         out.append(f"{name}: left out, it takes one robot at a time and this stream has several")
     if results.input.skipped_lines:
@@ -203,6 +217,36 @@ def notes(results: Results) -> list[str]:
     elif results.error:
         out.append(f"stopped early at bad input; figures cover the {counted(results.poses, 'pose')} before it")
     return out
+
+
+def coverage_notes(results: Results) -> list[str]:
+    """Which landmarks the landmark RMSE leaves out: once when every estimator leaves out the same, else each's."""
+    left = {name: r.landmarks for name, r in results.estimators.items()}
+    told = {name: c for name, c in left.items() if c is not None and (c.without_truth or c.not_estimated)}
+    if not told:
+        return []
+    same = len({(c.scored, c.without_truth, c.not_estimated) for c in left.values() if c is not None}) == 1
+    pairs = (
+        [("landmark RMSE", next(iter(told.values())))]
+        if same
+        else [(f"{n}: landmark RMSE", c) for n, c in told.items()]
+    )
+    return [f"{who}: over {counted(c.scored, 'landmark')}; {_left_out(c)}" for who, c in pairs]
+
+
+def _left_out(coverage: LandmarkCoverage) -> str:
+    """The landmarks a landmark RMSE leaves out, a few ids each."""
+
+    def ids(values: tuple) -> str:
+        shown = ", ".join(map(str, values[:5]))
+        return shown + (", ..." if len(values) > 5 else "")
+
+    parts = []
+    if coverage.without_truth:
+        parts.append(f"left out {len(coverage.without_truth)} without truth ({ids(coverage.without_truth)})")
+    if coverage.not_estimated:
+        parts.append(f"{len(coverage.not_estimated)} with truth never mapped ({ids(coverage.not_estimated)})")
+    return "; ".join(parts)
 
 
 def format_results(results: Results) -> str:
