@@ -147,7 +147,7 @@ class Option:
 
     def shown_default(self) -> str:
         """The default as a user reads it (``0.35 rad (20.1 deg)``, ``off``...)."""
-        if self.unset and self.field is not None:
+        if self.unset and self.field is not None and field_default(self.field) is not None:
             return f"{self.unset}; {readable(field_default(self.field), self.unit)} once another is given"
         if self.unset or self.value is None:
             return self.unset

@@ -354,8 +354,8 @@ def _ekf_run(config: ReplayConfig, association: str) -> Callable[[Iterable[Event
         for event in events:
             for record in engine.push(event):
                 take(record)
-        while (record := engine.close()) is not None:
-            take(record)
+        while (last := engine.close()) is not None:
+            take(last)
         return (np.concatenate(nis) if nis else np.zeros(0)), rejected
 
     return run
