@@ -38,7 +38,7 @@ from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.protocol import Estimator, SlamEstimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
-from online_slam.frontend.steps import TIME_TOLERANCE, FrontEndConfig, PendingStep
+from online_slam.frontend.steps import TIME_TOLERANCE, FrontEndConfig, PendingStep, Step
 from online_slam.models.motion import Increment, predict_pose
 from online_slam.options import Option, check_value, estimator_options, replay_config
 from online_slam.slam_estimate import (
@@ -415,8 +415,8 @@ class Slam:
         pending = engine.frontend.pending
         name = self._estimator.name
         increments: list[Increment] = []
-        if pending is not None and self._may_merge(pending) and name in engine.previous:
-            snapshot = engine.previous[name]  # the pose before: the pending keyframe may still move
+        if pending is not None and self._may_merge(pending) and engine.state.times:
+            snapshot = engine.previous.get(name) or self._estimator.snapshot(_bare_step(engine))  # the pose before
             increments.append(cast(Increment, (pending.t_begin, pending.t, pending.odometry, pending.odometry_cov)))
         else:
             found = engine.sync().get(name)
@@ -520,6 +520,12 @@ class Slam:
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
+
+
+def _bare_step(engine: Engine) -> Step:
+    """The newest complete step's index and time (all a snapshot reads of it) without its data."""
+    index, t = engine.state.steps - 1, engine.state.times[-1]
+    return Step(index, t, None, None, (), np.zeros((0, 2)), np.zeros((0, 2, 2)))
 
 
 def _empty_estimate(estimator: Estimator, landmark_covs: bool) -> SlamEstimate:

@@ -375,6 +375,7 @@ class Results:
             "estimators": {name: result.to_json() for name, result in self.estimators.items()},
             "input": self.input.to_json(),
             "error": self.error,
+            "trajectory_times": [] if self.step_times is None else [float(t) for t in self.step_times],
             "warning": self.warning,
             **({"left": list(self.left)} if self.left else {}),
         }
