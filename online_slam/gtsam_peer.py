@@ -27,10 +27,11 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.errors import OnlineSlamError
 from online_slam.factors.graph import FactorGraph
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.observation import POSITION, landmark_from_sighting
+from online_slam.models.observation import POSITION, landmark_from_sighting, split_models
 from online_slam.models.position import position_with_jacobians
 
 try:  # pragma: no cover - depends on the optional extra
@@ -300,7 +301,10 @@ def isam2_online(
             d = step.odometry
             latest = np.array([latest[0] + c * d[0] - s * d[1], latest[1] + s * d[0] + c * d[1], latest[2] + d[2]])
         values.insert(X(i), gtsam.Pose2(*latest))
-        for lid, z, cov, model in zip(step.landmarks, step.z, step.z_cov, step.z_model):
+        step_tags, mounts = split_models(step.z_model)
+        if mounts is not None:
+            raise OnlineSlamError("the GTSAM peer takes sightings at the robot's centre, not from mounted sensors")
+        for lid, z, cov, model in zip(step.landmarks, step.z, step.z_cov, step_tags):
             if lid not in index:
                 index[lid] = len(index)
             key = L(index[lid])

@@ -224,9 +224,10 @@ class Slam:
         cov: Any = None,
         xy: Any = None,
         robot: RobotId | None = None,
+        sensor: str | None = None,
     ) -> None:
         """A sighting of a landmark, range and bearing or its position ``xy`` in the robot frame; it attaches to the
-        newest pose (of ``robot``) with time <= ``t``.
+        newest pose (of ``robot``) with time <= ``t`` (a pose at ``t`` once the odometry spanning ``t`` arrives).
 
         Args:
             t: Time, seconds (never before the previous event).
@@ -240,9 +241,11 @@ class Slam:
             xy: ``[dx, dy]``, the landmark in the robot frame (x ahead, y to the left), metres, instead of range and
                 bearing.
             robot: The robot that took it (required once robots are named), or None.
+            sensor: The sensor that took it (z in its frame): a name declared with :meth:`add` of a header record
+            ``{"type": "header", "sensors": {name: {"pose": [x, y, theta]}}}`` first; None: the robot's centre.
         """
         record = {"type": "observation", "t": t, "landmark": landmark}
-        measured = {"range": range, "bearing": bearing, "xy": xy}
+        measured = {"range": range, "bearing": bearing, "xy": xy, "sensor": sensor}
         record.update((key, value) for key, value in measured.items() if value is not None)
         self._push("add_observation", record, sigma, cov, robot)
 
@@ -286,9 +289,10 @@ class Slam:
         sigma: Any = None,
         cov: Any = None,
         xy: Any = None,
+        sensor: str | None = None,
     ) -> None:
         """A scan: k sightings taken at one time, checked as a whole (all are added, or none); they attach to the
-        newest pose with time <= ``t``.
+        newest pose with time <= ``t`` (a pose at ``t`` once the odometry spanning ``t`` arrives).
 
         Args:
             t: Time, seconds (never before the previous event).
@@ -298,6 +302,7 @@ class Slam:
             sigma: Standard deviations of z shared by all (2,), or one per sighting (k, 2).
             cov: A 2x2 covariance shared by all, or one per sighting (k, 2, 2).
             xy: k positions ``[dx, dy]`` in the robot frame, shape (k, 2), instead of ranges and bearings.
+            sensor: The sensor that took them (see :meth:`add_observation`), or None: the robot's centre.
 
         Raises:
             InputError: Naming the first bad sighting's field, e.g. ``range[3]``; nothing is added.
@@ -308,7 +313,7 @@ class Slam:
             landmarks = [None] * len(measured)
         try:
             scan = self._validator.parse_scan(
-                plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov), plain(xy)
+                plain(t), plain(landmarks), plain(ranges), plain(bearings), plain(sigma), plain(cov), plain(xy), sensor
             )
         except LateInput as exc:
             self._skip_late(exc)

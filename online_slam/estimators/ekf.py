@@ -72,6 +72,7 @@ from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians
 from online_slam.models.observation import (
     RANGE_BEARING,
+    as_models,
     landmark_from_sighting_with_jacobians,
     predict_with_jacobians,
     wrap_bearings,
@@ -299,7 +300,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
             (NIS of each observation at the predicted state, shape (k,); which were accepted, shape (k,)).
         """
         k = len(indices)
-        model = np.broadcast_to(np.asarray(model, dtype=np.int8), (k,))
+        model = as_models(model, k)
         y, H_s, columns = self._innovation(indices, z, model)
         PHt = self.P[:, columns] @ H_s.T  # (n, 2k): only 3 + 2k columns of P are read
         S = H_s @ PHt[columns]

@@ -42,9 +42,11 @@ from online_slam.frontend.association import Association, Belief, associate, ind
 from online_slam.models.observation import (
     POSITION,
     RANGE_BEARING,
+    as_models,
     distance,
     landmark_from_sighting,
     landmark_from_sighting_with_jacobians,
+    split_models,
 )
 from online_slam.sources.events import GeneratedId, LandmarkId
 
@@ -212,7 +214,7 @@ class LandmarkBook(Checkpointed):
         self.retro = []
         if k == 0:
             return out
-        model = np.broadcast_to(np.asarray(model, dtype=np.int8), (k,))
+        model = as_models(model, k)
         free = np.ones(k, dtype=bool)
         if len(positions):
             candidates = self._candidates(pose, pose_cov, distance(z, model), positions)
@@ -250,7 +252,7 @@ class LandmarkBook(Checkpointed):
             return pairing
         _, log_l = individual_log_likelihoods(belief, z[paired], R[paired], model[paired])
         own = log_l[np.arange(len(paired)), pairing.landmark[paired]]
-        per_unit = np.where(model[paired] == POSITION, 1.0, z[paired, 0])  # polar: dA = r dr db
+        per_unit = np.where(split_models(model)[0][paired] == POSITION, 1.0, z[paired, 0])  # polar: dA = r dr db
         unlikely = own < np.log(self.config.new_density * per_unit)
         if not unlikely.any():
             return pairing

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.observation import RANGE_BEARING, predict, predict_with_jacobians, wrap_bearings
+from online_slam.models.observation import RANGE_BEARING, predict, predict_with_jacobians, tags, wrap_bearings
 from online_slam.models.range_bearing import range_bearing_with_jacobians
 
 Array = NDArray[np.float64]
@@ -138,7 +138,7 @@ class FactorGraph:
             obs_landmark=_index(obs_landmark),
             obs_z=np.asarray(obs_z, dtype=float).reshape(-1, 2),
             obs_sqrt_info=sqrt_information(obs_cov) if len(obs_cov) else obs_cov,
-            obs_model=np.broadcast_to(np.asarray(obs_model, dtype=np.int8), obs_pose.shape).copy(),
+            obs_model=tags(obs_model, len(obs_pose)),
             rob_from=_index(rob_from),
             rob_to=_index(rob_to),
             rob_z=np.asarray(rob_z, dtype=float).reshape(-1, 2),

@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-from online_slam.models.observation import RANGE_BEARING, predict_with_jacobians, wrap_bearings
+from online_slam.models.observation import RANGE_BEARING, as_models, predict_with_jacobians, wrap_bearings
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -74,7 +74,7 @@ class Predictions:
 
 def predictions(belief: Belief, model: ArrayLike, k: int) -> Predictions:
     """The belief's predictions for k sightings with model tags ``model`` ((k,), or one for all)."""
-    tags = np.broadcast_to(np.asarray(model, dtype=np.int8), (k,))
+    tags = as_models(model, k)
     present, row = np.unique(tags, return_inverse=True)
     tables = [predict_with_jacobians(belief.pose[None, :], belief.landmarks, m) for m in present]
     z_hat, J_p, J_l = (np.stack(parts) for parts in zip(*tables))

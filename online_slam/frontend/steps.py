@@ -1,8 +1,10 @@
 """Events -> steps.
 
-Step 0 is the start pose; each odometry event makes a new pose; an observation at time t belongs to the newest
-pose with time <= t. A step is complete when the next pose begins, or at the end of the stream; until then it
-is pending (the engine may show it to the estimators early, so that queries see every sighting at once).
+Step 0 is the start pose; each odometry event makes a new pose; an observation at time t belongs to the pose at
+time t: the newest pose when t is its time (lines of one time in any order), else a pose of its own made by
+splitting the odometry increment that spans t (see :class:`FrontEnd`). A step is complete when the next pose
+begins, or at the end of the stream; until then it is pending (the engine may show it to the estimators early,
+so that queries see every sighting at once).
 Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
 
 With several robots (``robot`` on its lines) a step is one robot's pose: poses are indexed in the order they
@@ -23,12 +25,13 @@ import heapq
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.frontend.noise import check_scale, scaled_event
+from online_slam.frontend.pose import GroundTruth, PendingStep, Step
 from online_slam.models.motion import compose_increments, split_increment
 from online_slam.models.observation import POSITION, RANGE_BEARING
 from online_slam.sources.events import (
@@ -45,12 +48,18 @@ from online_slam.sources.events import (
     Vector,
 )
 
-Array = NDArray[np.float64]
+__all__ = [
+    "STDIN_LATENCY",
+    "TIME_TOLERANCE",
+    "FrontEnd",
+    "FrontEndConfig",
+    "GroundTruth",
+    "KeyframeConfig",
+    "PendingStep",
+    "Step",
+]
 
-_NO_ROBOT_Z = np.zeros((0, 2))
-_NO_ROBOT_Z.flags.writeable = False
-_NO_ROBOT_Z_COV = np.zeros((0, 2, 2))
-_NO_ROBOT_Z_COV.flags.writeable = False
+Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -91,147 +100,6 @@ class FrontEndConfig:
         check_scale("sensor_noise_scale", self.sensor_noise_scale)
         if self.max_latency is not None and not 0.0 <= self.max_latency < math.inf:  # NaN fails too
             raise ValueError("max_latency must be a finite number of seconds >= 0")
-
-
-@dataclass(frozen=True)
-class Step:
-    """One pose of the trajectory with what the estimators may know about it.
-
-    Step 0 carries the start pose (``prior``); every later step carries the odometry increment from the
-    previous step. ``k`` is the number of observations.
-    """
-
-    index: int
-    """Pose index, 0-based, consecutive."""
-    t: float
-    """Time of the pose, seconds."""
-    odometry: Array | None
-    """Increment ``[dx, dy, dtheta]`` from the previous pose in its frame, shape (3,); None for step 0."""
-    odometry_cov: Array | None
-    """Covariance of ``odometry``, shape (3, 3); None for step 0."""
-    landmarks: tuple[LandmarkId | None, ...]
-    """Ids of the observed landmarks (None: unknown, for the estimator to associate), length k."""
-    z: Array
-    """Observations, shape (k, 2): ``[range, bearing]``, or ``[dx, dy]`` in the robot frame (see ``z_model``)."""
-    z_cov: Array
-    """Observation covariances, shape (k, 2, 2)."""
-    prior: Array | None = None
-    """Start pose, shape (3,); only on step 0."""
-    prior_cov: Array | None = None
-    """Covariance of the start pose, shape (3, 3); None means the start pose is held fixed."""
-    merged: int = 1
-    """How many odometry events this step's increment stands for (keyframing)."""
-    robot: RobotId | None = None
-    """The robot this pose is of (its lines' ``robot``); None for a stream that names no robot."""
-    robots_seen: tuple[RobotId, ...] = ()
-    """Robots sighted from this pose (the sightings' ``robot_seen``), length m; each sighting relates this pose to
-    the seen robot's newest pose at the step's time."""
-    z_robots: Array = field(default_factory=lambda: _NO_ROBOT_Z)
-    """Range and bearing to each seen robot's position, shape (m, 2)."""
-    z_robots_cov: Array = field(default_factory=lambda: _NO_ROBOT_Z_COV)
-    """Their covariances, shape (m, 2, 2)."""
-    z_model: NDArray[np.int8] = None  # type: ignore[assignment]  # not given: __post_init__ puts zeros, never None
-    """Model tag of each observation (:mod:`online_slam.models.observation`), shape (k,); not given: every
-    observation is range-bearing (the step then holds zeros)."""
-
-    def __post_init__(self) -> None:
-        if self.z_model is None:
-            object.__setattr__(self, "z_model", np.zeros(len(self.landmarks), dtype=np.int8))
-
-
-@dataclass
-class GroundTruth:
-    """Truth gathered from the stream for evaluation: poses by step index and landmarks by id."""
-
-    poses: dict[int, Array] = field(default_factory=dict)
-    """True pose ``[x, y, theta]`` of a step, where the stream has one at the step's time."""
-    landmarks: dict[LandmarkId, Array] = field(default_factory=dict)
-    """True landmark positions ``[x, y]``."""
-    outliers: dict[int, str] = field(default_factory=dict)
-    """Sightings a simulator corrupted, by sighting number (0-based, in step order over the whole stream)."""
-    sighting_landmarks: dict[int, LandmarkId] = field(default_factory=dict)
-    """True landmark of a sighting whose stream gives it as hidden truth (``truth_landmark``), by sighting number."""
-
-
-@dataclass
-class PendingStep:
-    """The newest pose, still open for observations (``freeze`` gives its step as it stands)."""
-
-    index: int
-    t: float
-    t_begin: float  # time of the previous pose: where this step's increment begins
-    odometry: Array | None
-    odometry_cov: Array | None
-    prior: Array | None = None
-    prior_cov: Array | None = None
-    merged: int = 1
-    landmarks: list[LandmarkId | None] = field(default_factory=list)
-    z: list[tuple[float, float]] = field(default_factory=list)
-    z_noise: list[Any] = field(default_factory=list)  # per sighting: its sigma (2,) or its covariance (2, 2)
-    z_model: list[int] = field(default_factory=list)  # per sighting: its model's tag
-    sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
-    full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
-    robot: RobotId | None = None
-    robots_seen: list[RobotId] = field(default_factory=list)
-    z_robots: list[tuple[float, float]] = field(default_factory=list)
-    z_robots_cov: list[Array] = field(default_factory=list)
-    closed: bool = False  # its robot's next pose has begun: no line can reach it any more
-    # freeze's cache: (observations, merges, robot sightings) and the step frozen then
-    _frozen: tuple[tuple[int, int, int], Step] | None = field(default=None, init=False, repr=False, compare=False)
-
-    def z_covariances(self) -> Array:
-        """Observation covariances, shape (k, 2, 2): ``diag(sigma^2)`` (vectorized) or the full matrix given."""
-        k = len(self.z_noise)
-        out = np.zeros((k, 2, 2))
-        if k == 0:
-            return out
-        if not self.full_covariance:  # every sighting gave sigma: one vectorized diag(sigma^2)
-            variances = np.array(self.z_noise, dtype=float)
-            variances *= variances
-            out.reshape(k, 4)[:, ::3] = variances  # the diagonal of each 2x2 block
-            return out
-        diagonal = [len(n) == 2 and not isinstance(n[0], (tuple, list, np.ndarray)) for n in self.z_noise]
-        for i, (noise, is_sigma) in enumerate(zip(self.z_noise, diagonal)):
-            out[i] = np.diag(np.square(np.array(noise, dtype=float))) if is_sigma else np.array(noise, dtype=float)
-        return out
-
-    def freeze(self) -> Step:
-        """The step as it stands (cached until an observation or a merge changes it)."""
-        key = (len(self.landmarks), self.merged, len(self.robots_seen))
-        if self._frozen is not None and self._frozen[0] == key:
-            return self._frozen[1]
-        step = self._freeze()
-        self._frozen = (key, step)
-        return step
-
-    def _freeze(self) -> Step:
-        k = len(self.landmarks)
-        return Step(
-            index=self.index,
-            t=self.t,
-            odometry=self.odometry,
-            odometry_cov=self.odometry_cov,
-            landmarks=tuple(self.landmarks),
-            z=np.array(self.z, dtype=float).reshape(k, 2),
-            z_cov=self.z_covariances(),
-            prior=self.prior,
-            prior_cov=self.prior_cov,
-            merged=self.merged,
-            **self._robot_fields(),
-            z_model=np.array(self.z_model, dtype=np.int8),
-        )
-
-    def _robot_fields(self) -> dict[str, Any]:
-        """The step's robot and robot sightings (nothing for a stream that names no robot)."""
-        if self.robot is None and not self.robots_seen:
-            return {}
-        m = len(self.robots_seen)
-        return {
-            "robot": self.robot,
-            "robots_seen": tuple(self.robots_seen),
-            "z_robots": np.array(self.z_robots, dtype=float).reshape(m, 2),
-            "z_robots_cov": np.array(self.z_robots_cov, dtype=float).reshape(m, 2, 2),
-        }
 
 
 Held = Odometry | Observation | Scan | Truth | Start
@@ -289,6 +157,8 @@ class FrontEnd:
     """Lines put into the reorder buffer so far."""
     newest_t: float = -math.inf
     """Newest time of a line so far (with ``max_latency`` > 0)."""
+    sensors: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    """Each sensor the header declares: its pose ``[x, y, theta]`` in the robot frame."""
     _seen: set[LandmarkId | None] = field(default_factory=set)
     """Landmarks sighted so far (kept for ``first_observation_only``)."""
     _sigma_covariance: tuple[tuple[float, ...], Array] | None = field(default=None, init=False, repr=False)
@@ -374,6 +244,8 @@ class FrontEnd:
             self.truth.landmarks[event.landmark] = np.array(event.position)
         elif isinstance(event, Header):
             self.header = event
+            declared = event.meta.get("sensors") or {}
+            self.sensors = {name: tuple(float(v) for v in spec["pose"]) for name, spec in declared.items()}
 
     def _attach(self, event: Ahead, pending: PendingStep) -> None:
         """Attach a sighting (or a truth) to the pose at its time."""
@@ -403,6 +275,8 @@ class FrontEnd:
             pending.z_noise.append(event.sigma if event.cov is None else event.cov)
             if event.cov is not None:
                 pending.full_covariance = True
+            if pending.mounted:
+                pending.z_mount.append(self._mount(event.sensor))
         else:
             self._attach_scan(event, pending)
 
@@ -414,6 +288,8 @@ class FrontEnd:
         self.sightings += len(keep)
         z: Iterable[tuple[float, float]] = zip(event.ranges, event.bearings) if event.xy is None else event.xy
         pending.z_model.extend([RANGE_BEARING if event.xy is None else POSITION] * len(keep))
+        if pending.mounted:
+            pending.z_mount.extend([self._mount(event.sensor)] * len(keep))
         if len(keep) == len(event.landmarks):
             pending.landmarks.extend(event.landmarks)
             pending.z.extend(z)
@@ -461,12 +337,16 @@ class FrontEnd:
                 continue
             self._attach(e, at[-1])
 
+    def _mount(self, sensor: str | None) -> tuple[float, ...]:
+        """A sensor's pose in the robot frame (the centre's for None)."""
+        return (0.0, 0.0, 0.0) if sensor is None else self.sensors[sensor]
+
     def _begin(
         self, t: float, t_begin: float, delta: Array, cov: Array, robot: RobotId | None, closed: bool = False
     ) -> PendingStep:
         """Begin a pose after the newest of all robots."""
         pose = PendingStep(index=self._tail().index + 1, t=t, t_begin=t_begin, odometry=delta, odometry_cov=cov,
-                           robot=robot, closed=closed)  # fmt: skip
+                           robot=robot, closed=closed, mounted=bool(self.sensors))  # fmt: skip
         self.later.append(pose)
         return pose
 
@@ -541,7 +421,15 @@ class FrontEnd:
         robot = None if start is None else start.robot
         index = 0 if self.pending is None else self._tail().index + 1
         begun = PendingStep(
-            index=index, t=t, t_begin=t, odometry=None, odometry_cov=None, prior=pose, prior_cov=prior_cov, robot=robot
+            index=index,
+            t=t,
+            t_begin=t,
+            odometry=None,
+            odometry_cov=None,
+            prior=pose,
+            prior_cov=prior_cov,
+            robot=robot,
+            mounted=bool(self.sensors),
         )
         if self.pending is None:
             self.pending = begun

@@ -196,6 +196,9 @@ class Observation:
     xy: Vector | None = None
     """Position ``[dx, dy]`` of the landmark in the robot frame (x ahead, y to the left), metres, instead of
     range and bearing; None for a range-bearing sighting."""
+    sensor: str | None = None
+    """The sensor that took it (a name the header's ``sensors`` declares with its pose in the robot frame; z is
+    then in the sensor's frame), or None: a sensor at the robot's centre."""
 
     @property
     def z(self) -> tuple[float, float]:
@@ -233,6 +236,8 @@ class Observation:
             record["robot_seen"] = self.robot_seen
         if self.robot is not None:
             record["robot"] = self.robot
+        if self.sensor is not None:
+            record["sensor"] = self.sensor
         return record
 
 
@@ -285,6 +290,8 @@ class Scan:
     xy: tuple[tuple[float, float], ...] | None = None
     """Positions ``(dx, dy)`` in the robot frame, length k, for a scan of position sightings (then ``ranges``
     and ``bearings`` are empty); None for range-bearing sightings."""
+    sensor: str | None = None
+    """The sensor that took them (declared in the header), or None: at the robot's centre."""
 
     def to_record(self) -> dict[str, Any]:
         """Not a stream-v1 line: a scan exists only between the engine API and the front-end."""

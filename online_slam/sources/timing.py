@@ -55,6 +55,9 @@ class TimingConfig:
     """Standard deviations of each odometry increment (dx m, dy m, dtheta rad)."""
     sensor_sigma: tuple[float, float] = (0.05, 0.01)
     """Standard deviations of range (m) and bearing (rad)."""
+    mount: tuple[float, float, float] | None = None
+    """Pose ``[x, y, theta]`` of the sensor in the robot frame (declared in the header as ``camera``; sightings
+    taken from it), or None: at the robot's centre."""
     seed: int = 5
     """Seed of ``numpy.random.default_rng``."""
 
@@ -98,9 +101,15 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
     scans = np.arange(0, ticks, every)  # the tick each scan follows
     fraction = c.offset / dt
     at_scan = compose(truth[scans], exp(fraction * twists[scans]))  # the true pose at each scan's own time
+    if c.mount is not None:
+        at_scan = compose(at_scan, np.array(c.mount, dtype=float))  # the sensor's pose
     events: list[tuple[float, int, Event]] = []  # (arrival time, order, event)
     meta = {"generator": "online-slam timing world", **{k: getattr(c, k) for k in c.__dataclass_fields__}}
     meta["odometry_sigma"], meta["sensor_sigma"] = list(c.odometry_sigma), list(c.sensor_sigma)
+    del meta["mount"]
+    sensor = None
+    if c.mount is not None:
+        meta["sensors"], sensor = {"camera": {"pose": [float(v) for v in c.mount]}}, "camera"
     events.append((-math.inf, 0, Header(name="timing", meta=meta)))
     events.extend((-math.inf, 1, LandmarkTruth(i, tuple(map(float, p)))) for i, p in enumerate(landmarks))
     events.append((0.0, 2, Start(0.0, (0.0, 0.0, 0.0))))
@@ -119,7 +128,8 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
         t = float(tick * dt + c.offset)
         for i, lid in enumerate(seen):
             rb = (float(abs(z[i, 0])), float(wrap(z[i, 1])))
-            events.append((t + float(late[i]), 4, Observation(t, int(lid), rb[0], rb[1], sensor_sigma)))
+            sighting = Observation(t, int(lid), rb[0], rb[1], sensor_sigma, sensor=sensor)
+            events.append((t + float(late[i]), 4, sighting))
     events.sort(key=lambda e: (e[0], e[1]))  # stable: ties keep the order made
     for _, _, event in events:
         yield event

@@ -24,46 +24,26 @@ from online_slam.sources.events import (
     Header,
     LandmarkId,
     LandmarkTruth,
-    Matrix,
     Observation,
     Odometry,
     RobotId,
-    Scan,
     Start,
     Truth,
     Vector,
 )
+from online_slam.sources.limits import (
+    MAX_BEARING,
+    MAX_MAGNITUDE,
+    MIN_RANGE,
+    SIGMA_RANGE,
+    finite,
+    show,
+)
 from online_slam.sources.robot_rules import ROBOT_FIELDS, RobotRules
+from online_slam.sources.scan_rules import ScanRules
 
 FORMAT = "online-slam"
 VERSION = 1
-
-
-def _show(value: Any, limit: int = 60) -> str:
-    """A short JSON-like rendering of an offending value for messages."""
-    try:
-        text = json.dumps(value, default=repr)
-    except (TypeError, ValueError, RecursionError):
-        text = repr(type(value).__name__)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _nesting(value: Any) -> int:
-    """How deeply lists nest at the front of a value (0 for a scalar)."""
-    depth = 0
-    while isinstance(value, (list, tuple)) and len(value):
-        value, depth = value[0], depth + 1
-    return depth
-
-
-def _finite(value: Any) -> bool | None:
-    """True for a finite real number, False for NaN/inf or a number too large for a float, None for a non-number."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    try:
-        return math.isfinite(float(value))
-    except OverflowError:
-        return False
 
 
 FIELDS: dict[str, set[str]] = {
@@ -81,22 +61,13 @@ FIELDS: dict[str, set[str]] = {
         "cov",
         "truth_outlier",
         "truth_landmark",
+        "sensor",
     }
     | ROBOT_FIELDS["observation"],
     "truth": {"type", "t", "pose", "position"} | ROBOT_FIELDS["truth"],
     "landmark_truth": {"type", "landmark", "position"},
 }
 """Allowed fields of each event type."""
-
-MAX_MAGNITUDE = 1e9
-"""Largest magnitude of any number but a time (metres, radians): larger ones overflow the estimators."""
-MIN_RANGE = 1e-6
-"""Smallest range, metres: the range-bearing Jacobian divides by it (a landmark at the sensor has no bearing)."""
-SIGMA_RANGE = (1e-8, 1e8)
-"""Allowed standard deviations (and square roots of covariance eigenvalues)."""
-MAX_BEARING = 2 * math.pi
-"""Largest magnitude of an angle (a bearing, an odometry turn, a start heading), radians: a larger one is most
-likely in degrees (45.0 for pi/4), so refused."""
 
 
 def _plain_floats(delta: Any, sigma: Any) -> bool:
@@ -126,9 +97,11 @@ class ValidatorState:
     """True once any event was accepted (a header must come first)."""
     robots: tuple[RobotId, ...] = ()
     """Robots named by a ``start`` so far, in order; empty for a stream of one unnamed robot."""
+    sensors: tuple[str, ...] = ()
+    """Sensors the header declares (their names), which observations may name."""
 
 
-class EventValidator(RobotRules):
+class EventValidator(ScanRules, RobotRules):
     """Checks one record at a time; a record that fails changes nothing.
 
     Args:
@@ -174,7 +147,7 @@ class EventValidator(RobotRules):
         kind = record.get("type")
         if not isinstance(kind, str) or kind not in FIELDS:
             expected = ", ".join(sorted(FIELDS))
-            shown = _show(kind)
+            shown = show(kind)
             raise self.fail(line, "type", f"unknown event type {shown}; expected one of {expected}")
         if kind != "header":
             unknown = record.keys() - FIELDS[kind]
@@ -182,97 +155,12 @@ class EventValidator(RobotRules):
                 article = "an" if kind[0] in "aeiou" else "a"
                 raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for {article} {kind} event")
         state = self.state
-        self._pending = ValidatorState(state.last_t, state.first_pose_t, state.seen_content, state.robots)
+        self._pending = ValidatorState(
+            state.last_t, state.first_pose_t, state.seen_content, state.robots, state.sensors
+        )
         event = self._parsers[kind](record, line)
         self.state = self._pending
         return event
-
-    def parse_scan(
-        self, t: Any, landmarks: Any, ranges: Any, bearings: Any, sigma: Any = None, cov: Any = None, xy: Any = None
-    ) -> Scan:
-        """Validate k sightings taken at one time as a whole: all are accepted, or none (state unchanged).
-
-        Each sighting obeys the rules of an ``observation`` line: k ranges and k bearings, or k positions ``xy``
-        (k, 2) in the robot frame (then ranges and bearings are None). ``sigma`` (2,) or ``cov`` (2, 2) is shared
-        by all sightings, or given per sighting as (k, 2) / (k, 2, 2). Errors name the sighting: ``range[3]``.
-
-        Raises:
-            InputError: The first rule a sighting breaks.
-        """
-        if not isinstance(landmarks, (list, tuple)):
-            raise self.fail(0, "landmarks", f"expected a list of ids, got {_show(landmarks)}")
-        k = len(landmarks)
-        self._scan_shape(k, ranges, bearings, xy)
-        noise_key, noise = ("cov", cov) if cov is not None else ("sigma", sigma)
-        if sigma is not None and cov is not None:
-            raise self.fail(0, "cov", "give either sigma or cov, not both")
-        if noise is None:
-            raise self.fail(0, "sigma", "missing noise: give sigma or cov")
-        depth = 2 if noise_key == "cov" else 1  # nesting of one sighting's noise
-        per_sighting = _nesting(noise) > depth
-        if per_sighting and (not isinstance(noise, list) or len(noise) != k):
-            raise self.fail(0, noise_key, f"expected one {noise_key} shared by all sightings or one per sighting")
-        saved = self.state
-        if saved.robots:
-            raise self.fail(0, "robot", "a scan names no robot, and this stream's robots are named: add each sighting "
-                            "as an observation record with its robot")  # fmt: skip
-        fast = None if per_sighting else self._scan_fast(landmarks, ranges, bearings, xy)
-        if (  # the commonest case: float time moving on, one plain sigma for all
-            fast is not None
-            and type(t) is float
-            and saved.last_t <= t < math.inf
-            and saved.first_pose_t is not None
-            and t >= saved.first_pose_t
-            and noise_key == "sigma"
-            and type(noise) in (list, tuple)
-            and len(noise) == 2
-            and type(noise[0]) is float
-            and type(noise[1]) is float
-            and SIGMA_RANGE[0] <= noise[0] <= SIGMA_RANGE[1]
-            and SIGMA_RANGE[0] <= noise[1] <= SIGMA_RANGE[1]
-        ):
-            self.state = ValidatorState(t, saved.first_pose_t, True)
-            one = tuple(noise)
-            return Scan(t, tuple(landmarks), fast[0], fast[1], (one,) * k, fast[2])
-        if fast is not None:  # the common case, checked at once
-            self._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
-            t_value = self.time({"t": t}, 0)
-            sigma_value, cov_value = self.noise({noise_key: noise}, 2, 0)
-            # Cast: the record holds sigma or cov (noise is not None), so noise() returned one of them.
-            shared = sigma_value if sigma_value is not None else cast(Matrix, cov_value)
-            self.state = self._pending
-            return Scan(t_value, tuple(landmarks), fast[0], fast[1], (shared,) * k, fast[2])
-        # one sighting at a time on a trial validator: the exact error of the first bad one, or all of them
-        trial = EventValidator(
-            self.name, ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content), self.max_latency
-        )
-        trial._pending = ValidatorState(saved.last_t, saved.first_pose_t, saved.seen_content)
-        t_value = trial.time({"t": t}, 0)
-        events: list[Observation] = []
-        for i in range(k):
-            record = {"type": "observation", "t": t, "landmark": landmarks[i]}
-            record.update({"xy": xy[i]} if xy is not None else {"range": ranges[i], "bearing": bearings[i]})
-            record[noise_key] = noise[i] if per_sighting else noise
-            try:
-                events.append(cast(Observation, trial.parse_record(record)))  # an observation record's event
-            except InputError as exc:
-                head, bracket, rest = exc.field.partition("[")
-                field = (
-                    f"{head}[{i}]{bracket}{rest}"
-                    if head in ("landmark", "range", "bearing", "xy") or per_sighting
-                    else exc.field
-                )
-                raise self.fail(0, field, exc.message) from None
-        self.state = trial.state if events else trial._pending  # no sighting: the time check alone
-        self.state.seen_content = True
-        # Casts: a valid observation has sigma or cov, and either xy (two values) or range and bearing.
-        noises = cast("tuple[Vector | Matrix, ...]", tuple(e.sigma if e.cov is None else e.cov for e in events))
-        if xy is not None:
-            positions = cast("tuple[tuple[float, float], ...]", tuple(e.xy for e in events))
-            return Scan(t_value, tuple(landmarks), (), (), noises, positions)
-        measured_ranges = cast("tuple[float, ...]", tuple(e.range for e in events))
-        measured_bearings = cast("tuple[float, ...]", tuple(e.bearing for e in events))
-        return Scan(t_value, tuple(landmarks), measured_ranges, measured_bearings, noises)
 
     def parse_odometry(self, t: Any, delta: Any, sigma: Any = None, cov: Any = None) -> Odometry:
         """Validate one odometry reading given as arguments (the library API's path; same rules as a line).
@@ -285,7 +173,7 @@ class EventValidator(RobotRules):
         if fast and _plain_floats(delta, sigma):
             first = state.first_pose_t
             if first is None or t >= first:  # the common case, checked at once
-                self.state = ValidatorState(t, t if first is None else first, True)
+                self.state = ValidatorState(t, t if first is None else first, True, sensors=state.sensors)
                 return Odometry(t=t, delta=tuple(delta), sigma=tuple(sigma), cov=None)
         record: dict[str, Any] = {"type": "odometry", "t": t, "delta": delta}
         if sigma is not None:
@@ -293,46 +181,6 @@ class EventValidator(RobotRules):
         if cov is not None:
             record["cov"] = cov
         return cast(Odometry, self.parse_record(record))  # an odometry record's event
-
-    def _scan_shape(self, k: int, ranges: Any, bearings: Any, xy: Any) -> None:
-        """Check that a scan gives k ranges and k bearings, or k positions (and not both)."""
-        if xy is not None:
-            if ranges is not None or bearings is not None:
-                raise self.fail(0, "xy", "give either ranges and bearings or xy, not both")
-            if not isinstance(xy, (list, tuple)) or len(xy) != k:
-                raise self.fail(0, "xy", f"expected a list of {k} [dx, dy] pairs (one per landmark), got {_show(xy)}")
-            return
-        for key, values in (("ranges", ranges), ("bearings", bearings)):
-            if not isinstance(values, (list, tuple)) or len(values) != k:
-                message = f"expected a list of {k} numbers (one per landmark), or xy instead, got {_show(values)}"
-                raise self.fail(0, key, message)
-
-    @staticmethod
-    def _scan_fast(
-        landmarks: Any, ranges: Any, bearings: Any, xy: Any
-    ) -> tuple[tuple[float, ...], tuple[float, ...], tuple[tuple[float, float], ...] | None] | None:
-        """Ranges, bearings and positions (None for range-bearing sightings) as float tuples when every sighting
-        plainly passes, else None (check one by one)."""
-        for lid in landmarks:
-            if lid is not None and type(lid) is not int and (type(lid) is not str or lid == ""):
-                return None
-        if xy is not None:
-            big = MAX_MAGNITUDE
-            for pair in xy:  # NaN fails the comparisons
-                if type(pair) not in (list, tuple) or len(pair) != 2:
-                    return None
-                a, b = pair
-                if type(a) is not float or type(b) is not float or not (-big <= a <= big and -big <= b <= big):
-                    return None
-            return (), (), tuple(map(tuple, xy))
-        low, high = MIN_RANGE, MAX_MAGNITUDE
-        for r in ranges:  # NaN fails the comparisons
-            if type(r) is not float or not low <= r <= high:
-                return None
-        for b in bearings:
-            if type(b) is not float or not -MAX_BEARING <= b <= MAX_BEARING:
-                return None
-        return tuple(ranges), tuple(bearings), None
 
     # -- field helpers -------------------------------------------------------------------------
     def radians(self, value: float, field: str, line: int) -> float:
@@ -349,13 +197,13 @@ class EventValidator(RobotRules):
         if key not in record:
             raise self.fail(line, key, "missing required field")
         value = record[key]
-        ok = _finite(value)
+        ok = finite(value)
         if ok is None:
-            raise self.fail(line, key, f"expected a number, got {_show(value)}")
+            raise self.fail(line, key, f"expected a number, got {show(value)}")
         if not ok:
-            raise self.fail(line, key, f"expected a finite number, got {_show(value)}")
+            raise self.fail(line, key, f"expected a finite number, got {show(value)}")
         if key != "t" and abs(value) > MAX_MAGNITUDE:
-            raise self.fail(line, key, f"expected a magnitude <= {MAX_MAGNITUDE:g}, got {_show(value)}")
+            raise self.fail(line, key, f"expected a magnitude <= {MAX_MAGNITUDE:g}, got {show(value)}")
         return float(value)
 
     def vector(self, record: dict[str, Any], key: str, n: int, line: int) -> tuple[float, ...]:
@@ -363,7 +211,7 @@ class EventValidator(RobotRules):
             raise self.fail(line, key, "missing required field")
         value = record[key]
         if not isinstance(value, list) or len(value) != n:
-            raise self.fail(line, key, f"expected a list of {n} numbers, got {_show(value)}")
+            raise self.fail(line, key, f"expected a list of {n} numbers, got {show(value)}")
         for v in value:  # the common case first: finite floats in range (NaN fails the comparison)
             if type(v) is not float or not -MAX_MAGNITUDE <= v <= MAX_MAGNITUDE:
                 break
@@ -371,13 +219,13 @@ class EventValidator(RobotRules):
             return tuple(value)
         out = []
         for i, item in enumerate(value):
-            ok = _finite(item)
+            ok = finite(item)
             if ok is None:
-                raise self.fail(line, f"{key}[{i}]", f"expected a number, got {_show(item)}")
+                raise self.fail(line, f"{key}[{i}]", f"expected a number, got {show(item)}")
             if not ok:
-                raise self.fail(line, f"{key}[{i}]", f"expected a finite number, got {_show(item)}")
+                raise self.fail(line, f"{key}[{i}]", f"expected a finite number, got {show(item)}")
             if abs(item) > MAX_MAGNITUDE:
-                raise self.fail(line, f"{key}[{i}]", f"expected a magnitude <= {MAX_MAGNITUDE:g}, got {_show(item)}")
+                raise self.fail(line, f"{key}[{i}]", f"expected a magnitude <= {MAX_MAGNITUDE:g}, got {show(item)}")
             out.append(float(item))
         return tuple(out)
 
@@ -398,7 +246,7 @@ class EventValidator(RobotRules):
         if has_cov:
             value = record["cov"]
             if not isinstance(value, list) or len(value) != n or not all(isinstance(r, list) for r in value):
-                raise self.fail(line, "cov", f"expected a {n}x{n} list of lists, got {_show(value)}")
+                raise self.fail(line, "cov", f"expected a {n}x{n} list of lists, got {show(value)}")
             rows = tuple(self.vector({"cov": row}, "cov", n, line) for row in value)
             matrix = np.array(rows)
             scale = max(float(np.max(np.abs(matrix))), 1e-300)
@@ -452,7 +300,7 @@ class EventValidator(RobotRules):
             raise self.fail(line, key, "missing required field")
         value = record[key]
         if isinstance(value, bool) or not isinstance(value, (int, str)) or value == "":
-            raise self.fail(line, key, f"expected an integer or a non-empty string id, got {_show(value)}")
+            raise self.fail(line, key, f"expected an integer or a non-empty string id, got {show(value)}")
         return value
 
     # -- one method per event type -------------------------------------------------------------
@@ -460,16 +308,43 @@ class EventValidator(RobotRules):
         if self._pending.seen_content:
             raise self.fail(line, "type", "a header must be the first line")
         if record.get("format", FORMAT) != FORMAT:
-            raise self.fail(line, "format", f"expected {FORMAT!r}, got {_show(record.get('format'))}")
+            raise self.fail(line, "format", f"expected {FORMAT!r}, got {show(record.get('format'))}")
         version = record.get("version", VERSION)
         if version != VERSION or isinstance(version, bool):
-            raise self.fail(line, "version", f"unsupported version {_show(version)}; this reader knows 1")
+            raise self.fail(line, "version", f"unsupported version {show(version)}; this reader knows 1")
         name = record.get("name")
         if name is not None and not isinstance(name, str):
-            raise self.fail(line, "name", f"expected a string, got {_show(name)}")
+            raise self.fail(line, "name", f"expected a string, got {show(name)}")
         meta = {k: v for k, v in record.items() if k not in {"type", "format", "version", "name"}}
+        if "sensors" in meta:
+            meta["sensors"] = self._sensors(meta["sensors"], line)
+            self._pending.sensors = tuple(meta["sensors"])
         self._pending.seen_content = True
         return Header(name=name, meta=meta, version=VERSION)
+
+    def _sensors(self, sensors: Any, line: int) -> dict[str, dict[str, list[float]]]:
+        """The header's ``sensors``: ``{name: {"pose": [x, y, theta]}}``, each pose the sensor's in the robot frame."""
+        if not isinstance(sensors, dict) or not sensors:
+            raise self.fail(line, "sensors", f'expected {{name: {{"pose": [x, y, theta]}}}}, got {show(sensors)}')
+        out = {}
+        for name, spec in sensors.items():
+            where = f"sensors.{name}"
+            if not isinstance(spec, dict) or set(spec) != {"pose"}:
+                raise self.fail(line, where, f'expected {{"pose": [x, y, theta]}} (robot frame), got {show(spec)}')
+            pose = self.vector(spec, "pose", 3, line)
+            self.radians(pose[2], f"{where}.pose[2]", line)
+            out[str(name)] = {"pose": list(pose)}
+        return out
+
+    def sensor(self, record: dict[str, Any], line: int) -> str | None:
+        """An observation's ``sensor``: a name the header declares, or None."""
+        name = record.get("sensor")
+        if name is None:
+            return None
+        if not isinstance(name, str) or name not in self._pending.sensors:
+            declared = ", ".join(self._pending.sensors) or "none: declare them in the header's sensors"
+            raise self.fail(line, "sensor", f"unknown sensor {show(name)}; declared: {declared}")
+        return name
 
     def _start(self, record: dict[str, Any], line: int) -> Start:
         robot = self.new_robot(record, line)
@@ -498,8 +373,11 @@ class EventValidator(RobotRules):
         sigma, cov = self.noise(record, 2, line)
         mark = record.get("truth_outlier")
         if mark is not None and mark not in OUTLIER_KINDS:
-            raise self.fail(line, "truth_outlier", f"expected one of {', '.join(OUTLIER_KINDS)}, got {_show(mark)}")
+            raise self.fail(line, "truth_outlier", f"expected one of {', '.join(OUTLIER_KINDS)}, got {show(mark)}")
         true_id = self.landmark(record, line, optional=True, key="truth_landmark")
+        sensor = self.sensor(record, line)
+        if sensor is not None and seen is not None:
+            raise self.fail(line, "sensor", "a sighting of a robot is taken at the robot's centre (no sensor)")
         return Observation(
             t,
             landmark,
@@ -512,6 +390,7 @@ class EventValidator(RobotRules):
             robot=robot,
             robot_seen=seen,
             xy=xy,
+            sensor=sensor,
         )
 
     def _sighting(self, record: dict[str, Any], line: int) -> tuple[float | None, float | None, Vector | None]:

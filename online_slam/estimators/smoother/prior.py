@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 import scipy.linalg as la
@@ -31,7 +32,14 @@ from online_slam.factors.graph import FactorGraph, robot_sighting_residual_with_
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.observation import POSITION, RANGE_BEARING, predict_with_jacobians, wrap_bearings
+from online_slam.models.observation import (
+    POSITION,
+    RANGE_BEARING,
+    SIGHTING,
+    centred,
+    predict_with_jacobians,
+    wrap_bearings,
+)
 from online_slam.models.position import range_bearing_from_position
 from online_slam.solvers.least_squares import QuadraticPrior
 
@@ -119,8 +127,8 @@ def resized(Sigma: Array, size: int, keep: int) -> Array:
 
 
 def fuse_repeats(
-    indices: Index, z: Array, z_cov: Array, model: NDArray[np.int8]
-) -> tuple[Index, Array, Array, NDArray[np.int8]]:
+    indices: Index, z: Array, z_cov: Array, model: NDArray[Any]
+) -> tuple[Index, Array, Array, NDArray[Any]]:
     """Merge repeated observations of one landmark from one pose into a single equivalent observation.
 
     Both measure the same ``h(pose, landmark)``, so their two quadratics sum to one with information
@@ -130,10 +138,17 @@ def fuse_repeats(
     """
     if len(np.unique(indices)) == len(indices):
         return indices, z, z_cov, model
+    structured = model.dtype == SIGHTING
     keep_i, keep_z, keep_c, keep_m = [], [], [], []
     for j in dict.fromkeys(indices.tolist()):
         rows = np.flatnonzero(indices == j)
         zs, covs, tag = z[rows], z_cov[rows], model[rows]
+        if structured and not np.all(tag["mount"] == tag["mount"][:1]):  # several sensors: all at the centre
+            zs, covs = centred(zs, covs, tag)
+            tag = np.zeros(len(rows), dtype=SIGHTING)
+            tag["tag"] = POSITION
+        if structured:  # one sensor: fused in its frame
+            mount, tag = tag[:1].copy(), tag["tag"]
         if len(np.unique(tag)) > 1:
             xy = tag == POSITION
             zs, covs, tag = zs.copy(), covs.copy(), np.full(len(rows), RANGE_BEARING, dtype=np.int8)
@@ -145,8 +160,13 @@ def fuse_repeats(
         keep_i.append(j)
         keep_z.append(mean)
         keep_c.append(0.5 * (cov + cov.T))
-        keep_m.append(tag[0])
-    return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c), np.array(keep_m, dtype=np.int8)
+        if structured:
+            mount["tag"] = tag[0]
+            keep_m.append(mount[0])
+        else:
+            keep_m.append(tag[0])
+    kept = np.array(keep_m, dtype=SIGHTING if structured else np.int8)
+    return np.array(keep_i, dtype=np.int64), np.array(keep_z), np.array(keep_c), kept
 
 
 def carry(Sigma: Array, x_from: Array, x_to: Array) -> None:

@@ -32,7 +32,7 @@ from online_slam.factors.graph import (
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians
-from online_slam.models.observation import landmark_from_sighting
+from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
 from online_slam.sources.events import LandmarkId, RobotId
 
@@ -185,7 +185,7 @@ class Window:
         an earlier window pose; False (nothing added) when the pose left the window or the landmark is unknown."""
         if pose not in self.poses or lid not in self.index:
             return False
-        row, tag = np.array([self.index[lid]], dtype=np.int64), np.array([model], dtype=np.int8)
+        row, tag = np.array([self.index[lid]], dtype=np.int64), tags(model, 1)
         self._merge(pose, (row, z[None], R[None], sqrt_information(R[None]), tag))
         self.unsolved.add(pose)
         return True
