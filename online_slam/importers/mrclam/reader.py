@@ -44,7 +44,7 @@ from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, rotation
 from online_slam.importers._lines import numbered_lines, numbers
-from online_slam.importers.mrclam.sightings import CAMERAS, Camera, camera_sightings
+from online_slam.importers.mrclam.sightings import CAMERAS, Camera, camera_sightings, mounting
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 
@@ -425,7 +425,8 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
         raise InputError(str(root), 0, "robot", f"expected a robot number 1..5, got {robot}")
     data = load_robot(root, robot)
     kept_subjects, times, truth = data.subjects, data.times, data.truth
-    _, kept, sigmas = camera_sightings(cfg, robot, data.measurements, kept_subjects)
+    camera, kept, sigmas = camera_sightings(cfg, robot, data.measurements, kept_subjects, mounted=True)
+    sensors = {} if camera is None else {"sensors": {"camera": {"pose": mounting(camera)}}}
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     increments, covariances = odometry_increments(data.odometry, times, cfg)
     true_poses, covered = _interpolate_truth(truth, times)
@@ -441,6 +442,7 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
             "dropped_unknown_barcodes": data.dropped_unknown,
             "noise": noise_meta(cfg),
             "sightings_correlated": correlates(cfg),
+            **sensors,
         },
     )
     start = true_poses[0]
@@ -465,4 +467,5 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
                 range=float(kept[i, 2]),
                 bearing=float(kept[i, 3]),
                 sigma=(float(sigmas[i, 0]), float(sigmas[i, 1])),
+                sensor=None if camera is None else "camera",
             )

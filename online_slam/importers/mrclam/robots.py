@@ -36,7 +36,7 @@ from online_slam.importers.mrclam.reader import (
     noise_meta,
     odometry_increments,
 )
-from online_slam.importers.mrclam.sightings import camera_sightings
+from online_slam.importers.mrclam.sightings import camera_of, camera_sightings, mounting
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -75,15 +75,20 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Truth(t=float(times[j]), pose=tuple(map(float, true_poses[j])), robot=robot),
         )
-    camera, rows, sigmas = camera_sightings(cfg, robot, data.measurements, data.subjects)
+    camera, rows, sigmas = camera_sightings(cfg, robot, data.measurements, data.subjects, mounted=True)
+    sensor = None if camera is None else f"camera{robot}"
     for row, subject, sigma in zip(rows, data.subjects, sigmas):
         t = float(row[0])
-        yield (
+        sighting = Observation(
             t,
-            _SIGHTING,
-            robot,
-            Observation(t, int(subject), float(row[2]), float(row[3]), (float(sigma[0]), float(sigma[1])), robot=robot),
+            int(subject),
+            float(row[2]),
+            float(row[3]),
+            (float(sigma[0]), float(sigma[1])),
+            robot=robot,
+            sensor=sensor,
         )
+        yield t, _SIGHTING, robot, sighting
     _, placed, widened = camera_sightings(cfg, robot, data.robot_rows, data.robots_seen, cfg.robot_barcode_m)
     for row, seen, sigma in zip(placed, data.robots_seen, widened):
         t = float(row[0])
@@ -101,6 +106,12 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
                 robot_seen=int(seen),
             ),
         )
+
+
+def _sensors(cfg: MrclamNoise) -> dict[str, dict[str, dict[str, list[float]]]]:
+    """The header's ``sensors``: each robot's camera (``camera1``..``camera5``) where the model has one."""
+    cameras = {f"camera{r}": {"pose": mounting(c)} for r in ROBOTS if (c := camera_of(cfg, r)) is not None}
+    return {"sensors": cameras} if cameras else {}
 
 
 def read_mrclam_robots(folder: str | Path, noise: MrclamNoise | None = None) -> Iterator[Event]:
@@ -133,6 +144,7 @@ def read_mrclam_robots(folder: str | Path, noise: MrclamNoise | None = None) -> 
             "start": "each robot's Vicon pose at its first pose time",
             "noise": noise_meta(cfg),
             "sightings_correlated": correlates(cfg),
+            **_sensors(cfg),
         },
     )
     for subject, x, y, _, _ in landmarks:

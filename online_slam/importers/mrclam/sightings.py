@@ -172,13 +172,20 @@ def camera_point(
     return depth + forward, depth * np.tan(bearing_scale * bearing) + left
 
 
-def through_camera(rows: np.ndarray, camera: Camera | None) -> np.ndarray:
-    """Sighting rows ``(t, barcode, range, bearing)`` as logged -> the range and bearing, from the robot's
-    centre, of the point the camera puts the barcode at (:class:`Camera`); unchanged without a camera.
-    Shape (N, 4)."""
+def mounting(camera: Camera) -> list[float]:
+    """The camera's pose in the robot frame ``[x, y, theta]`` (its axis along the robot's heading), as a stream's
+    header declares a sensor."""
+    return [float(camera.forward_m), float(camera.left_m), 0.0]
+
+
+def through_camera(rows: np.ndarray, camera: Camera | None, mounted: bool = False) -> np.ndarray:
+    """Sighting rows ``(t, barcode, range, bearing)`` as logged -> the range and bearing of the point the camera
+    puts the barcode at (:class:`Camera`), from the robot's centre, or with ``mounted`` from the camera itself
+    (:func:`mounting`); unchanged without a camera. Shape (N, 4)."""
     if camera is None:
         return rows
-    placement = (camera.scale, camera.forward_m, camera.left_m, camera.bearing_scale)
+    placement = (camera.scale, 0.0 if mounted else camera.forward_m, 0.0 if mounted else camera.left_m,
+                 camera.bearing_scale)  # fmt: skip
     x, y = camera_point(placement, rows[:, 2], rows[:, 3])
     out = np.array(rows, dtype=float)
     out[:, 2], out[:, 3] = np.hypot(x, y), np.arctan2(y, x)
@@ -186,12 +193,23 @@ def through_camera(rows: np.ndarray, camera: Camera | None) -> np.ndarray:
 
 
 def camera_sightings(
-    noise: MrclamNoise, robot: int, rows: np.ndarray, subjects: np.ndarray, range_offset: float = 0.0
+    noise: MrclamNoise,
+    robot: int,
+    rows: np.ndarray,
+    subjects: np.ndarray,
+    range_offset: float = 0.0,
+    mounted: bool = False,
 ) -> tuple[Camera | None, np.ndarray, np.ndarray]:
     """One robot's sightings as the stream carries them: its camera (None without one), the rows
-    ``(t, barcode, range, bearing)`` placed by it (:func:`through_camera`), their range less ``range_offset``, and
-    their widened sigmas (:func:`sighting_sigmas`, ``subjects`` grouping them), shapes (N, 4) and (N, 2)."""
+    ``(t, barcode, range, bearing)`` placed by it (:func:`through_camera`; from the camera itself with
+    ``mounted``), their range less ``range_offset``, and their widened sigmas (:func:`sighting_sigmas`,
+    ``subjects`` grouping them; from the ranges to the robot's centre either way), shapes (N, 4) and (N, 2)."""
     camera = camera_of(noise, robot)
-    placed = np.array(through_camera(rows, camera), dtype=float)
+    centred = np.array(through_camera(rows, camera), dtype=float)
+    centred[:, 2] -= range_offset
+    sigmas = sighting_sigmas(noise, centred[:, 0], subjects, centred[:, 2], camera)
+    if not mounted or camera is None:
+        return camera, centred, sigmas
+    placed = np.array(through_camera(rows, camera, mounted=True), dtype=float)
     placed[:, 2] -= range_offset
-    return camera, placed, sighting_sigmas(noise, placed[:, 0], subjects, placed[:, 2], camera)
+    return camera, placed, sigmas
