@@ -46,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
     p.add_argument("--circle-runs", type=int, default=100, help="circle: Monte Carlo runs (esde's 100)")
+    p.add_argument("--timing-seeds", type=int, default=12, help="timing: seeded worlds per comparison (12)")
     p.add_argument("--workers", type=int, default=None, help="circle: processes for the runs (default: all cores)")
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
     p.add_argument(

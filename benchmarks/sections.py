@@ -312,6 +312,39 @@ def _circle(args: argparse.Namespace, world: GridConfig) -> None:
     )
 
 
+def _timing(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.timing import buffer_cost, latency_check, mount_rows, same_time_change, twin_rows
+
+    seeds = range(args.timing_seeds)
+    print(f"sensor timing: the timing world (60 s at 1 m/s, odometry at 10 Hz, scans at 2 Hz), {len(seeds)} seeds;")
+    print("mean online position RMSE (batch: final) and mean NEES over the seeds")
+
+    def table(rows: list, reference: str) -> None:
+        base = rows[0]
+        print(f"{'stream':<58}{'EKF m':>8}{'smoother m':>12}{'batch m':>9}{'EKF NEES':>10}{'sm. NEES':>10}")
+        for r in rows:
+            o, n = r.online, r.nees
+            print(f"{r.label:<58}{o['ekf']:>8.4f}{o['smoother']:>12.4f}{o['batch']:>9.4f}{n['ekf']:>10.2f}"
+                  f"{n['smoother']:>10.2f}")  # fmt: skip
+        for r in rows[1:]:
+            ratios = ", ".join(f"{k} {r.online[k] / base.online[k]:.3f}x" for k in r.online)
+            nees = ", ".join(f"{k} {r.nees[k] / base.nees[k]:.3f}x" for k in r.nees)
+            print(f"  {r.label} / {reference}: RMSE {ratios}; NEES {nees}")
+
+    table(twin_rows(seeds), "twin")
+    table(mount_rows(seeds), "centre")
+    check = latency_check()
+    print(f"arrival order (each sighting line 0-150 ms late, {check.out_of_order} after a later odometry line), "
+          f"--max-latency 0.2: largest change of a figure {check.largest_change:.2e}, {check.skipped} skipped; "
+          f"Slam in arrival order: trajectory within {check.slam_gap_m:.1e} m of the ordered feed "
+          f"({check.slam_lag} poses still held), pose predicted to the last odometry within "
+          f"{check.slam_now_gap_m:.1e} m")  # fmt: skip
+    print(f"sightings written before the odometry of their time: largest change of a figure {same_time_change():.2e}")
+    plain, held = buffer_cost(world.poses, _repeats(args))
+    print(f"grid world {world.poses} poses, EKF and smoother: {plain:.2f} s without a reorder buffer, "
+          f"{held:.2f} s with --max-latency 0.2: {held / plain:.3f}x (target <= 1.1x)")  # fmt: skip
+
+
 Section = Callable[[argparse.Namespace, GridConfig], None]
 """Measures, then prints: given the options and the grid world they describe."""
 
@@ -328,14 +361,15 @@ SECTIONS: dict[str, Section] = {
     "big": _big,
     "waypoint": _waypoint,
     "circle": _circle,
+    "timing": _timing,
     "mrclam": _mrclam,
     "sweep": _sweep,
     "soak": _soak,
 }
 """Every section by name, in the order they run."""
-DEFAULT_SECTIONS = tuple(SECTIONS)[:-6]
+DEFAULT_SECTIONS = tuple(SECTIONS)[:-7]
 """The big and waypoint worlds (5000 poses beside iSAM2, minutes), the circle protocol (100 Monte Carlo runs,
-minutes), MRCLAM and the sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for
-(``--only``)."""
+minutes), the sensor timing (seeded worlds, minutes), MRCLAM and the sweep (MRCLAM data) and the soak (100,000
+poses, minutes) run only when asked for (``--only``)."""
 MRCLAM_SECTIONS = ("mrclam", "sweep")
 """The sections that read the MRCLAM Dataset 6 folder (``--mrclam``)."""

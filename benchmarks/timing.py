@@ -20,11 +20,13 @@ import numpy as np
 from online_slam import Slam, replay
 from online_slam.evaluation.results import Results
 from online_slam.options import replay_config
-from online_slam.sources.events import Event, Observation, Odometry, Start
+from online_slam.sources.events import Event, Header, Observation, Odometry, Start
 from online_slam.sources.timing import TimingConfig, timing_world
 from online_slam.sources.worlds import GridConfig, grid_world
 
 ESTIMATORS = ("ekf", "smoother", "batch")
+MOUNT = (0.3, 0.0, math.radians(10.0))
+"""The issue's sensor: 0.3 m ahead, turned 10 degrees."""
 
 
 @dataclass(frozen=True)
@@ -173,3 +175,44 @@ def buffer_cost(poses: int = 2000, repeats: int = 3) -> tuple[float, float]:
             replay(events, config)
             best[i] = min(best[i], time.perf_counter() - started)
     return best[0], best[1]
+
+
+def mount_rows(
+    seeds: Sequence[int], duration: float = 60.0, mount: tuple[float, float, float] = MOUNT
+) -> list[TimingRow]:
+    """Mean figures over the seeds: a sensor at the centre, the same sensor mounted at ``mount`` (its sightings
+    taken from there, the stream declaring it), and those sightings read as if from the centre."""
+    sums: dict[str, list[tuple[dict[str, float], dict[str, float]]]] = {"centre": [], "mounted": [], "ignored": []}
+    for seed in seeds:
+        c = TimingConfig(seed=seed, duration=duration, offset=0.0)
+        centre = list(timing_world(c))
+        mounted = list(timing_world(dataclasses.replace(c, mount=mount)))
+        for label, events in (("centre", centre), ("mounted", mounted), ("ignored", without_sensors(mounted))):
+            online, nees, _ = _figures(events)
+            sums[label].append((online, nees))
+    x, y, theta = mount
+    labels = {
+        "centre": "sensor at the robot's centre",
+        "mounted": f"sensor {x:g} m ahead, {y:g} m left, turned {math.degrees(theta):g} deg (declared)",
+        "ignored": "the same sightings read as from the centre",
+    }
+    return [
+        TimingRow(
+            labels[key],
+            {n: float(np.mean([r[0][n] for r in runs])) for n in ESTIMATORS},
+            {n: float(np.mean([r[1][n] for r in runs])) for n in ("ekf", "smoother")},
+        )
+        for key, runs in sums.items()
+    ]
+
+
+def without_sensors(events: Iterable[Event]) -> list[Event]:
+    """The stream with its sensors undeclared: every sighting read as if taken at the robot's centre."""
+    out: list[Event] = []
+    for e in events:
+        if isinstance(e, Header):
+            e = Header(e.name, {k: v for k, v in e.meta.items() if k != "sensors"})
+        elif isinstance(e, Observation):
+            e = dataclasses.replace(e, sensor=None)
+        out.append(e)
+    return out

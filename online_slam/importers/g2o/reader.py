@@ -113,8 +113,11 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
     landmark_ids: dict[object, int] = {}
     landmark_xy: list[np.ndarray] = []
     sightings: list[tuple[int, object, np.ndarray, np.ndarray]] = []
+    sensors: dict[str, list[float]] = {}
     for event in events:
-        if isinstance(event, Start):
+        if isinstance(event, Header):
+            sensors = {name: spec["pose"] for name, spec in (event.meta.get("sensors") or {}).items()}
+        elif isinstance(event, Start):
             if poses and event.robot is not None:  # a validated stream starts again only for another robot
                 raise OnlineSlamError(f"g2o holds one pose chain; robot {event.robot!r} is a second robot")
             poses = poses if poses else [np.array(event.pose)]
@@ -136,9 +139,14 @@ def write_g2o(destination: str | Path | IO[str], events: Iterable[Event]) -> int
                 info = np.linalg.inv(J @ event.covariance @ J.T)
             else:  # a position sighting is g2o's own measurement
                 point, info = np.array(event.xy), np.linalg.inv(event.covariance)
+            if event.sensor is not None:  # from the sensor's frame to the robot's: a rigid move, exact
+                x, y, theta = sensors[event.sensor]
+                R = np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]])
+                point, info = R @ point + [x, y], R @ info @ R.T
             if event.landmark not in landmark_ids:
                 landmark_ids[event.landmark] = len(landmark_ids)
-                landmark_xy.append(landmark_from_sighting(poses[-1], event.z, event.model))
+                at = poses[-1] if event.sensor is None else compose(poses[-1], sensors[event.sensor])
+                landmark_xy.append(landmark_from_sighting(at, event.z, event.model))
             sightings.append((len(poses) - 1, event.landmark, point, info))
     n = len(poses)
     lines = [f"VERTEX_SE2 {i} {' '.join(map(repr, map(float, pose)))}" for i, pose in enumerate(poses)]
