@@ -1,8 +1,10 @@
 """A world of unsynchronised sensors: sightings off the odometry clock, lines that arrive late.
 
-The robot drives at constant speed with a turn rate that changes only at odometry ticks, so its true pose at any
-time is exact (constant twist between ticks). Odometry comes at ``odometry_rate``; a sighting scan every
-``1 / sighting_rate`` seconds, ``offset`` seconds after a tick, taken from the true pose at its own time. With
+The odometry reports a constant speed with a turn rate that changes only at ticks; the true path leaves it by a
+random walk of slip, drawn at 20 substeps per tick (``continuous``), so the odometry's error over a stretch of time
+has a covariance in proportion to it, as the front-end's split assumes; or (``continuous=False``) the true path
+moves at constant twist and each tick's increment carries one draw of noise. Odometry comes at ``odometry_rate``; a
+sighting scan every ``1 / sighting_rate`` seconds, ``offset`` seconds after a tick, taken from the true pose at its own time. With
 ``offset`` 0 it is the synchronised twin: every random number is drawn in the same order and used for the same
 thing (the landmarks in view are chosen at the tick), so the two streams differ only in timing. ``delay`` makes a
 sighting line arrive up to that much later (the events then come in arrival order, as a detector's would).
@@ -23,6 +25,10 @@ from online_slam.models.range_bearing import range_bearing
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 Array = NDArray[np.float64]
+
+
+SUBSTEPS = 20
+"""Substeps per odometry tick of the simulated slip (5 ms at 10 Hz): scans fall on them."""
 
 
 @dataclass(frozen=True)
@@ -58,11 +64,17 @@ class TimingConfig:
     mount: tuple[float, float, float] | None = None
     """Pose ``[x, y, theta]`` of the sensor in the robot frame (declared in the header as ``camera``; sightings
     taken from it), or None: at the robot's centre."""
+    continuous: bool = True
+    """Odometry error that accumulates as the robot drives (a random walk of slip, as wheels slip: the true path
+    leaves the odometry's between ticks too), the model the front-end's split assumes; False: the true path moves
+    at constant twist between ticks and each tick's increment is measured with one draw of noise."""
     seed: int = 5
     """Seed of ``numpy.random.default_rng``."""
 
     def __post_init__(self) -> None:
         tick = 1.0 / self.odometry_rate
+        if abs(self.offset / tick * SUBSTEPS - round(self.offset / tick * SUBSTEPS)) > 1e-9:
+            raise ValueError(f"timing world: offset must be a multiple of 1/{SUBSTEPS} of a tick")
         if not 0.0 <= self.offset < tick or self.sighting_rate > self.odometry_rate or self.delay < 0.0:
             raise ValueError("timing world needs 0 <= offset < one tick, sighting rate <= odometry rate, delay >= 0")
 
@@ -82,9 +94,15 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
     dt = 1.0 / c.odometry_rate
     ticks = int(round(c.duration * c.odometry_rate))
     per_turn = max(1, int(round(c.turn_every / dt)))
-    twists = np.zeros((ticks, 3))  # per tick interval: [v dt, 0, omega dt]
+    twists = np.zeros((ticks, 3))  # the odometry's motion per tick interval: [v dt, 0, omega dt]
     twists[:, 0] = c.speed * dt
+    sub = SUBSTEPS
+    drift = rng.normal(size=(ticks, sub, 3)) * np.array(c.odometry_sigma) / math.sqrt(sub)  # continuous: per substep
     truth = np.zeros((ticks + 1, 3))
+    fraction = c.offset / dt
+    within = int(round(fraction * sub))  # substeps from a tick to its scan
+    between_ticks = np.zeros((ticks, 3))  # the true pose a scan after each tick (continuous noise)
+    rate = 0.0
     for k in range(ticks):
         if k % per_turn == 0:  # a new turn rate: random, or back towards the area when outside it
             rate = rng.uniform(-c.max_turn_rate, c.max_turn_rate)
@@ -93,14 +111,25 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
                 back = float(wrap(math.atan2(-y, -x) - heading)) / c.turn_every
                 rate = float(np.clip(back, -c.max_turn_rate, c.max_turn_rate))
         twists[k, 2] = rate * dt
-        truth[k + 1] = compose(truth[k], exp(twists[k]))
+        if not c.continuous:
+            truth[k + 1] = compose(truth[k], exp(twists[k]))
+            continue
+        pose, step = truth[k], exp(twists[k] / sub)
+        for j in range(sub):  # the true motion: the odometry's, with a random walk of slip added as it goes
+            if j == within:
+                between_ticks[k] = pose
+            pose = compose(compose(pose, step), drift[k, j])
+        truth[k + 1] = pose
     low, high = truth[:, :2].min(0) - c.sensor_range, truth[:, :2].max(0) + c.sensor_range
     landmarks = rng.uniform(low, high, size=(c.landmarks, 2))
-    odometry = between(truth[:-1], truth[1:]) + rng.normal(size=(ticks, 3)) * np.array(c.odometry_sigma)
+    if c.continuous:  # the odometry reports the motion without the slip
+        odometry = exp(twists)
+    else:  # the truth moves at constant twist; each tick's increment is measured with one draw of noise
+        odometry = between(truth[:-1], truth[1:]) + rng.normal(size=(ticks, 3)) * np.array(c.odometry_sigma)
     every = max(1, int(round(c.odometry_rate / c.sighting_rate)))
     scans = np.arange(0, ticks, every)  # the tick each scan follows
-    fraction = c.offset / dt
-    at_scan = compose(truth[scans], exp(fraction * twists[scans]))  # the true pose at each scan's own time
+    # the true pose at each scan's own time
+    at_scan = between_ticks[scans] if c.continuous else compose(truth[scans], exp(fraction * twists[scans]))
     if c.mount is not None:
         at_scan = compose(at_scan, np.array(c.mount, dtype=float))  # the sensor's pose
     events: list[tuple[float, int, Event]] = []  # (arrival time, order, event)
