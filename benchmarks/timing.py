@@ -6,8 +6,8 @@ the ticks) over seeded worlds, as means over seeds, in the frame that best fits 
 frame of the first pose (the default ``anchor``) the twin has an advantage no front-end can give the other: its
 first scan is taken at the start pose, which is fixed, while the other's is taken 40 ms later, after odometry whose
 heading noise turns the whole map against the start's frame; the twin's figures there are better by a rotation of
-the map, not by a better estimate (the benchmark prints both). Beside them, the same asynchronous sightings attached to the earlier tick
-(what the front-end did before it split increments) show what ignoring the timing costs.
+the map, not by a better estimate (the benchmark prints both). Beside them, the same asynchronous sightings
+attached to the earlier tick (what the front-end did before it split increments) show what ignoring the timing costs.
 """
 
 from __future__ import annotations
@@ -183,7 +183,7 @@ def buffer_cost(poses: int = 2000, repeats: int = 3) -> tuple[float, float]:
 
 
 def mount_rows(
-    seeds: Sequence[int], duration: float = 60.0, mount: tuple[float, float, float] = MOUNT
+    seeds: Sequence[int], duration: float = 60.0, mount: tuple[float, float, float] = MOUNT, align: str = "se2"
 ) -> list[TimingRow]:
     """Mean figures over the seeds: a sensor at the centre, the same sensor mounted at ``mount`` (its sightings
     taken from there, the stream declaring it), and those sightings read as if from the centre."""
