@@ -121,6 +121,17 @@ class Engine:
             completed = self.frontend.next_complete()
         return records
 
+    def flush(self) -> list[StepRecord]:
+        """Give on every line the front-end's reorder buffer holds; the steps that completed (as :meth:`push`)."""
+        records = []
+        completed = self.frontend.flush()
+        while completed is not None:
+            record = self._complete(completed)
+            if record is not None:
+                records.append(record)
+            completed = self.frontend.next_complete()
+        return records
+
     def sync(self) -> Mapping[str, Snapshot]:
         """Bring every estimator up to the newest event; their current snapshots by name ({} before any pose).
 

@@ -170,6 +170,7 @@ class Slam:
         )
         self._engine = Engine([self._estimator], frontend, records=False)
         self._validator = EventValidator("Slam", max_latency=frontend.max_latency or 0.0)
+        self._validator.latency_name = "max_latency"
         self.late: int = 0
         """Lines skipped as later than ``max_latency`` (a warning the first time; never an error)."""
         self._step_robots: list[RobotId] = []
@@ -373,6 +374,13 @@ class Slam:
         if robot is not None and len(self._step_robots) < self.poses:  # a robot's pose began
             self._step_robots.append(robot)
 
+    def flush(self) -> None:
+        """Give the estimator every line ``max_latency`` holds back, now (the end of a run, or before a final
+        query); a line older than those is late from then on (skipped and counted)."""
+        self._engine.flush()
+        state = self._validator.state
+        state.floor = max(state.floor, state.last_t)
+
     def _skip_late(self, error: LateInput) -> None:
         """A line beyond ``max_latency``: skipped and counted in :attr:`late`, with one warning."""
         self.late += 1
@@ -505,6 +513,7 @@ class Slam:
             self._engine.checkpoint(),
             self._step_robots,
             *self.typed,
+            self.late,
         )
         write_checkpoint(path, _CHECKPOINT_KIND, state)
 
@@ -522,6 +531,7 @@ class Slam:
             slam._validator.state = saved.validator
             slam._engine.restore(saved.engine)
             slam._step_robots = saved.step_robots
+            slam.late = saved.late
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
@@ -559,3 +569,5 @@ class SlamCheckpoint:
     """The estimator's configuration when given as one (``Slam(config=...)``), else None."""
     frontend: FrontEndConfig | None = None
     """The front-end's configuration when given as one, else None."""
+    late: int = 0
+    """Lines skipped as later than ``max_latency`` so far."""

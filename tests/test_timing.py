@@ -189,3 +189,32 @@ def test_cli_reads_late_lines_with_a_budget_and_stdin_has_one_by_default(tmp_pat
     assert (
         json.loads(piped.stdout)["estimators"]["ekf"]["online_rmse_m"] == document["estimators"]["ekf"]["online_rmse_m"]
     )
+
+
+def test_slam_with_a_budget_shows_its_start_flushes_and_keeps_its_late_count(tmp_path: Path) -> None:
+    slam = Slam("ekf", max_latency=0.3)
+    slam.start(0.0, [1.0, 2.0, 0.0])
+    slam.add_odometry(0.1, [0.1, 0.0, 0.0], sigma=[0.01, 0.01, 0.001])
+    early = slam.estimate()
+    assert early.index == 0 and early.t == 0.1  # the start, predicted with the held odometry
+    np.testing.assert_allclose(early.pose, [1.1, 2.0, 0.0])
+    for k in range(2, 8):
+        slam.add_odometry(0.1 * k, [0.1, 0.0, 0.0], sigma=[0.01, 0.01, 0.001])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        slam.add_observation(0.05, 3, range=2.0, bearing=0.1, sigma=[0.05, 0.01])  # 0.65 s late
+    assert slam.late == 1 and "beyond max_latency 0.3 s" in str(caught[0].message)
+    held = len(slam.estimate().trajectory)
+    slam.flush()
+    assert len(slam.estimate().trajectory) == 8 > held
+    slam.add_observation(0.65, 3, range=2.0, bearing=0.1, sigma=[0.05, 0.01])  # older than what was given on
+    assert slam.late == 2
+    slam.save(tmp_path / "late.ckpt")
+    assert Slam.load(tmp_path / "late.ckpt").late == 2
+
+
+def test_sightings_after_the_last_odometry_are_reported() -> None:
+    events = [e for e in timing_world(SMALL) if not isinstance(e, Odometry) or e.t < 11.0]
+    results = replay(events, ReplayConfig(estimators=("ekf",)))
+    assert results.input.after_last_odometry > 0
+    assert results.to_json()["input"]["after_last_odometry"] == results.input.after_last_odometry

@@ -305,11 +305,17 @@ class InputReport:
     skipped_lines: int = 0
     """Bad lines skipped."""
     skipped_by_reason: dict[str, int] = field(default_factory=dict)
-    """Their count by reason (``invalid_json``, ``time_order``, ``not_finite``, ``unknown_type``, ...)."""
+    """Their count by reason (``invalid_json``, ``time_order``, ``not_finite``, ``unknown_type``, ``late``, ...)."""
+    after_last_odometry: int = 0
+    """Sightings stamped after the last odometry line (nothing spans their time): put on the last pose."""
 
     def to_json(self) -> dict[str, Any]:
         """The ``"input"`` object of the results JSON."""
-        return {"skipped_lines": self.skipped_lines, "skipped_by_reason": dict(sorted(self.skipped_by_reason.items()))}
+        return {
+            "skipped_lines": self.skipped_lines,
+            "skipped_by_reason": dict(sorted(self.skipped_by_reason.items())),
+            "after_last_odometry": self.after_last_odometry,
+        }
 
 
 @dataclass(frozen=True)

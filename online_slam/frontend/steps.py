@@ -200,7 +200,8 @@ class FrontEnd:
         config = cast(FrontEndConfig, self.config)  # never None after __post_init__
         if config.odometry_noise_scale != 1.0 or config.sensor_noise_scale != 1.0:
             event = scaled_event(event, config.odometry_noise_scale, config.sensor_noise_scale)
-        if config.max_latency and isinstance(event, (Odometry, Observation, Scan, Truth, Start)):
+        first = isinstance(event, Start) and not self.held and self.pending is None  # the start: nothing to wait for
+        if config.max_latency and isinstance(event, (Odometry, Observation, Scan, Truth, Start)) and not first:
             self.newest_t = max(self.newest_t, event.t)
             heapq.heappush(self.held, (event.t, self.arrivals, event))
             self.arrivals += 1
@@ -209,6 +210,13 @@ class FrontEnd:
                 self._take(heapq.heappop(self.held)[2])
         else:
             self._take(event)
+        return self._give_out()
+
+    def flush(self) -> Step | None:
+        """Give on every line held by the reorder buffer now (the end of a live run, or a pause); returns the
+        oldest step now complete, as :meth:`push` does. Lines older than those given on are late from then on."""
+        while self.held:
+            self._take(heapq.heappop(self.held)[2])
         return self._give_out()
 
     def next_complete(self) -> Step | None:

@@ -71,7 +71,11 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         truth_poses=truth_array(truth, steps),
         truth_landmarks=dict(truth.landmarks),
         error=run.error,
-        input=InputReport(sum(run.skipped.by_reason.values()), run.skipped.by_reason),
+        input=InputReport(
+            sum(run.skipped.by_reason.values()),
+            run.skipped.by_reason,
+            run.engine.frontend.counts.get("after_last_odometry", 0),
+        ),
         step_times=np.array(run.step_times, dtype=float),
         robot=header.meta.get("robot") if (header := run.engine.frontend.header) is not None else None,
         left=tuple(run.engine.state.left),

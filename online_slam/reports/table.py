@@ -211,7 +211,10 @@ def notes(results: Results) -> list[str]:
         out.append(f"{name}: left out, it takes one robot at a time and this stream has several")
     if results.input.skipped_lines:
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(results.input.skipped_by_reason.items()))
-        out.append(f"input: {counted(results.input.skipped_lines, 'bad line')} skipped ({reasons})")
+        out.append(f"input: {counted(results.input.skipped_lines, 'line')} skipped ({reasons})")
+    if results.input.after_last_odometry:
+        n = results.input.after_last_odometry
+        out.append(f"input: {counted(n, 'sighting')} after the last odometry line, put on the last pose")
     if results.error == INTERRUPTED:
         out.append(f"stopped early: interrupted; figures cover the {counted(results.poses, 'pose')} before it")
     elif results.error:

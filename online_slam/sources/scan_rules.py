@@ -88,11 +88,13 @@ class ScanRules:
             and SIGMA_RANGE[0] <= noise[0] <= SIGMA_RANGE[1]
             and SIGMA_RANGE[0] <= noise[1] <= SIGMA_RANGE[1]
         ):
-            self.state = type(saved)(t, saved.first_pose_t, True, sensors=saved.sensors)
+            self.state = type(saved)(t, saved.first_pose_t, True, sensors=saved.sensors, floor=saved.floor)
             one = tuple(noise)
             return Scan(t, tuple(landmarks), fast[0], fast[1], (one,) * k, fast[2], sensor)
         if fast is not None:  # the common case, checked at once
-            self._pending = type(saved)(saved.last_t, saved.first_pose_t, saved.seen_content, sensors=saved.sensors)
+            self._pending = type(saved)(
+                saved.last_t, saved.first_pose_t, saved.seen_content, sensors=saved.sensors, floor=saved.floor
+            )
             t_value = self.time({"t": t}, 0)
             sigma_value, cov_value = self.noise({noise_key: noise}, 2, 0)
             # Cast: the record holds sigma or cov (noise is not None), so noise() returned one of them.
@@ -110,10 +112,12 @@ class ScanRules:
         saved, k = self.state, len(landmarks)
         trial = type(self)(  # type: ignore[call-arg]
             self.name,
-            type(saved)(saved.last_t, saved.first_pose_t, saved.seen_content, sensors=saved.sensors),
+            type(saved)(saved.last_t, saved.first_pose_t, saved.seen_content, sensors=saved.sensors, floor=saved.floor),
             self.max_latency,
         )
-        trial._pending = type(saved)(saved.last_t, saved.first_pose_t, saved.seen_content, sensors=saved.sensors)
+        trial._pending = type(saved)(
+            saved.last_t, saved.first_pose_t, saved.seen_content, sensors=saved.sensors, floor=saved.floor
+        )
         t_value = trial.time({"t": t}, 0)
         events: list[Observation] = []
         for i in range(k):

@@ -3,11 +3,12 @@
 The odometry reports a constant speed with a turn rate that changes only at ticks; the true path leaves it by a
 random walk of slip, drawn at 20 substeps per tick (``continuous``), so the odometry's error over a stretch of time
 has a covariance in proportion to it, as the front-end's split assumes; or (``continuous=False``) the true path
-moves at constant twist and each tick's increment carries one draw of noise. Odometry comes at ``odometry_rate``; a
-sighting scan every ``1 / sighting_rate`` seconds, ``offset`` seconds after a tick, taken from the true pose at its own time. With
-``offset`` 0 it is the synchronised twin: every random number is drawn in the same order and used for the same
-thing (the landmarks in view are chosen at the tick), so the two streams differ only in timing. ``delay`` makes a
-sighting line arrive up to that much later (the events then come in arrival order, as a detector's would).
+moves at constant twist and each tick's increment carries one draw of noise. Odometry comes at ``odometry_rate``;
+a sighting scan every ``1 / sighting_rate`` seconds, ``offset`` seconds after a tick, taken from the true pose at
+its own time (the truth is given there too). With ``offset`` 0 it is the synchronised twin: every random number is
+drawn in the same order and used for the same thing (the landmarks in view are chosen at the tick), so the two
+streams differ only in timing. ``delay`` makes a sighting line arrive up to that much later (the events then come
+in arrival order, as a detector's would).
 """
 
 from __future__ import annotations
@@ -130,6 +131,7 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
     scans = np.arange(0, ticks, every)  # the tick each scan follows
     # the true pose at each scan's own time
     at_scan = between_ticks[scans] if c.continuous else compose(truth[scans], exp(fraction * twists[scans]))
+    robot_at_scan = at_scan
     if c.mount is not None:
         at_scan = compose(at_scan, np.array(c.mount, dtype=float))  # the sensor's pose
     events: list[tuple[float, int, Event]] = []  # (arrival time, order, event)
@@ -155,6 +157,8 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
         z = z + rng.normal(size=z.shape) * np.array(c.sensor_sigma)
         late = arrival.uniform(0.0, c.delay, size=len(seen)) if c.delay > 0.0 else np.zeros(len(seen))
         t = float(tick * dt + c.offset)
+        if c.offset > 0.0:  # the robot's true pose at the scan (a pose of its own: scored too)
+            events.append((t, 3, Truth(t, tuple(map(float, robot_at_scan[scan])))))
         for i, lid in enumerate(seen):
             rb = (float(abs(z[i, 0])), float(wrap(z[i, 1])))
             sighting = Observation(t, int(lid), rb[0], rb[1], sensor_sigma, sensor=sensor)

@@ -99,6 +99,8 @@ class ValidatorState:
     """Robots named by a ``start`` so far, in order; empty for a stream of one unnamed robot."""
     sensors: tuple[str, ...] = ()
     """Sensors the header declares (their names), which observations may name."""
+    floor: float = -math.inf
+    """Lines before this time are late whatever the latency budget (a flush gave on every line before it)."""
 
 
 class EventValidator(ScanRules, RobotRules):
@@ -112,6 +114,8 @@ class EventValidator(ScanRules, RobotRules):
         self.name = name
         self.max_latency = max_latency
         """Seconds a line may be older than the newest one (a reorder buffer holds it); 0: time never goes back."""
+        self.latency_name = "--max-latency"
+        """How messages name the latency budget (the library's ``max_latency``)."""
         self.state = state or ValidatorState()
         self._pending = ValidatorState()
         self._parsers = {kind: getattr(self, f"_{kind}") for kind in FIELDS}
@@ -156,7 +160,7 @@ class EventValidator(ScanRules, RobotRules):
                 raise self.fail(line, str(sorted(map(str, unknown))[0]), f"unknown field for {article} {kind} event")
         state = self.state
         self._pending = ValidatorState(
-            state.last_t, state.first_pose_t, state.seen_content, state.robots, state.sensors
+            state.last_t, state.first_pose_t, state.seen_content, state.robots, state.sensors, state.floor
         )
         event = self._parsers[kind](record, line)
         self.state = self._pending
@@ -173,7 +177,9 @@ class EventValidator(ScanRules, RobotRules):
         if fast and _plain_floats(delta, sigma):
             first = state.first_pose_t
             if first is None or t >= first:  # the common case, checked at once
-                self.state = ValidatorState(t, t if first is None else first, True, sensors=state.sensors)
+                self.state = ValidatorState(
+                    t, t if first is None else first, True, sensors=state.sensors, floor=state.floor
+                )
                 return Odometry(t=t, delta=tuple(delta), sigma=tuple(sigma), cov=None)
         record: dict[str, Any] = {"type": "odometry", "t": t, "delta": delta}
         if sigma is not None:
@@ -268,12 +274,14 @@ class EventValidator(ScanRules, RobotRules):
     def time(self, record: dict[str, Any], line: int) -> float:
         t = self.number(record, "t", line)
         last = self._pending.last_t
-        if t < last and not t >= last - self.max_latency:
+        if t < last and not t >= max(last - self.max_latency, self._pending.floor):
             if self.max_latency > 0.0:
-                message = f"late by {last - t:.6g} s (at {t} after {last}): beyond --max-latency {self.max_latency:g} s"
+                budget = f"{self.latency_name} {self.max_latency:g} s"
+                message = f"late by {last - t:.9g} s (at {t} after {last}): beyond {budget}"
                 raise LateInput(self.name, line, "t", message)
             everyone = " over all robots (one clock)" if self._pending.robots else ""
-            raise self.fail(line, "t", f"time goes backwards ({t} after {last}); expected non-decreasing{everyone}")
+            message = f"time goes backwards ({t} after {last}); expected non-decreasing{everyone}"
+            raise self.fail(line, "t", f"{message} (for late lines give a latency budget: --max-latency, max_latency)")
         self._pending.last_t = max(t, last)
         if self._pending.first_pose_t is None:
             self._pending.first_pose_t = t
