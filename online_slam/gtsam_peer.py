@@ -22,16 +22,21 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.errors import OnlineSlamError
 from online_slam.factors.graph import FactorGraph
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
-from online_slam.models.observation import POSITION, landmark_from_sighting, split_models
+from online_slam.models.observation import (
+    POSITION,
+    landmark_from_sighting,
+    predict_with_jacobians,
+    split_models,
+    wrap_bearings,
+)
 from online_slam.models.position import position_with_jacobians
 
 try:  # pragma: no cover - depends on the optional extra
@@ -115,18 +120,39 @@ def _position_factor(key_p: int, key_l: int, z: Array, noise: gtsam.noiseModel.B
     return gtsam.CustomFactor(noise, [key_p, key_l], error)
 
 
-def _sighting_noise(cov: Array, model: int) -> gtsam.noiseModel.Base:
+def _mounted_factor(key_p: int, key_l: int, z: Array, model: Any, noise: gtsam.noiseModel.Base) -> gtsam.CustomFactor:
+    """A sighting from a mounted sensor (``model`` a :data:`~online_slam.models.observation.SIGHTING` record) with
+    its noise model, as our residual (the model's order: range, bearing)."""
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list | None) -> Array:
+        p, point = values.atPose2(this.keys()[0]), values.atPoint2(this.keys()[1])
+        z_hat, J_p, J_l = predict_with_jacobians(_vec(p), np.asarray(point, dtype=float), model)
+        if H is not None:
+            H[0] = J_p @ _tangent(p.theta())
+            H[1] = J_l
+        return wrap_bearings(z_hat - z, model)
+
+    return gtsam.CustomFactor(noise, [key_p, key_l], error)
+
+
+def _sighting_noise(cov: Array, model: Any) -> gtsam.noiseModel.Base:
     """The Gaussian noise model of a sighting's covariance, in the order its GTSAM factor takes (a bearing-range
-    factor orders (bearing, range))."""
-    cov = np.asarray(cov) if model == POSITION else np.asarray(cov)[::-1, ::-1]
+    factor orders (bearing, range); a mounted sighting's factor is ours, in our order)."""
+    tag, mount = split_models(model)
+    native = mount is None and int(tag) != POSITION
+    cov = np.asarray(cov)[::-1, ::-1] if native else np.asarray(cov)
     return gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
 
 
 def _sighting_factor(
-    key_p: int, key_l: int, z: Array, model: int, noise: gtsam.noiseModel.Base
+    key_p: int, key_l: int, z: Array, model: Any, noise: gtsam.noiseModel.Base
 ) -> gtsam.NonlinearFactor:
-    """Our sighting as a GTSAM factor: native bearing-range, or a position factor (noise from :func:`_sighting_noise`,
-    possibly made robust)."""
+    """Our sighting as a GTSAM factor: native bearing-range, a position factor, or from a mounted sensor our own
+    (noise from :func:`_sighting_noise`, possibly made robust)."""
+    tag, mount = split_models(model)
+    if mount is not None:
+        return _mounted_factor(key_p, key_l, z, model, noise)
+    model = int(tag)
     if model == POSITION:
         return _position_factor(key_p, key_l, z, noise)
     return gtsam.BearingRangeFactor2D(key_p, key_l, gtsam.Rot2(z[1]), z[0], noise)
@@ -165,7 +191,7 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
             fg.add(gtsam.BetweenFactorPose2(X(int(a)), X(int(b)), gtsam.Pose2(*delta), noise))
     obs_cov = _covariances(graph.obs_sqrt_info)
     for p, l, z, cov, model in zip(graph.obs_pose, graph.obs_landmark, graph.obs_z, obs_cov, graph.obs_model):
-        fg.add(_sighting_factor(X(int(p)), L(int(l)), z, int(model), _sighting_noise(cov, int(model))))
+        fg.add(_sighting_factor(X(int(p)), L(int(l)), z, model, _sighting_noise(cov, model)))
     rob_cov: Array | list[Array] = _covariances(graph.rob_sqrt_info)[:, ::-1, ::-1] if len(graph.rob_from) else []
     for a, b, z, cov in zip(graph.rob_from, graph.rob_to, graph.rob_z, rob_cov):
         noise = gtsam.noiseModel.Gaussian.Covariance(np.ascontiguousarray(cov))
@@ -301,22 +327,19 @@ def isam2_online(
             d = step.odometry
             latest = np.array([latest[0] + c * d[0] - s * d[1], latest[1] + s * d[0] + c * d[1], latest[2] + d[2]])
         values.insert(X(i), gtsam.Pose2(*latest))
-        step_tags, mounts = split_models(step.z_model)
-        if mounts is not None:
-            raise OnlineSlamError("the GTSAM peer takes sightings at the robot's centre, not from mounted sensors")
-        for lid, z, cov, model in zip(step.landmarks, step.z, step.z_cov, step_tags):
+        for lid, z, cov, model in zip(step.landmarks, step.z, step.z_cov, step.z_model):
             if lid not in index:
                 index[lid] = len(index)
             key = L(index[lid])
             if lid not in seen:
                 seen.add(lid)
                 values.insert(key, gtsam.Point2(*landmark_from_sighting(latest, z, model)))
-            noise = _sighting_noise(cov, int(model))
+            noise = _sighting_noise(cov, model)
             if cauchy is not None:
                 noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy), noise)
             elif huber is not None:
                 noise = gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(huber), noise)
-            graph.add(_sighting_factor(X(i), key, z, int(model), noise))
+            graph.add(_sighting_factor(X(i), key, z, model, noise))
         isam.update(graph, values)
         latest = _vec(isam.calculateEstimatePose2(X(i)))
         times.append(time.perf_counter() - started)

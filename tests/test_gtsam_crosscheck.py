@@ -54,3 +54,17 @@ def test_native_gtsam_factors_differ_only_at_second_order() -> None:
     native = gtsam_peer.levenberg_marquardt(batch.log.graph(), np.array(batch.log.poses), batch.log.landmarks)
     gap = np.max(np.linalg.norm(ours.poses[:, :2] - native.poses[:, :2], axis=1))
     assert 0 < gap < 1e-3
+
+
+def test_batch_equals_gtsam_with_a_mounted_sensor_between_ticks() -> None:
+    """GTSAM's solution of the same graph (split increments, a sensor off the centre: its factor our residual)."""
+    import math
+
+    from online_slam.sources.timing import TimingConfig, timing_world
+
+    world = TimingConfig(duration=8.0, landmarks=60, seed=2, mount=(0.3, -0.1, math.radians(10)))
+    ours, peer = solve_both(timing_world(world))
+    assert ours.info["converged"] and len(ours.poses) > 81
+    assert np.max(np.linalg.norm(ours.poses[:, :2] - peer.poses[:, :2], axis=1)) <= 1e-6
+    assert np.max(np.linalg.norm(ours.landmarks - peer.landmarks, axis=1)) <= 1e-6
+    assert ours.info["final_cost"] == pytest.approx(peer.final_cost, rel=1e-9)
