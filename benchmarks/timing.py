@@ -65,6 +65,18 @@ def _largest_change(a: Results, b: Results) -> float:
     return change
 
 
+def _means(sums: dict[str, list[tuple[dict[str, float], dict[str, float]]]], labels: dict[str, str]) -> list[TimingRow]:
+    """One row per kind of stream: the means over the seeds of its (online RMSE, NEES) figures."""
+    return [
+        TimingRow(
+            labels[key],
+            {n: float(np.mean([r[0][n] for r in runs])) for n in ESTIMATORS},
+            {n: float(np.mean([r[1][n] for r in runs])) for n in ("ekf", "smoother")},
+        )
+        for key, runs in sums.items()
+    ]
+
+
 def attached_early(events: Iterable[Event], tick: float, offset: float) -> list[Event]:
     """The stream with each sighting moved back to the tick before it (the front-end's old attachment)."""
     moved = [
@@ -91,14 +103,7 @@ def twin_rows(
         "async": f"sightings {offset * 1e3:.0f} ms after the ticks, split increments",
         "early": "the same, attached to the tick before (no split)",
     }
-    return [
-        TimingRow(
-            labels[key],
-            {n: float(np.mean([r[0][n] for r in runs])) for n in ESTIMATORS},
-            {n: float(np.mean([r[1][n] for r in runs])) for n in ("ekf", "smoother")},
-        )
-        for key, runs in sums.items()
-    ]
+    return _means(sums, labels)
 
 
 @dataclass(frozen=True)
@@ -201,14 +206,7 @@ def mount_rows(
         "mounted": f"sensor {x:g} m ahead, {y:g} m left, turned {math.degrees(theta):g} deg (declared)",
         "ignored": "the same sightings read as from the centre",
     }
-    return [
-        TimingRow(
-            labels[key],
-            {n: float(np.mean([r[0][n] for r in runs])) for n in ESTIMATORS},
-            {n: float(np.mean([r[1][n] for r in runs])) for n in ("ekf", "smoother")},
-        )
-        for key, runs in sums.items()
-    ]
+    return _means(sums, labels)
 
 
 def without_sensors(events: Iterable[Event]) -> list[Event]:

@@ -112,19 +112,15 @@ class Engine:
             odometry event completes the previous pose); more when it splits an increment at sightings between
             ticks or releases held lines. Empty without ``records``.
         """
-        records = []
-        completed = self.frontend.push(event)
-        while completed is not None:
-            record = self._complete(completed)
-            if record is not None:
-                records.append(record)
-            completed = self.frontend.next_complete()
-        return records
+        return self._drain(self.frontend.push(event))
 
     def flush(self) -> list[StepRecord]:
         """Give on every line the front-end's reorder buffer holds; the steps that completed (as :meth:`push`)."""
+        return self._drain(self.frontend.flush())
+
+    def _drain(self, completed: Step | None) -> list[StepRecord]:
+        """Complete this step and every other the front-end has complete, in index order."""
         records = []
-        completed = self.frontend.flush()
         while completed is not None:
             record = self._complete(completed)
             if record is not None:

@@ -46,26 +46,27 @@ class Fix:
     """The event as it would be if the cause were fixed."""
 
 
-def _scaled_bearings(scale: float) -> Callable[[Event], Event]:
+def _scaled(field: str, scale: float) -> Callable[[Event], Event]:
+    """Undo a unit on one measured field (``bearing`` or ``range``) of sightings and scans."""
+    many = field + "s"
+
     def undo(event: Any) -> Any:
-        if isinstance(event, Observation) and event.bearing is not None:
-            return dataclasses.replace(event, bearing=event.bearing * scale)
+        if isinstance(event, Observation) and getattr(event, field) is not None:
+            return dataclasses.replace(event, **{field: getattr(event, field) * scale})
         if isinstance(event, Scan):
-            return dataclasses.replace(event, bearings=tuple(b * scale for b in event.bearings))
+            values: dict[str, Any] = {many: tuple(v * scale for v in getattr(event, many))}
+            return dataclasses.replace(event, **values)
         return event
 
     return undo
+
+
+def _scaled_bearings(scale: float) -> Callable[[Event], Event]:
+    return _scaled("bearing", scale)
 
 
 def _scaled_ranges(scale: float) -> Callable[[Event], Event]:
-    def undo(event: Any) -> Any:
-        if isinstance(event, Observation) and event.range is not None:
-            return dataclasses.replace(event, range=event.range * scale)
-        if isinstance(event, Scan):
-            return dataclasses.replace(event, ranges=tuple(r * scale for r in event.ranges))
-        return event
-
-    return undo
+    return _scaled("range", scale)
 
 
 def _turns_in_degrees(event: Event) -> Event:
