@@ -79,7 +79,7 @@ def test_skip_reports_each_bad_line_once_and_changes_nothing_else(streams, tmp_p
     assert {"not_finite", "range_not_positive", "bad_noise"} <= set(reasons)
     assert cli("replay", str(clean), "--json", str(tmp_path / "c.json"), "--quiet").returncode == 0
     reference = json.loads((tmp_path / "c.json").read_text())
-    assert reference["input"] == {"skipped_lines": 0, "skipped_by_reason": {}}
+    assert reference["input"] == {"skipped_lines": 0, "skipped_by_reason": {}, "after_last_odometry": 0}
     assert _figures(report) == _figures(reference)
 
 
