@@ -218,3 +218,21 @@ def test_sightings_after_the_last_odometry_are_reported() -> None:
     results = replay(events, ReplayConfig(estimators=("ekf",)))
     assert results.input.after_last_odometry > 0
     assert results.to_json()["input"]["after_last_odometry"] == results.input.after_last_odometry
+
+
+def test_a_checkpoint_keeps_held_and_waiting_lines(tmp_path: Path) -> None:
+    """Lines in the reorder buffer and sightings waiting for their odometry survive save and load bit for bit."""
+    events = list(timing_world(dataclasses.replace(SMALL, delay=0.15, mount=(0.2, 0.0, 0.1))))
+    whole = Slam("smoother", max_latency=0.2)
+    for event in events:
+        whole.add(event)
+    half = Slam("smoother", max_latency=0.2)
+    cut = len(events) // 2
+    for event in events[:cut]:
+        half.add(event)
+    assert half._engine.frontend.held  # something is held at the cut
+    half.save(tmp_path / "held.ckpt")
+    again = Slam.load(tmp_path / "held.ckpt")
+    for event in events[cut:]:
+        again.add(event)
+    np.testing.assert_array_equal(again.estimate().trajectory, whole.estimate().trajectory)
