@@ -332,7 +332,7 @@ def _timing(args: argparse.Namespace, world: GridConfig) -> None:
             print(f"  {r.label} / {reference}: RMSE {ratios}; NEES {nees}")
 
     table(twin_rows(seeds), "twin")
-    print("the same in the first pose's frame (--align anchor: the twin's first scan is at the fixed start pose)")
+    print("the same in the first pose's frame (--align anchor: mostly the map's rotation against the start's frame)")
     table(twin_rows(seeds, align="anchor"), "twin")
     table(mount_rows(seeds), "centre")
     check = latency_check()

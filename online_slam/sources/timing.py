@@ -8,7 +8,9 @@ a sighting scan every ``1 / sighting_rate`` seconds, ``offset`` seconds after a 
 its own time (the truth is given there too). With ``offset`` 0 it is the synchronised twin: every random number is
 drawn in the same order and used for the same thing (the landmarks in view are chosen at the tick), so the two
 streams differ only in timing. ``delay`` makes a sighting line arrive up to that much later (the events then come
-in arrival order, as a detector's would).
+in arrival order, as a detector's would). The first scan follows the first ``1 / sighting_rate`` seconds of
+odometry: a scan at the start pose, which is held fixed, would tie the twin's map to the start's frame exactly and
+the other's through 40 ms of odometry, a difference of frame (a rotation of the whole map) that no front-end makes.
 """
 
 from __future__ import annotations
@@ -128,7 +130,7 @@ def timing_world(config: TimingConfig | None = None) -> Iterator[Event]:
     else:  # the truth moves at constant twist; each tick's increment is measured with one draw of noise
         odometry = between(truth[:-1], truth[1:]) + rng.normal(size=(ticks, 3)) * np.array(c.odometry_sigma)
     every = max(1, int(round(c.odometry_rate / c.sighting_rate)))
-    scans = np.arange(0, ticks, every)  # the tick each scan follows
+    scans = np.arange(every, ticks, every)  # the tick each scan follows (none at the fixed start pose: see below)
     # the true pose at each scan's own time
     at_scan = between_ticks[scans] if c.continuous else compose(truth[scans], exp(fraction * twists[scans]))
     robot_at_scan = at_scan
