@@ -89,9 +89,6 @@ class Engine:
         self.frontend = FrontEnd(frontend)
         self.state = EngineState()
         self.records = records
-        self.previous: dict[str, Snapshot] = {}
-        """Without ``records``: each estimator's snapshot after the newest complete step (a query that does not
-        show the estimators the pending step reads it; empty after a restore)."""
         self._latest: dict[str, Snapshot] = {}
 
     @property
@@ -185,7 +182,7 @@ class Engine:
         self.state.observations += len(step.landmarks)
         self.state.times.append(step.t)
         if not self.records:
-            self.state.given, self.previous, self._latest = -1, self._latest, {}
+            self.state.given, self._latest = -1, {}
             return None
         for estimator in self.estimators:  # after a checkpoint was loaded mid-step, nothing new to deliver
             if estimator.name not in self._latest:
@@ -205,6 +202,6 @@ class Engine:
         self.estimators = [e for e in self.estimators if e.name not in saved.state.left]
         if sorted(saved.estimators) != sorted(e.name for e in self.estimators):
             raise ValueError("the checkpoint holds other estimators")
-        self.state, self.frontend, self._latest, self.previous = saved.state, saved.frontend, {}, {}
+        self.state, self.frontend, self._latest = saved.state, saved.frontend, {}
         for estimator in self.estimators:
             estimator.load_state(saved.estimators[estimator.name])

@@ -428,8 +428,9 @@ class Slam:
         pending = engine.frontend.pending
         name = self._estimator.name
         increments: list[Increment] = []
-        if pending is not None and self._may_merge(pending) and engine.state.times:
-            snapshot = engine.previous.get(name) or self._estimator.snapshot(_bare_step(engine))  # the pose before
+        frontend = engine.frontend
+        if pending is not None and frontend.mergeable(pending) and not frontend.later and engine.state.times:
+            snapshot = self._estimator.snapshot(_bare_step(engine))  # the pose before: the keyframe may still move
             increments.append(cast(Increment, (pending.t_begin, pending.t, pending.odometry, pending.odometry_cov)))
         else:
             found = engine.sync().get(name)
@@ -447,19 +448,6 @@ class Slam:
         times_array = _read_only(np.array(times[:n], dtype=float))
         robots = self._robot_poses(snapshot)
         return SlamEstimate(snapshot, covs, (frozen, tail), robots, self._step_robots, times_array)
-
-    def _may_merge(self, pending: PendingStep) -> bool:
-        """Whether keyframing may still fold more odometry into the pending pose (no estimator has seen it)."""
-        frontend = self._engine.frontend
-        return (
-            cast(FrontEndConfig, frontend.config).keyframing is not None
-            and not pending.sealed
-            and pending.odometry is not None
-            and not pending.landmarks
-            and not pending.robots_seen
-            and not frontend.later
-            and self._engine.state.given < 0
-        )
 
     def _held_increments(self, pending: PendingStep, t: float) -> list[Increment]:
         """The odometry held back by ``max_latency`` after time ``t``, as increments (one robot)."""

@@ -205,9 +205,7 @@ class FrontEnd:
             self.newest_t = max(self.newest_t, event.t)
             heapq.heappush(self.held, (event.t, self.arrivals, event))
             self.arrivals += 1
-            due = self.newest_t - config.max_latency
-            while self.held and self.held[0][0] < due:
-                self._take(heapq.heappop(self.held)[2])
+            self._release(self.newest_t - config.max_latency)
         else:
             self._take(event)
         return self._give_out()
@@ -215,9 +213,13 @@ class FrontEnd:
     def flush(self) -> Step | None:
         """Give on every line held by the reorder buffer now (the end of a live run, or a pause); returns the
         oldest step now complete, as :meth:`push` does. Lines older than those given on are late from then on."""
-        while self.held:
-            self._take(heapq.heappop(self.held)[2])
+        self._release(math.inf)
         return self._give_out()
+
+    def _release(self, due: float) -> None:
+        """Take the held lines older than ``due``, in time order (then arrival)."""
+        while self.held and self.held[0][0] < due:
+            self._take(heapq.heappop(self.held)[2])
 
     def next_complete(self) -> Step | None:
         """The next complete step not yet given out, or None (call after :meth:`push` until it gives None)."""
@@ -239,8 +241,7 @@ class FrontEnd:
             else:
                 self._count("truth" if isinstance(event, Truth) else
                             "robot_observation" if event.robot_seen is not None else "observation")  # fmt: skip
-            robot = None if isinstance(event, Scan) else event.robot
-            pose = self._newest(robot, event.t)
+            pose = self._newest(_robot_of(event), event.t)
             if event.t > pose.t + TIME_TOLERANCE:
                 self.ahead.append(event)
             else:
@@ -314,9 +315,9 @@ class FrontEnd:
         """A new pose at the event's time (or the event merged into the newest pose by keyframing); the sightings
         waiting between the two poses get poses of their own on the split increment."""
         pending = self._newest(event.robot, event.t)
-        waiting = [e for e in self.ahead if (None if isinstance(e, Scan) else e.robot) == event.robot]
+        waiting = [e for e in self.ahead if _robot_of(e) == event.robot]
         if waiting:
-            self.ahead = [e for e in self.ahead if (None if isinstance(e, Scan) else e.robot) != event.robot]
+            self.ahead = [e for e in self.ahead if _robot_of(e) != event.robot]
         cut = event.t - TIME_TOLERANCE
         splits: list[float] = []
         for e in waiting:
@@ -407,11 +408,10 @@ class FrontEnd:
         Lines still in the reorder buffer are taken first; sightings stamped after their robot's last odometry
         attach to its newest pose (no odometry spans their time), counted as ``after_last_odometry``.
         """
-        while self.held:
-            self._take(heapq.heappop(self.held)[2])
+        self._release(math.inf)
         waiting, self.ahead = self.ahead, []
         for event in waiting:
-            pose = self._newest(None if isinstance(event, Scan) else event.robot, event.t)
+            pose = self._newest(_robot_of(event), event.t)
             if not isinstance(event, Truth):
                 self._count("after_last_odometry", len(event.landmarks) if isinstance(event, Scan) else 1)
                 event = dataclasses.replace(event, t=pose.t)
@@ -445,14 +445,25 @@ class FrontEnd:
             self.later.append(begun)
         return begun
 
+    def mergeable(self, pending: PendingStep) -> bool:
+        """Whether keyframing may still fold odometry into this pose: on, an odometry pose without sightings that
+        no estimator has seen."""
+        return (
+            cast(FrontEndConfig, self.config).keyframing is not None  # never None after __post_init__
+            and pending.odometry is not None
+            and pending.odometry_cov is not None  # never None with odometry
+            and not pending.landmarks
+            and not pending.robots_seen
+            and not pending.sealed
+        )
+
     def _merge(self, pending: PendingStep, event: Odometry) -> bool:
         """Fold the odometry event into the pending step if keyframing allows it."""
-        limits = cast(FrontEndConfig, self.config).keyframing  # never None after __post_init__
-        if limits is None or pending.odometry is None or pending.landmarks or pending.robots_seen or pending.sealed:
+        if not self.mergeable(pending):
             return False
-        if pending.odometry_cov is None:  # never with odometry (both are None on a start pose alone)
-            return False
-        delta, cov = compose_increments(pending.odometry, pending.odometry_cov, np.array(event.delta), event.covariance)
+        limits = cast(KeyframeConfig, cast(FrontEndConfig, self.config).keyframing)  # mergeable: keyframing is on
+        before, before_cov = cast(Array, pending.odometry), cast(Array, pending.odometry_cov)  # mergeable: both set
+        delta, cov = compose_increments(before, before_cov, np.array(event.delta), event.covariance)
         if (
             math.hypot(delta[0], delta[1]) > limits.max_distance
             or abs(delta[2]) > limits.max_angle
@@ -465,3 +476,8 @@ class FrontEnd:
         # The pose moved on in time: a truth recorded for its earlier time no longer applies.
         self.truth.poses.pop(pending.index, None)
         return True
+
+
+def _robot_of(event: Ahead) -> RobotId | None:
+    """The robot a line is of (a scan names none)."""
+    return None if isinstance(event, Scan) else event.robot

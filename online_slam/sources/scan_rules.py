@@ -35,6 +35,9 @@ class ScanRules:
     def parse_record(self, record: Any, line: int = 0) -> Any:
         raise NotImplementedError
 
+    def sensor(self, name: Any, declared: tuple[str, ...], line: int) -> str | None:
+        raise NotImplementedError
+
     def parse_scan(
         self,
         t: Any,
@@ -68,7 +71,7 @@ class ScanRules:
         per_sighting = nesting(noise) > depth
         if per_sighting and (not isinstance(noise, list) or len(noise) != k):
             raise self.fail(0, noise_key, f"expected one {noise_key} shared by all sightings or one per sighting")
-        self._scan_sensor(sensor)
+        self.sensor(sensor, self.state.sensors, 0)
         saved = self.state
         if saved.robots:
             raise self.fail(0, "robot", "a scan names no robot, and this stream's robots are named: add each sighting "
@@ -144,12 +147,6 @@ class ScanRules:
         measured_ranges = cast("tuple[float, ...]", tuple(e.range for e in events))
         measured_bearings = cast("tuple[float, ...]", tuple(e.bearing for e in events))
         return Scan(t_value, tuple(landmarks), measured_ranges, measured_bearings, noises, sensor=sensor)
-
-    def _scan_sensor(self, sensor: Any) -> None:
-        """Check that a scan's sensor is None or one the header declares."""
-        if sensor is not None and (not isinstance(sensor, str) or sensor not in self.state.sensors):
-            declared = ", ".join(self.state.sensors) or "none: declare them in the header's sensors"
-            raise self.fail(0, "sensor", f"unknown sensor {show(sensor)}; declared: {declared}")
 
     def _scan_shape(self, k: int, ranges: Any, bearings: Any, xy: Any) -> None:
         """Check that a scan gives k ranges and k bearings, or k positions (and not both)."""

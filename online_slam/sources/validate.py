@@ -344,14 +344,11 @@ class EventValidator(ScanRules, RobotRules):
             out[str(name)] = {"pose": list(pose)}
         return out
 
-    def sensor(self, record: dict[str, Any], line: int) -> str | None:
-        """An observation's ``sensor``: a name the header declares, or None."""
-        name = record.get("sensor")
-        if name is None:
-            return None
-        if not isinstance(name, str) or name not in self._pending.sensors:
-            declared = ", ".join(self._pending.sensors) or "none: declare them in the header's sensors"
-            raise self.fail(line, "sensor", f"unknown sensor {show(name)}; declared: {declared}")
+    def sensor(self, name: Any, declared: tuple[str, ...], line: int) -> str | None:
+        """A sighting's ``sensor``: None, or a name the header declares (``declared``)."""
+        if name is not None and (not isinstance(name, str) or name not in declared):
+            listed = ", ".join(declared) or "none: declare them in the header's sensors"
+            raise self.fail(line, "sensor", f"unknown sensor {show(name)}; declared: {listed}")
         return name
 
     def _start(self, record: dict[str, Any], line: int) -> Start:
@@ -383,7 +380,7 @@ class EventValidator(ScanRules, RobotRules):
         if mark is not None and mark not in OUTLIER_KINDS:
             raise self.fail(line, "truth_outlier", f"expected one of {', '.join(OUTLIER_KINDS)}, got {show(mark)}")
         true_id = self.landmark(record, line, optional=True, key="truth_landmark")
-        sensor = self.sensor(record, line)
+        sensor = self.sensor(record.get("sensor"), self._pending.sensors, line)
         if sensor is not None and seen is not None:
             raise self.fail(line, "sensor", "a sighting of a robot is taken at the robot's centre (no sensor)")
         return Observation(
