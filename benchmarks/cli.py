@@ -47,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fuzz-cases", type=int, default=2500, help="fuzz: cases per property (4 properties; 2500)")
     p.add_argument("--circle-runs", type=int, default=100, help="circle: Monte Carlo runs (esde's 100)")
     p.add_argument("--timing-seeds", type=int, default=12, help="timing: seeded worlds per comparison (12)")
-    p.add_argument("--workers", type=int, default=None, help="circle: processes for the runs (default: all cores)")
+    p.add_argument(
+        "--workers", type=int, default=None, help="circle, heldout: processes for the runs (default: all cores)"
+    )
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")
     p.add_argument(
         "--record",
@@ -63,9 +65,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--mrclam",
         metavar="PATH",
-        help="mrclam, sweep: the MRCLAM Dataset 6 folder (required by those sections; not shipped with the repository)",
+        default=SHARED_MRCLAM if (Path(SHARED_MRCLAM) / "Barcodes.dat").is_file() else None,
+        help="mrclam, sweep, heldout: the MRCLAM Dataset 6 folder (not shipped with the repository; default "
+        f"{SHARED_MRCLAM} when it is there)",
     )
     return p
+
+
+SHARED_MRCLAM = "../shared/data/MRCLAM_Dataset6"
+"""Where the project's machines keep MRCLAM Dataset 6 (the folder's default)."""
 
 
 def chosen_sections(args: argparse.Namespace) -> list[str]:

@@ -20,3 +20,40 @@ def test_mrclam_every_estimator_beats_dead_reckoning_and_smoother_and_batch_reac
     ate = {name: r.final_rmse_m for name, r in results.estimators.items()}
     assert all(value < dead_reckoning for value in ate.values()), (ate, dead_reckoning)
     assert ate["smoother"] <= 0.25 and ate["batch"] <= 0.25, ate
+
+
+@needs_data("MRCLAM_Dataset6")
+def test_mrclam_halves_split_the_recording_and_start_at_vicon() -> None:
+    from online_slam.importers.mrclam.reader import half_span, load_robot, read_mrclam
+    from online_slam.sources.events import Observation, Start, Truth
+
+    first, second = half_span(MRCLAM, "first"), half_span(MRCLAM, "second")
+    assert first[1] == second[0] and first[0] < first[1] < second[1]
+    whole = load_robot(MRCLAM, 2)
+    parts = [load_robot(MRCLAM, 2, span) for span in (first, second)]
+    assert sum(len(p.measurements) for p in parts) == len(whole.measurements)
+    assert sum(len(p.robot_rows) for p in parts) == len(whole.robot_rows)
+    assert parts[1].measurements[0, 0] >= second[0] > parts[0].measurements[-1, 0]
+    events = list(read_mrclam(MRCLAM, 2, span=second))
+    start = next(e for e in events if isinstance(e, Start))
+    truth = next(e for e in events if isinstance(e, Truth))
+    assert start.t == min(e.t for e in events if isinstance(e, Observation)) >= second[0]
+    assert truth.t > start.t  # the start's own truth is its prior pose; the next poses carry Vicon
+    results = replay(events, ReplayConfig(estimators=("ekf",)))
+    assert results.estimators["ekf"].online_rmse_m < results.odometry.rmse_m
+
+
+@pytest.mark.slow
+@needs_data("MRCLAM_Dataset6")
+def test_mrclam_fit_half_refits_on_that_half_only() -> None:
+    from online_slam.importers.mrclam.noise import fit_mrclam_noise
+    from online_slam.importers.mrclam.reader import half_span
+
+    halves = [fit_mrclam_noise(MRCLAM, span=half_span(MRCLAM, h)) for h in ("first", "second")]
+    whole = fit_mrclam_noise(MRCLAM)
+    assert halves[0].increments + halves[1].increments <= whole.increments
+    assert halves[0].noise != halves[1].noise
+    config = ReplayConfig(estimators=("ekf",), dataset={"robot": 3, "half": "second", "fit_half": "first"})
+    held_out = replay(MRCLAM, config)
+    assert held_out.poses < replay(MRCLAM, ReplayConfig(estimators=("ekf",), dataset={"robot": 3})).poses
+    assert held_out.estimators["ekf"].final_rmse_m < held_out.odometry.rmse_m

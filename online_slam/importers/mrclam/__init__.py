@@ -20,6 +20,9 @@ from online_slam.sources.events import Event
 FILE = re.compile(r"(Robot[1-5]_(Odometry|Measurement|Groundtruth)|Barcodes|Landmark_Groundtruth)\.dat")
 """The files of an MRCLAM folder (one of them alone is no source: the folder is)."""
 
+HALVES = ("first", "second")
+"""The parts of a recording a held-out check fits on and scores on (:func:`.reader.half_span`)."""
+
 
 def robot_choice(text: str) -> int | str:
     """An MRCLAM robot on the command line: its number, or ``all``."""
@@ -45,6 +48,16 @@ class MrclamOptions:
         kind=bool,
     )  # fmt: skip
     """Refit the model (:func:`.noise.fit_mrclam_noise`) instead of the built-in coefficients fitted on Dataset 6."""
+    half: str | None = option(
+        None, "MRCLAM: replay only the first or the second half of the recording (by time, one cut for all robots)",
+        choices=HALVES, unset="all of it",
+    )  # fmt: skip
+    """``first`` or ``second``: only that half, starting at its first sighting's Vicon pose (None: all of it)."""
+    fit_half: str | None = option(
+        None, "MRCLAM: refit the model against Vicon on this half of the folder's recording only (with --half the "
+        "other: a held-out check)", choices=HALVES, unset="no refit",
+    )  # fmt: skip
+    """Refit on ``first`` or ``second`` half only (:func:`.reader.half_span`); None: as ``refit`` says."""
 
 
 class Mrclam:
@@ -67,24 +80,26 @@ class Mrclam:
 
     def open(self, path: Path, options: MrclamOptions) -> Iterator[Event]:
         """One robot's events, or all five robots' (``robot="all"``), under the built-in or a refitted model."""
-        from online_slam.importers.mrclam.reader import read_mrclam
+        from online_slam.importers.mrclam.reader import half_span, read_mrclam
         from online_slam.importers.mrclam.robots import read_mrclam_robots
 
         if options.robot is None:
             raise InputError(str(path), 0, "robot", "an MRCLAM folder needs --robot N (1..5) or --robot all")
         noise = None
-        if options.refit:
+        if options.refit or options.fit_half is not None:
             from online_slam.importers.mrclam.noise import fit_mrclam_noise
 
-            noise = fit_mrclam_noise(path).noise
+            fit_span = None if options.fit_half is None else half_span(path, options.fit_half)
+            noise = fit_mrclam_noise(path, span=fit_span).noise
+        span = None if options.half is None else half_span(path, options.half)
         if options.robot == "all":
-            return read_mrclam_robots(path, noise)
+            return read_mrclam_robots(path, noise, span)
         try:
             number = int(options.robot)
         except (TypeError, ValueError):
             expected = f"expected a robot number 1..5 or all, got {options.robot!r}"
             raise InputError(str(path), 0, "robot", expected) from None
-        return read_mrclam(path, number, noise)
+        return read_mrclam(path, number, noise, span)
 
 
 IMPORTER = Mrclam()

@@ -398,21 +398,42 @@ def fit_robot_barcode(datas: dict[int, RobotData], cameras: dict[int, Camera]) -
     return float(np.median(found)) if len(found) else 0.0
 
 
-def fit_mrclam_noise(folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5)) -> MrclamNoiseFit:
+def _landmark_xy(root: Path) -> dict[int, Array]:
+    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    return {int(row[0]): row[1:3] for row in landmarks}
+
+
+def fit_camera_on(folder: str | Path, robot: int, span: tuple[float, float] | None = None) -> Camera:
+    """One robot's camera (:func:`fit_camera`) fitted on ``span`` of the recording only (None: all of it)."""
+    root = Path(folder)
+    return fit_camera(load_robot(root, robot, span), _landmark_xy(root))
+
+
+def with_camera(noise: MrclamNoise, robot: int, camera: Camera) -> MrclamNoise:
+    """The model with ``robot``'s camera replaced."""
+    cameras = list(noise.cameras or MrclamNoise().cameras)
+    cameras[robot - 1] = camera
+    return replace(noise, cameras=tuple(cameras))
+
+
+def fit_mrclam_noise(
+    folder: str | Path, robots: tuple[int, ...] = (1, 2, 3, 4, 5), span: tuple[float, float] | None = None
+) -> MrclamNoiseFit:
     """Fit the MRCLAM model (calibration, increments' noise, sightings' noise) against Vicon over the given robots.
 
     Args:
         folder: The dataset folder (as for :func:`online_slam.importers.mrclam.reader.read_mrclam`).
         robots: Robots whose data enter the fit.
+        span: Only this part of the recording, ``(start, end)`` s (e.g. a half:
+            :func:`~online_slam.importers.mrclam.reader.half_span`); None: all of it.
 
     Returns:
         The fitted model with the number of increments and measurements used.
     """
     root = Path(folder)
     defaults = MrclamNoise()
-    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
-    landmark_xy = {int(row[0]): row[1:3] for row in landmarks}
-    datas = [load_robot(root, r) for r in robots]
+    landmark_xy = _landmark_xy(root)
+    datas = [load_robot(root, r, span) for r in robots]
     lag, speed, turn, loss = fit_command_calibration(datas)
     noise = replace(defaults, command_lag_s=lag, speed_scale=speed, turn_scale=turn, speed_per_turn=loss)
     commands = [calibrated(d.odometry, noise) for d in datas]

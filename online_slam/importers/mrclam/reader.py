@@ -34,7 +34,7 @@ choice is in benchmarks/RESULTS.md, "The noise model of the conversion"):
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -240,6 +240,46 @@ class RobotData:
     dropped_self: int
     """Sightings of the robot's own barcode, dropped."""
 
+    def span(self, start: float, end: float) -> RobotData:
+        """The part of the recording from ``start`` to ``end`` (s, ``end`` excluded): its sightings, the commands
+        that drive the robot between them (from the one in force :data:`COMMAND_MARGIN_S` before ``start``) and
+        Vicon with a second's margin for interpolation."""
+        margin = COMMAND_MARGIN_S
+        first = max(int(np.searchsorted(self.odometry[:, 0], start - margin, side="right")) - 1, 0)
+        odometry = self.odometry[first : int(np.searchsorted(self.odometry[:, 0], end))]
+        inside = (self.measurements[:, 0] >= start) & (self.measurements[:, 0] < end)
+        robots = (self.robot_rows[:, 0] >= start) & (self.robot_rows[:, 0] < end)
+        truth = self.truth[(self.truth[:, 0] >= start - 1.0) & (self.truth[:, 0] <= end + 1.0)]
+        return replace(
+            self,
+            odometry=odometry,
+            measurements=self.measurements[inside],
+            subjects=self.subjects[inside],
+            times=np.unique(self.measurements[inside, 0]),
+            truth=truth,
+            robot_rows=self.robot_rows[robots],
+            robots_seen=self.robots_seen[robots],
+        )
+
+
+COMMAND_MARGIN_S = 1.0
+"""Seconds of commands kept before a part of the recording begins (the robot acts on a command ``command_lag_s``,
+0.24 s, after its timestamp)."""
+
+
+def recording_span(root: Path) -> tuple[float, float]:
+    """First and last sighting time over every robot of a folder, s."""
+    times = [load_robot(root, r).measurements[:, 0] for r in (1, 2, 3, 4, 5)]
+    return min(float(t[0]) for t in times if len(t)), max(float(t[-1]) for t in times if len(t))
+
+
+def half_span(root: Path, half: str) -> tuple[float, float]:
+    """The ``first`` or ``second`` half of the folder's recording by time (the same cut for every robot), as
+    ``(start, end)`` with ``end`` excluded."""
+    first, last = recording_span(root)
+    middle = 0.5 * (first + last)
+    return (first, middle) if half == "first" else (middle, float(np.nextafter(last, np.inf)))
+
 
 SWAPPED_SUBJECTS = {"MRCLAM_Dataset1": (11, 17)}
 """Folders whose ``Barcodes.dat`` gives two subjects each other's barcode, by folder name (as the MRCLAM site's
@@ -258,8 +298,9 @@ def subjects_of_barcodes(root: Path) -> dict[int, int]:
     return subject_of
 
 
-def load_robot(root: Path, robot: int) -> RobotData:
-    """Read one robot's odometry, measurements and Vicon truth; landmark sightings apart from robot sightings."""
+def load_robot(root: Path, robot: int, span: tuple[float, float] | None = None) -> RobotData:
+    """Read one robot's odometry, measurements and Vicon truth; landmark sightings apart from robot sightings; only
+    ``span`` (start, end) of the recording when given (:meth:`RobotData.span`)."""
     subject_of = subjects_of_barcodes(root)
     odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
     measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
@@ -271,7 +312,7 @@ def load_robot(root: Path, robot: int) -> RobotData:
     is_other = (subjects >= 1) & (subjects <= 5) & (subjects != robot)
     others, others_seen = measurements[is_other], subjects[is_other]
     by_time = np.argsort(others[:, 0], kind="stable")
-    return RobotData(
+    data = RobotData(
         odometry=odometry[np.argsort(odometry[:, 0], kind="stable")],
         measurements=kept[order],
         subjects=kept_subjects[order],
@@ -282,6 +323,7 @@ def load_robot(root: Path, robot: int) -> RobotData:
         robots_seen=others_seen[by_time],
         dropped_self=int(np.sum(subjects == robot)),
     )
+    return data if span is None else data.span(*span)
 
 
 def increment_covariances(increments: np.ndarray, variances: np.ndarray) -> np.ndarray:
@@ -408,13 +450,17 @@ def odometry_increments(commands: np.ndarray, times: np.ndarray, cfg: MrclamNois
     return increments, model_covariances(cfg, increments, spans, levers_of(p) if cfg.heading_along_path else None)
 
 
-def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None) -> Iterator[Event]:
+def read_mrclam(
+    folder: str | Path, robot: int, noise: MrclamNoise | None = None, span: tuple[float, float] | None = None
+) -> Iterator[Event]:
     """Stream one MRCLAM robot as events.
 
     Args:
         folder: The dataset folder (``Barcodes.dat``, ``RobotN_*.dat``, ``Landmark_Groundtruth.dat``).
         robot: Robot number, 1..5.
         noise: Noise model (defaults: fitted on Dataset 6).
+        span: Only this part of the recording, ``(start, end)`` in the dataset's seconds (:func:`half_span`); it
+            starts at its first sighting's Vicon pose, as the whole recording does.
 
     Yields:
         Stream-v1 events.
@@ -423,7 +469,9 @@ def read_mrclam(folder: str | Path, robot: int, noise: MrclamNoise | None = None
     cfg = noise or MrclamNoise()
     if not 1 <= robot <= 5:
         raise InputError(str(root), 0, "robot", f"expected a robot number 1..5, got {robot}")
-    data = load_robot(root, robot)
+    data = load_robot(root, robot, span)
+    if not len(data.times):
+        raise InputError(str(root), 0, "robot", f"robot {robot} has no sightings in that part of the recording")
     kept_subjects, times, truth = data.subjects, data.times, data.truth
     camera, kept, sigmas = camera_sightings(cfg, robot, data.measurements, kept_subjects, mounted=True)
     sensors = {} if camera is None else {"sensors": {"camera": {"pose": mounting(camera)}}}

@@ -114,19 +114,22 @@ def _sensors(cfg: MrclamNoise) -> dict[str, dict[str, dict[str, list[float]]]]:
     return {"sensors": cameras} if cameras else {}
 
 
-def read_mrclam_robots(folder: str | Path, noise: MrclamNoise | None = None) -> Iterator[Event]:
+def read_mrclam_robots(
+    folder: str | Path, noise: MrclamNoise | None = None, span: tuple[float, float] | None = None
+) -> Iterator[Event]:
     """Stream all five MRCLAM robots as one multi-robot stream.
 
     Args:
         folder: The dataset folder (as for :func:`~online_slam.importers.mrclam.reader.read_mrclam`).
         noise: Noise model (defaults: fitted on Dataset 6), the same for every robot.
+        span: Only this part of the recording (as for ``read_mrclam``).
 
     Yields:
         Stream-v1 events naming their robot (1..5), ordered by time.
     """
     root = Path(folder)
     cfg = noise or MrclamNoise()
-    data = {robot: load_robot(root, robot) for robot in ROBOTS}
+    data = {robot: load_robot(root, robot, span) for robot in ROBOTS}
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     times = {robot: pose_times(robot, data) for robot in ROBOTS}
     lines = [line for robot in ROBOTS for line in _robot_lines(robot, data[robot], times[robot], cfg)]

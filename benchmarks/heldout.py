@@ -1,0 +1,130 @@
+"""Held-out figures for MRCLAM's model: fitted on one part of Dataset 6, scored on another.
+
+The conversion's model (:mod:`online_slam.importers.mrclam.noise`) is fitted against Vicon. Scored on the data it
+was fitted on, its figures flatter it; here every fit is scored on data it did not see:
+
+- **halves**: the recording cut at its middle (one cut for all robots,
+  :func:`~online_slam.importers.mrclam.reader.half_span`); the model fitted on one half over the five robots,
+  each robot (and all five in one stream) replayed on the other half. Beside it, the same fit scored on its own
+  half (in-sample), and the built-in model (fitted on the whole recording) on each half;
+- **leave one robot out**: the commands' calibration, the increments' noise, the sightings' correlation and the
+  robot barcode fitted on the other four robots (the whole recording); the robot's own camera (where it places a
+  sighting, its sigmas) on its own first half; scored on its second half.
+
+Every replay runs the defaults (EKF, smoother, batch) and reports the online and final position RMSE against Vicon
+and the mean NEES. ``python -m benchmarks --only heldout --mrclam FOLDER``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from online_slam.importers.mrclam.noise import fit_camera_on, fit_mrclam_noise, with_camera
+from online_slam.importers.mrclam.reader import MrclamNoise, half_span, read_mrclam
+from online_slam.importers.mrclam.robots import ROBOTS, read_mrclam_robots
+from online_slam.pipeline import replay
+from online_slam.pipeline.config import ReplayConfig
+
+ESTIMATORS = ("ekf", "smoother", "batch")
+"""The estimators every replay runs (the defaults but dead reckoning)."""
+STREAMS: tuple[int | str, ...] = (*ROBOTS, "all")
+"""Each robot alone, then all five in one stream."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One replay: a model scored on a part of the recording."""
+
+    scheme: str
+    """What was fitted on what, e.g. ``fit first, score second``."""
+    held_out: bool
+    """Whether the scored data was left out of the fit."""
+    stream: int | str
+    """The robot (1-5), or ``all``."""
+    online: dict[str, float]
+    """Online position RMSE by estimator (m; the batch has none)."""
+    final: dict[str, float]
+    """Final position RMSE by estimator, m."""
+    nees: dict[str, float]
+    """Mean NEES by estimator (the batch has none)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """A replay to run: the model, the part scored, the stream."""
+
+    scheme: str
+    held_out: bool
+    stream: int | str
+    noise: MrclamNoise
+    span: tuple[float, float]
+
+
+def fits(folder: str | Path) -> dict[str, MrclamNoise]:
+    """The fitted models: ``builtin``, ``first``, ``second`` (a half's fit) and ``without N`` (robot N left out,
+    its camera from its first half)."""
+    first = half_span(Path(folder), "first")
+    models = {"builtin": MrclamNoise()}
+    for half in ("first", "second"):
+        models[half] = fit_mrclam_noise(folder, span=half_span(Path(folder), half)).noise
+    for robot in ROBOTS:
+        others = tuple(r for r in ROBOTS if r != robot)
+        fitted = fit_mrclam_noise(folder, robots=others).noise
+        models[f"without {robot}"] = with_camera(fitted, robot, fit_camera_on(folder, robot, first))
+    return models
+
+
+def jobs(folder: str | Path, models: dict[str, MrclamNoise]) -> list[Job]:
+    """Every replay of the benchmark, in the order of its table."""
+    spans = {half: half_span(Path(folder), half) for half in ("first", "second")}
+    other = {"first": "second", "second": "first"}
+    out = []
+    for half in ("first", "second"):
+        for stream in STREAMS:
+            out.append(Job(f"built-in, score {half}", False, stream, models["builtin"], spans[half]))
+            out.append(Job(f"fit {half}, score {half}", False, stream, models[half], spans[half]))
+            out.append(Job(f"fit {other[half]}, score {half}", True, stream, models[other[half]], spans[half]))
+    for robot in ROBOTS:
+        out.append(Job("fit other robots, score second", True, robot, models[f"without {robot}"], spans["second"]))
+    return out
+
+
+def run_job(folder: str, job: Job) -> Cell:
+    """Replay one job's stream and take its figures."""
+    if job.stream == "all":
+        events = read_mrclam_robots(folder, job.noise, job.span)
+    else:
+        events = read_mrclam(folder, int(job.stream), job.noise, job.span)
+    results = replay(events, ReplayConfig(estimators=ESTIMATORS), name=f"{job.scheme} {job.stream}")
+    e = results.estimators
+    return Cell(
+        job.scheme,
+        job.held_out,
+        job.stream,
+        {k: e[k].online_rmse_m for k in ("ekf", "smoother")},
+        {k: e[k].final_rmse_m for k in ESTIMATORS},
+        {k: e[k].nees_mean for k in ("ekf", "smoother")},
+    )
+
+
+def run_heldout(folder: str | Path, workers: int | None = None) -> list[Cell]:
+    """Fit every model, then run every replay (``workers`` processes; None: every core)."""
+    models = fits(folder)
+    todo = jobs(folder, models)
+    with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
+        return list(pool.map(run_job, [str(folder)] * len(todo), todo))
+
+
+def worst(cells: Sequence[Cell]) -> dict[str, float]:
+    """The held-out cells' worst figures against the targets: online RMSE and mean NEES (EKF and smoother), and the
+    smoother's and batch's final over the EKF's final."""
+    held = [c for c in cells if c.held_out]
+    return {
+        "online_m": max(max(c.online.values()) for c in held),
+        "nees": max(max(c.nees.values()) for c in held),
+        "final_over_ekf": max(max(c.final["smoother"], c.final["batch"]) / c.final["ekf"] for c in held),
+    }
