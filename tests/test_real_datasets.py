@@ -57,3 +57,17 @@ def test_mrclam_fit_half_refits_on_that_half_only() -> None:
     held_out = replay(MRCLAM, config)
     assert held_out.poses < replay(MRCLAM, ReplayConfig(estimators=("ekf",), dataset={"robot": 3})).poses
     assert held_out.estimators["ekf"].final_rmse_m < held_out.odometry.rmse_m
+
+
+@needs_data("MRCLAM_Dataset6")
+def test_mrclam_robot_subset_keeps_only_sightings_of_its_robots() -> None:
+    from online_slam.importers.mrclam.reader import half_span
+    from online_slam.importers.mrclam.robots import read_mrclam_robots
+    from online_slam.sources.events import Header, Observation, Start
+
+    events = list(read_mrclam_robots(MRCLAM, span=half_span(MRCLAM, "first"), robots=(2, 4)))
+    header = next(e for e in events if isinstance(e, Header))
+    assert header.meta["robots"] == [2, 4] and header.name.endswith("robots 2, 4")
+    assert {e.robot for e in events if isinstance(e, Start)} == {2, 4}
+    seen = {e.robot_seen for e in events if isinstance(e, Observation) and e.robot_seen is not None}
+    assert seen and seen <= {2, 4}

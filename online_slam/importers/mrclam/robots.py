@@ -22,6 +22,7 @@ robot sighting comes after the seen robot's pose of that time.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -108,6 +109,17 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
         )
 
 
+def _among(data: RobotData, robots: tuple[int, ...]) -> RobotData:
+    """The robot's data with its sightings of robots outside ``robots`` left out."""
+    keep = np.isin(data.robots_seen, robots)
+    return data if keep.all() else replace(data, robot_rows=data.robot_rows[keep], robots_seen=data.robots_seen[keep])
+
+
+def _named(robots: tuple[int, ...]) -> str:
+    """``1-5`` for all five, else ``1, 3, 4``."""
+    return "1-5" if robots == ROBOTS else ", ".join(map(str, robots))
+
+
 def _sensors(cfg: MrclamNoise) -> dict[str, dict[str, dict[str, list[float]]]]:
     """The header's ``sensors``: each robot's camera (``camera1``..``camera5``) where the model has one."""
     cameras = {f"camera{r}": {"pose": mounting(c)} for r in ROBOTS if (c := camera_of(cfg, r)) is not None}
@@ -115,7 +127,10 @@ def _sensors(cfg: MrclamNoise) -> dict[str, dict[str, dict[str, list[float]]]]:
 
 
 def read_mrclam_robots(
-    folder: str | Path, noise: MrclamNoise | None = None, span: tuple[float, float] | None = None
+    folder: str | Path,
+    noise: MrclamNoise | None = None,
+    span: tuple[float, float] | None = None,
+    robots: tuple[int, ...] = ROBOTS,
 ) -> Iterator[Event]:
     """Stream all five MRCLAM robots as one multi-robot stream.
 
@@ -123,23 +138,24 @@ def read_mrclam_robots(
         folder: The dataset folder (as for :func:`~online_slam.importers.mrclam.reader.read_mrclam`).
         noise: Noise model (defaults: fitted on Dataset 6), the same for every robot.
         span: Only this part of the recording (as for ``read_mrclam``).
+        robots: Only these robots (their sightings of the others left out).
 
     Yields:
         Stream-v1 events naming their robot (1..5), ordered by time.
     """
     root = Path(folder)
     cfg = noise or MrclamNoise()
-    data = {robot: load_robot(root, robot, span) for robot in ROBOTS}
+    data = {robot: _among(load_robot(root, robot, span), robots) for robot in robots}
     landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
-    times = {robot: pose_times(robot, data) for robot in ROBOTS}
-    lines = [line for robot in ROBOTS for line in _robot_lines(robot, data[robot], times[robot], cfg)]
+    times = {robot: pose_times(robot, data) for robot in robots}
+    lines = [line for robot in robots for line in _robot_lines(robot, data[robot], times[robot], cfg)]
     lines.sort(key=lambda line: line[:3])  # stable: one robot's sightings of one time keep the order made above
     yield Header(
-        name=f"MRCLAM {root.name.removeprefix('MRCLAM_')}, robots 1-5",
+        name=f"MRCLAM {root.name.removeprefix('MRCLAM_')}, robots {_named(robots)}",
         meta={
             "converted_from": str(root.name),
-            "robots": list(ROBOTS),
-            "poses": {str(r): int(len(times[r])) for r in ROBOTS},
+            "robots": list(robots),
+            "poses": {str(r): int(len(times[r])) for r in robots},
             "landmark_observations": sum(int(len(d.measurements)) for d in data.values()),
             "robot_observations": sum(int(len(d.robot_rows)) for d in data.values()),
             "dropped_unknown_barcodes": sum(d.dropped_unknown for d in data.values()),

@@ -1,0 +1,100 @@
+"""Declared noise that is wrong: the same data, its declared covariances scaled, every estimator with its defaults.
+
+A robot never comes with a correct noise model. Each stream is replayed as declared and with its odometry or its
+sightings' covariances declared 0.09x or 9x (sigmas 0.3x or 3x; the data unchanged, through the front-end's
+``odometry_noise_scale`` / ``sensor_noise_scale``), on 2000-pose simulated worlds (the grid at two seeds, the
+random-waypoint world) and on MRCLAM Dataset 6's robots when the folder is there. The figures against the target
+"nothing diverges": every estimator's online error within 3x of the correctly declared stream's, the smoother's
+final within 1.5x of the batch's on the same stream. ``python -m benchmarks --only misdeclared``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from online_slam.frontend.steps import FrontEndConfig
+from online_slam.pipeline import replay
+from online_slam.pipeline.config import ReplayConfig
+from online_slam.sources.events import Event
+from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, waypoint_world
+
+CASES: tuple[tuple[str, float, float], ...] = (
+    ("as declared", 1.0, 1.0),
+    ("odometry 0.3x", 0.09, 1.0),
+    ("odometry 3x", 9.0, 1.0),
+    ("sensor 0.3x", 1.0, 0.09),
+    ("sensor 3x", 1.0, 9.0),
+)
+"""(label, odometry covariance scale, sensor covariance scale): the sigmas declared 0.3x or 3x."""
+WORLDS: dict[str, Callable[[], Iterable[Event]]] = {
+    "grid seed 7": lambda: grid_world(GridConfig(seed=7)),
+    "grid seed 11": lambda: grid_world(GridConfig(seed=11)),
+    "waypoint 2000": lambda: waypoint_world(WaypointConfig(poses=2000)),
+}
+"""The simulated worlds, 2000 poses each."""
+
+
+@dataclass(frozen=True)
+class Row:
+    """One stream under one declaration."""
+
+    stream: str
+    """The world or MRCLAM robot."""
+    case: str
+    """Which covariances are misdeclared, and how (a label of :data:`CASES`)."""
+    online: dict[str, float]
+    """Online position RMSE of the EKF and the smoother, m."""
+    final: dict[str, float]
+    """Final position RMSE of the smoother and the batch, m."""
+    nees: dict[str, float]
+    """Mean NEES of the EKF and the smoother."""
+
+
+def _events(stream: str, folder: str | None) -> list[Event]:
+    if stream.startswith("MRCLAM robot "):
+        from online_slam.importers.mrclam.reader import read_mrclam
+
+        return list(read_mrclam(str(folder), int(stream.rsplit(" ", 1)[1])))
+    return list(WORLDS[stream]())
+
+
+def run_stream(stream: str, folder: str | None = None) -> list[Row]:
+    """Every case of one stream."""
+    events = _events(stream, folder)
+    rows = []
+    for case, odometry, sensor in CASES:
+        frontend = FrontEndConfig(odometry_noise_scale=odometry, sensor_noise_scale=sensor)
+        config = ReplayConfig(estimators=("ekf", "smoother", "batch"), frontend=frontend)
+        e = replay(events, config, name=stream, validate=stream.startswith("MRCLAM")).estimators
+        rows.append(
+            Row(
+                stream,
+                case,
+                {k: e[k].online_rmse_m for k in ("ekf", "smoother")},
+                {k: e[k].final_rmse_m for k in ("smoother", "batch")},
+                {k: e[k].nees_mean for k in ("ekf", "smoother")},
+            )
+        )
+    return rows
+
+
+def run_misdeclared(folder: str | Path | None, workers: int | None = None) -> list[Row]:
+    """Every stream (the worlds; MRCLAM's five robots when ``folder`` is given) under every case."""
+    streams = list(WORLDS) + ([f"MRCLAM robot {r}" for r in range(1, 6)] if folder else [])
+    with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
+        done = pool.map(run_stream, streams, [None if folder is None else str(folder)] * len(streams))
+        return [row for rows in done for row in rows]
+
+
+def verdicts(rows: list[Row]) -> dict[str, float]:
+    """Worst online ratio to the stream's correctly declared run (EKF, smoother) and worst smoother final over the
+    batch final."""
+    base = {r.stream: r for r in rows if r.case == CASES[0][0]}
+    return {
+        "online_ratio": max(r.online[k] / base[r.stream].online[k] for r in rows for k in r.online),
+        "smoother_over_batch": max(r.final["smoother"] / r.final["batch"] for r in rows),
+    }
