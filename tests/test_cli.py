@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -284,16 +285,19 @@ def test_bad_first_line_reports_without_results(tmp_path: Path) -> None:
     )
 
 
-def benchmarks(*args: str) -> subprocess.CompletedProcess:
-    """``python -m benchmarks`` from the repository root, where the benchmarks live beside the package."""
+def benchmarks(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """``python -m benchmarks`` from the repository root, where the benchmarks live beside the package (or from
+    ``cwd``, the benchmarks found through PYTHONPATH)."""
     root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(root), os.environ.get("PYTHONPATH")]))}
     return subprocess.run(
-        [sys.executable, "-m", "benchmarks", *args], capture_output=True, text=True, cwd=root, timeout=300
-    )
+        [sys.executable, "-m", "benchmarks", *args], capture_output=True, text=True, cwd=cwd or root, timeout=300,
+        env=env,
+    )  # fmt: skip
 
 
-def test_benchmarks_ask_for_the_mrclam_folder_before_running() -> None:
-    done = benchmarks("--only", "batch,mrclam")
+def test_benchmarks_ask_for_the_mrclam_folder_before_running(tmp_path: Path) -> None:
+    done = benchmarks("--only", "batch,mrclam", cwd=tmp_path)  # no ../shared/data/MRCLAM_Dataset6 from there
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.strip() == (
         "benchmarks: error: mrclam: give --mrclam PATH, the MRCLAM Dataset 6 folder (it holds Barcodes.dat)"

@@ -206,7 +206,10 @@ class SlidingWindowSmoother(SeveralRobots):
         )
 
     def finish(self) -> Estimate:
-        """Solve once more if anything arrived since the last solve; each pose's last estimate is final (with every
+        """Solve once more if anything arrived since the last solve, then (with global relinearization on) re-solve
+        every factor from there once (:meth:`relinearize_globally`, kept only when it reconciles the history, as on
+        schedule): the final estimate is the smoother's best, whatever its window went through (with declared noise
+        3x off, a window's final stayed up to 2.6x the batch's). Each pose's last estimate is final (with every
         landmark's marginal covariance there).
 
         A global relinearization still running in the background is waited for and dropped: its hand-over
@@ -221,6 +224,8 @@ class SlidingWindowSmoother(SeveralRobots):
         if w.indices:
             with self._blas.limit(limits=1, user_api="blas"):
                 self.solve(final=True)
+                if self.config.global_solve.every:  # end on every factor re-solved: a diverged window recovers
+                    self.relinearize_globally()
         decisions = r.decisions + [(g, judge(w, g, self._reject_bound)) for g in w.indices if g in w.observations]
         if w.several:  # poses left the window out of step order
             decisions.sort(key=lambda d: d[0])
