@@ -207,10 +207,10 @@ class SlidingWindowSmoother(SeveralRobots):
 
     def finish(self) -> Estimate:
         """Solve once more if anything arrived since the last solve, then (with global relinearization on) re-solve
-        every factor from there once (:meth:`relinearize_globally`, kept only when it reconciles the history, as on
-        schedule): the final estimate is the smoother's best, whatever its window went through (with declared noise
-        3x off, a window's final stayed up to 2.6x the batch's). Each pose's last estimate is final (with every
-        landmark's marginal covariance there).
+        every factor from there once, as a scheduled global relinearization does (:meth:`relinearize_globally`, its
+        few iterations), so that the poses after the last scheduled one are revised too (why, and why not to
+        convergence: benchmarks/RESULTS.md, "The smoother ends on a global solve"). Each pose's last estimate is
+        final (with every landmark's marginal covariance there).
 
         A global relinearization still running in the background is waited for and dropped: its hand-over
         step never came (the final estimate is what the regular schedule gave).
@@ -225,7 +225,7 @@ class SlidingWindowSmoother(SeveralRobots):
             with self._blas.limit(limits=1, user_api="blas"):
                 self.solve(final=True)
                 if self.config.global_solve.every:  # end on every factor re-solved: a diverged window recovers
-                    self.relinearize_globally()
+                    self.relinearize_globally(final=True)
         decisions = r.decisions + [(g, judge(w, g, self._reject_bound)) for g in w.indices if g in w.observations]
         if w.several:  # poses left the window out of step order
             decisions.sort(key=lambda d: d[0])
@@ -484,23 +484,30 @@ class SlidingWindowSmoother(SeveralRobots):
                 report = {**report, **self.relinearize_globally()}
         return report
 
-    def relinearize_globally(self) -> dict[str, float]:
-        """Re-solve every factor from the current estimate now; revise the history; re-anchor the prior there."""
+    def relinearize_globally(self, final: bool = False) -> dict[str, float]:
+        """Re-solve every factor from the current estimate now; revise the history; re-anchor the prior there
+        (``final``: at the end of the stream, see :meth:`_apply_global`)."""
         started = time.perf_counter()
         inputs = global_inputs(self.relinearization, self.window)
         if inputs is None:
             return {}
         result = solve_now(inputs, global_solver(self.config), self.config.robust.loss)
-        report = self._apply_global(result, len(inputs.poses), at_once=True)
+        report = self._apply_global(result, len(inputs.poses), at_once=True, final=final)
         report["global_s"] = time.perf_counter() - started
         return report
 
-    def _apply_global(self, result: SolveResult, n_poses: int, at_once: bool) -> dict[str, float]:
-        """Write a global solution's revision (:func:`~.global_solve.revise`) into the state; its report."""
+    def _apply_global(self, result: SolveResult, n_poses: int, at_once: bool, final: bool = False) -> dict[str, float]:
+        """Write a global solution's revision (:func:`~.global_solve.revise`) into the state; its report.
+
+        ``final`` (the end of the stream, one robot): a solution whose prior would be refused is still taken when
+        it lowered the cost, the prior left where it was (no step follows that it would carry)."""
         r, w = self.relinearization, self.window
         revision = revise(result, n_poses, at_once, w, self.prior, r, self.config)
         if revision is None:
             retried = self._rejudged_solve(result, n_poses, at_once)
+            if retried is None and final and not w.several and result.final_cost < result.initial_cost:
+                history, _, landmarks = followed(result, n_poses, at_once, w)
+                retried = (result, Revision(history, landmarks, None), r.decisions)
             if retried is None:
                 r.rejections += 1
                 return {"global_rejected": 1.0}
