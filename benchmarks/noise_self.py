@@ -21,6 +21,7 @@ import argparse
 import dataclasses
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -82,7 +83,7 @@ def figures(events: Iterable[Event], config: ReplayConfig) -> Figures:
 
 def misdeclared(events: Sequence[Event], factors: tuple[float, float]) -> list[Event]:
     """The stream with its declared odometry and sighting covariances multiplied by ``factors``."""
-    return [scaled_event(e, *factors) for e in events]  # type: ignore[misc]  # stream events stay events
+    return cast("list[Event]", [scaled_event(e, *factors) for e in events])  # stream events stay events
 
 
 def self_config(config: ReplayConfig) -> ReplayConfig:
@@ -143,7 +144,7 @@ def mrclam(folder: str, streams: Sequence[str], say: Callable[[str], None] = pri
         fitted = figures(events, self_config(config))
         say(f"{stream} --noise self: {fitted.line()}")
         assert fitted.fit is not None  # --noise self told its fit
-        say(f"{stream}   biases: {[(b.sensor, b.range_m, b.bearing_rad, b.applied) for b in fitted.fit.biases]}")
+        say(f"{stream}   biases: {[(b.sensor, b.range_m, b.bearing_rad, b.significant) for b in fitted.fit.biases]}")
         applied = with_noise_fit(config, dataclasses.replace(fitted.fit, sightings_correlated=False))
         say(f"{stream} --noise self, sensor scale and biases applied: {figures(events, applied).line()}")
         for name, factors in MISDECLARED.items():

@@ -3,7 +3,7 @@
 A real robot has no truth to fit its noise to (:mod:`~online_slam.evaluation.noise_fit` needs it). But the batch
 solution's residuals tell how far the data disagree with each other, and how far each kind of measurement may
 disagree is what its covariance says. Maximum likelihood over the scales of the covariances is variance-component
-estimation (Helmert; Forstner 1979; Koch 1999, ch. 3.6), iterated:
+estimation (Helmert; Forstner 1979), iterated:
 
 1. Solve the batch problem (every pose, landmark and factor: the batch solver's graph and Levenberg-Marquardt)
    with the covariances scaled by the current estimates: the odometry's by ``s_o``, every sighting's (landmarks
@@ -16,13 +16,15 @@ estimation (Helmert; Forstner 1979; Koch 1999, ch. 3.6), iterated:
 Each sensor's range and bearing bias (a sensor: a sighting's ``sensor`` name, None for the robot's centre; only
 range-bearing landmark sightings) is a parameter of the same solve: a Gauss-Newton step on ``[poses, landmarks,
 biases]`` at each solution (the biases' columns beside the batch's Jacobian), iterated with the scales. The
-biases' parameters take their share of the sightings' redundancy.
+biases' parameters take their share of the sightings' redundancy. A bias is applied only where it is beyond noise
+(``bias_false_alarm``): taken off the sightings, an estimate's noise would be a bias of its own.
 
 Outliers (a sighting carrying another landmark's id) are left out of the solve and the estimate when their squared
 whitened residual, under the current scale, exceeds the chi-square quantile at ``gate_probability``; every
-sighting is judged again at each solve. The first solve has a Cauchy loss and a robust (median) scale for the
-first gate, so that a few outliers cannot set the start. The sightings' scale is divided by the share of a
-chi-square's mean that the gate keeps (``P(chi2_4 < gate)``), which the gate would otherwise take off inliers.
+sighting is judged again at each solve. The first solve (from an estimator's estimate, when given) has a Cauchy
+loss and a robust (median) scale for the first gate, so that a few outliers cannot set the start. The sightings'
+scale is divided by the share of a chi-square's mean that the gate keeps (``P(chi2_4 < gate)``), which the gate
+would otherwise take off inliers.
 
 Only sightings with a landmark id are used: associating sightings without one depends on the very covariances
 being fitted (every gate is drawn with them), so a fit on such associations would check itself. A stream with no
@@ -56,7 +58,7 @@ from online_slam.frontend.steps import Step
 from online_slam.models.observation import RANGE_BEARING, split_models, wrap_bearings
 from online_slam.solvers.config import SolverConfig
 from online_slam.solvers.least_squares import retract, solve
-from online_slam.solvers.redundancy import gauss_newton, group_traces
+from online_slam.solvers.redundancy import SingularMatrix, gauss_newton, group_traces
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -81,6 +83,10 @@ class SelfFitConfig:
     default. An estimate's noise taken off the sightings would be a bias of its own: a bearing bias of the robot's
     centre is a heading offset, and a few thousandths of a radian already move the estimated headings by more than
     their sigma."""
+    min_range_sigmas: float = 3.0
+    """A range-bearing sighting (of a landmark or a robot) measured closer than this many range sigmas (under the
+    current scale) is left out: a landmark on the pose explains its bearing, where the model's Jacobian grows
+    without bound, and the solution can collapse there (the normal matrix then is singular)."""
     min_redundancy: float = 5.0
     """A group with less redundancy than this keeps its declared covariances (scale 1): the data cannot tell."""
     initial_loss: RobustLoss = field(default_factory=lambda: RobustLoss("cauchy", 3.0))
@@ -105,8 +111,9 @@ class BiasFit:
     """Standard deviation of the range bias, metres."""
     bearing_sd: float
     """Standard deviation of the bearing bias, radians."""
-    applied: tuple[bool, bool]
-    """Whether the range and the bearing bias are taken off (beyond noise: ``bias_false_alarm``)."""
+    significant: tuple[bool, bool]
+    """Whether the range and the bearing bias are beyond noise (``bias_false_alarm``): those are taken off the
+    sightings (unless the source's sightings are correlated: :attr:`SelfFit.sightings_correlated`)."""
 
 
 @dataclass(frozen=True)
@@ -123,6 +130,8 @@ class SelfFit:
     """Sightings of robots (in the sensor group, without bias)."""
     gated: int
     """Sightings (of landmarks and robots) left out by the gate at the last solve."""
+    close: int
+    """Range-bearing sightings left out as measured within ``min_range_sigmas`` of the sensor."""
     odometry_scale: float
     """Maximum-likelihood scale of the odometry covariances (1 when the odometry's redundancy is too small)."""
     sensor_scale: float
@@ -140,8 +149,8 @@ class SelfFit:
     sightings_correlated: bool = False
     """The source declares (header ``sightings_correlated``) that its sighting sigmas allow for the correlation of
     repeated sightings: the sensor scale and the biases are measured and shown, not applied. The fit sees each
-    sighting as independent: it takes the widening for an overstatement (MRCLAM: scales 0.009-0.025), and a
-    landmark's errors that stay alike for a while for a bias; applied, they raised MRCLAM's NEES to 10-165."""
+    sighting as independent: it takes the widening for an overstatement, and a landmark's errors that stay alike for
+    a while for a bias; applied on MRCLAM, both made every estimator overconfident (docs/commands.md)."""
 
     @property
     def applied_sensor_scale(self) -> float:
@@ -155,9 +164,9 @@ class SelfFit:
         if self.sightings_correlated:
             return ()
         return tuple(
-            (b.sensor, b.range_m if b.applied[0] else 0.0, b.bearing_rad if b.applied[1] else 0.0)
+            (b.sensor, b.range_m if b.significant[0] else 0.0, b.bearing_rad if b.significant[1] else 0.0)
             for b in self.biases
-            if any(b.applied)
+            if any(b.significant)
         )
 
     def flags(self) -> str:
@@ -179,6 +188,9 @@ class _Data:
     """Each sighting's sensor, an index into ``sensors`` (-1: no bias: a position sighting, or too few), shape (L,)."""
     sensors: tuple[str | None, ...]
     """The sensors given a bias."""
+    reach: Array
+    """Each sighting's measured range over its declared range sigma, landmark sightings then robot sightings (inf
+    for a position sighting), shape (L + R,)."""
     without_id: int
     """Landmark sightings without an id."""
 
@@ -216,7 +228,7 @@ def fit_self(steps: Iterable[Step], config: SelfFitConfig | None = None, initial
             which Levenberg-Marquardt can stop in a poor minimum (the circle worlds: use an EKF's estimate).
 
     Raises:
-        OnlineSlamError: The stream has no landmark sighting with an id.
+        OnlineSlamError: The stream has no landmark sighting with an id; the solution's normal matrix is singular.
         ValueError: An initial estimate of another number of poses.
     """
     cfg = config or SelfFitConfig()
@@ -226,9 +238,13 @@ def fit_self(steps: Iterable[Step], config: SelfFitConfig | None = None, initial
     converged, iterations = False, 0
     while not converged and iterations < cfg.max_iterations:
         iterations += 1
-        state, change = _iterate(data, state, cfg, gate)
-        converged = change < cfg.tolerance
-    return _result(data, state, iterations, converged, float(norm.isf(cfg.bias_false_alarm / 2.0)))
+        try:
+            state, change = _iterate(data, state, cfg, gate)
+        except SingularMatrix as exc:
+            raise OnlineSlamError(f"--noise self: at solve {iterations}, {exc}") from None
+        converged = bool(change < cfg.tolerance)
+    close = int(np.sum(data.reach <= cfg.min_range_sigmas * math.sqrt(state.scales[1])))
+    return _result(data, state, iterations, converged, float(norm.isf(cfg.bias_false_alarm / 2.0)), close)
 
 
 def _data(steps: Iterable[Step], min_sightings: int, initial: Estimate | None) -> _Data:
@@ -258,7 +274,19 @@ def _data(steps: Iterable[Step], min_sightings: int, initial: Estimate | None) -
         for k, lid in enumerate(log.landmark_ids):
             if lid in given:
                 landmarks[k] = initial.landmarks[given[lid]]
-    return _Data(graph, poses, landmarks, sensor_of, sensors, int((~with_id).sum()))
+    return _Data(graph, poses, landmarks, sensor_of, sensors, _reach(graph), int((~with_id).sum()))
+
+
+def _reach(graph: FactorGraph) -> Array:
+    """Each sighting's measured range in range sigmas (see :attr:`_Data.reach`)."""
+    parts = []
+    for z, W, ranged in (
+        (graph.obs_z, graph.obs_sqrt_info, split_models(graph.obs_model)[0] == RANGE_BEARING),
+        (graph.rob_z, graph.rob_sqrt_info, np.ones(len(graph.rob_z), dtype=bool)),
+    ):
+        sigma = np.sqrt(np.linalg.inv(np.einsum("kji,kjl->kil", W, W))[:, 0, 0]) if len(W) else np.zeros(0)
+        parts.append(np.where(ranged, z[:, 0] / sigma, np.inf))
+    return np.concatenate(parts)
 
 
 def _sensors(
@@ -283,7 +311,7 @@ def _start(data: _Data, cfg: SelfFitConfig, gate: float) -> _State:
     q = np.concatenate([q_obs, q_rob])
     sensor = float(np.median(q)) / (2.0 * math.log(2.0)) if len(q) else 1.0  # a chi-square's median, 2 dof
     biases = np.zeros((len(data.sensors), 2))
-    kept, kept_robots = q_obs < gate * sensor, q_rob < gate * sensor
+    kept, kept_robots = _kept(data, q_obs, q_rob, sensor, cfg, gate)
     return _State((1.0, sensor), biases, kept, kept_robots, first.poses, first.landmarks, bias_sd=biases.copy())
 
 
@@ -303,7 +331,7 @@ def _iterate(data: _Data, state: _State, cfg: SelfFitConfig, gate: float) -> tup
     biases[fitted] += b_step.reshape(-1, 2)
     sd[fitted] = np.sqrt(np.diag(cov)).reshape(-1, 2)
     q_obs, q_rob = _sighting_squares(_corrected(data, biases), poses, landmarks)
-    kept, kept_robots = q_obs < gate * scales[1], q_rob < gate * scales[1]
+    kept, kept_robots = _kept(data, q_obs, q_rob, scales[1], cfg, gate)
     moves = [abs(math.log(a / b)) for a, b in zip(scales, state.scales)] + list(np.abs(b_step) / sd[fitted].ravel())
     return _State(scales, biases, kept, kept_robots, poses, landmarks, redundancy, sd), max(moves)
 
@@ -322,6 +350,13 @@ def _scales(
         for s, g, red, share in zip(scales, ("odometry", "sensor"), redundancy, kept_share)
     ]
     return (new[0], new[1]), redundancy
+
+
+def _kept(data: _Data, q_obs: Array, q_rob: Array, scale: float, cfg: SelfFitConfig, gate: float) -> tuple[Mask, Mask]:
+    """The landmark and robot sightings inside the gate and not too close, under the sensor scale."""
+    q = np.concatenate([q_obs, q_rob])
+    kept = (q < gate * scale) & (data.reach > cfg.min_range_sigmas * math.sqrt(scale))
+    return kept[: len(q_obs)], kept[len(q_obs) :]
 
 
 def _corrected(data: _Data, biases: Array) -> FactorGraph:
@@ -394,13 +429,14 @@ def _sighting_squares(graph: FactorGraph, poses: Array, landmarks: Array) -> tup
     return q[: len(graph.obs_pose)], q[len(graph.obs_pose) :]
 
 
-def _result(data: _Data, state: _State, iterations: int, converged: bool, bound: float) -> SelfFit:
-    """The fit as reported; a bias is applied beyond ``bound`` standard deviations."""
+def _result(data: _Data, state: _State, iterations: int, converged: bool, bound: float, close: int) -> SelfFit:
+    """The fit as reported; a bias is significant beyond ``bound`` standard deviations; ``close`` sightings were
+    left out as too close."""
     counts = np.bincount(data.sensor_of[state.kept & (data.sensor_of >= 0)], minlength=len(data.sensors))
-    applied = np.abs(state.biases) > bound * state.bias_sd
+    significant = np.abs(state.biases) > bound * state.bias_sd
     biases = tuple(
         BiasFit(name, int(n), float(b[0]), float(b[1]), float(sd[0]), float(sd[1]), (bool(a[0]), bool(a[1])))
-        for name, n, b, sd, a in zip(data.sensors, counts, state.biases, state.bias_sd, applied)
+        for name, n, b, sd, a in zip(data.sensors, counts, state.biases, state.bias_sd, significant)
         if n
     )
     graph = data.graph
@@ -409,7 +445,8 @@ def _result(data: _Data, state: _State, iterations: int, converged: bool, bound:
         sightings=len(graph.obs_pose),
         without_id=data.without_id,
         robot_sightings=len(graph.rob_from),
-        gated=int((~state.kept).sum() + (~state.kept_robots).sum()),
+        gated=int((~state.kept).sum() + (~state.kept_robots).sum()) - close,
+        close=close,
         odometry_scale=state.scales[0],
         sensor_scale=state.scales[1],
         odometry_redundancy=state.redundancy[0],
@@ -426,7 +463,8 @@ def describe(fit: SelfFit) -> str:
     if fit.robot_sightings:
         used += f", {fit.robot_sightings} robot sightings"
     lines = [f"noise self-fit (no truth): {used}"]
-    left = [f"{fit.gated} beyond the gate"] + ([f"{fit.without_id} without id"] if fit.without_id else [])
+    left = [f"{fit.gated} beyond the gate"] + ([f"{fit.close} too close"] if fit.close else [])
+    left += [f"{fit.without_id} without id"] if fit.without_id else []
     settled = "settled" if fit.converged else "not settled"
     lines.append(f"  {fit.iterations} batch solves, {settled}; sightings left out: {', '.join(left)}")
     lines.append(f"  odometry scale {fit.odometry_scale:.3g} (redundancy {fit.odometry_redundancy:.0f} of "
@@ -440,8 +478,8 @@ def describe(fit: SelfFit) -> str:
     rows = [("sensor", "sightings", "range bias", "bearing bias")]
     for b in fit.biases:
         cells = (
-            _bias_cell(b.range_m, b.range_sd, "m", b.applied[0]),
-            _bias_cell(b.bearing_rad, b.bearing_sd, "rad", b.applied[1]),
+            _bias_cell(b.range_m, b.range_sd, "m", b.significant[0]),
+            _bias_cell(b.bearing_rad, b.bearing_sd, "rad", b.significant[1]),
         )
         rows.append((b.sensor or "(centre)", str(b.sightings), *cells))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
@@ -455,6 +493,6 @@ def describe(fit: SelfFit) -> str:
     return "\n".join(lines)
 
 
-def _bias_cell(value: float, sd: float, unit: str, applied: bool) -> str:
-    """A bias with its standard deviation, marked when it is applied."""
-    return f"{value:+.3g} +- {sd:.2g} {unit}" + (" *" if applied else "")
+def _bias_cell(value: float, sd: float, unit: str, significant: bool) -> str:
+    """A bias with its standard deviation, marked when it is beyond noise."""
+    return f"{value:+.3g} +- {sd:.2g} {unit}" + (" *" if significant else "")

@@ -20,6 +20,10 @@ from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
+class SingularMatrix(ValueError):
+    """A normal matrix that is singular or indefinite (to the precision of its factorization)."""
+
+
 TRACE_STEP = 1e-3
 """The step t of the central difference: its error is about t^2 / 6 of the trace; rounding stays far below."""
 
@@ -31,14 +35,15 @@ def factorize(N: sp.spmatrix) -> tuple[qdldl.Solver, Array]:
         The factorization (its ``solve`` takes one right-hand side (n,)) and the pivots D, shape (n,).
 
     Raises:
-        ValueError: N is singular or indefinite (a variable no residual determines).
+        SingularMatrix: N is singular or indefinite (a variable no residual determines, or information so lopsided
+            that the factorization loses it).
     """
     upper = sp.triu(N, format="csc")
     upper.sort_indices()
     solver = qdldl.Solver(upper)
     pivots = np.asarray(solver.factors()[1], dtype=float)
     if not np.all(pivots > 0.0):
-        raise ValueError("the normal matrix is singular: some variable is not determined by the residuals")
+        raise SingularMatrix("the normal matrix is singular: some variable is not determined by the residuals")
     return solver, pivots
 
 
