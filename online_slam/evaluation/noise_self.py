@@ -21,7 +21,9 @@ biases' parameters take their share of the sightings' redundancy. A bias is appl
 
 Outliers (a sighting carrying another landmark's id) are left out of the solve and the estimate when their squared
 whitened residual, under the current scale, exceeds the chi-square quantile at ``gate_probability``; every
-sighting is judged again at each solve. The first solve (from an estimator's estimate, when given) has a Cauchy
+sighting is judged again at each solve, by its residual standardized with the sightings' mean leverage (see
+:func:`_kept`), until the kept set comes back to one it was two or more solves before (sightings on the gate's edge
+taking turns): from then on that set stays. The first solve (from an estimator's estimate, when given) has a Cauchy
 loss and a robust (median) scale for the first gate, so that a few outliers cannot set the start. The sightings'
 scale is divided by the share of a chi-square's mean that the gate keeps (``P(chi2_4 < gate)``), which the gate
 would otherwise take off inliers.
@@ -235,14 +237,16 @@ def fit_self(steps: Iterable[Step], config: SelfFitConfig | None = None, initial
     data = _data(steps, cfg.min_sightings, initial)
     gate = float(chi2.isf(1.0 - cfg.gate_probability, 2))
     state = _start(data, cfg, gate)
-    converged, iterations = False, 0
+    converged, iterations, judged = False, 0, [_key(state)]
     while not converged and iterations < cfg.max_iterations:
         iterations += 1
         try:
-            state, change = _iterate(data, state, cfg, gate)
+            state, change = _iterate(data, state, cfg, gate, judge=bool(judged))
         except SingularMatrix as exc:
             raise OnlineSlamError(f"--noise self: at solve {iterations}, {exc}") from None
         converged = bool(change < cfg.tolerance)
+        if judged and _key(state) != judged[-1]:  # a set seen before, not the last one: the judgement cycles
+            judged = [] if _key(state) in judged else [*judged, _key(state)]
     close = int(np.sum(data.reach <= cfg.min_range_sigmas * math.sqrt(state.scales[1])))
     return _result(data, state, iterations, converged, float(norm.isf(cfg.bias_false_alarm / 2.0)), close)
 
@@ -311,12 +315,17 @@ def _start(data: _Data, cfg: SelfFitConfig, gate: float) -> _State:
     q = np.concatenate([q_obs, q_rob])
     sensor = float(np.median(q)) / (2.0 * math.log(2.0)) if len(q) else 1.0  # a chi-square's median, 2 dof
     biases = np.zeros((len(data.sensors), 2))
-    kept, kept_robots = _kept(data, q_obs, q_rob, sensor, cfg, gate)
+    kept, kept_robots = _kept(data, (q_obs, q_rob), sensor, cfg, gate, np.ones(len(q), dtype=bool), 0.0)
     return _State((1.0, sensor), biases, kept, kept_robots, first.poses, first.landmarks, bias_sd=biases.copy())
 
 
-def _iterate(data: _Data, state: _State, cfg: SelfFitConfig, gate: float) -> tuple[_State, float]:
-    """One solve at the current scales and biases; new scales, biases and gate; the largest change."""
+def _key(state: _State) -> bytes:
+    """Which sightings a state keeps, as a key."""
+    return np.packbits(np.concatenate([state.kept, state.kept_robots])).tobytes()
+
+
+def _iterate(data: _Data, state: _State, cfg: SelfFitConfig, gate: float, judge: bool) -> tuple[_State, float]:
+    """One solve at the current scales and biases; new scales, biases and (``judge``) gate; the largest change."""
     graph, seen = _weighted(_corrected(data, state.biases), state)
     result = solve(graph, state.poses, state.landmarks[seen], cfg.solver)
     r, J = linearize(graph, layout(graph), result.poses, result.landmarks)
@@ -331,7 +340,11 @@ def _iterate(data: _Data, state: _State, cfg: SelfFitConfig, gate: float) -> tup
     biases[fitted] += b_step.reshape(-1, 2)
     sd[fitted] = np.sqrt(np.diag(cov)).reshape(-1, 2)
     q_obs, q_rob = _sighting_squares(_corrected(data, biases), poses, landmarks)
-    kept, kept_robots = _kept(data, q_obs, q_rob, scales[1], cfg, gate)
+    solved = np.concatenate([state.kept, state.kept_robots])
+    leverage = 1.0 - redundancy[1] / max(2.0 * float(solved.sum()), 1.0)  # the sightings' mean, over their rows
+    kept, kept_robots = _kept(data, (q_obs, q_rob), scales[1], cfg, gate, solved, leverage)
+    if not judge:
+        kept, kept_robots = state.kept, state.kept_robots
     moves = [abs(math.log(a / b)) for a, b in zip(scales, state.scales)] + list(np.abs(b_step) / sd[fitted].ravel())
     return _State(scales, biases, kept, kept_robots, poses, landmarks, redundancy, sd), max(moves)
 
@@ -352,11 +365,19 @@ def _scales(
     return (new[0], new[1]), redundancy
 
 
-def _kept(data: _Data, q_obs: Array, q_rob: Array, scale: float, cfg: SelfFitConfig, gate: float) -> tuple[Mask, Mask]:
-    """The landmark and robot sightings inside the gate and not too close, under the sensor scale."""
-    q = np.concatenate([q_obs, q_rob])
-    kept = (q < gate * scale) & (data.reach > cfg.min_range_sigmas * math.sqrt(scale))
-    return kept[: len(q_obs)], kept[len(q_obs) :]
+def _kept(
+    data: _Data, q: tuple[Array, Array], scale: float, cfg: SelfFitConfig, gate: float, solved: Mask, leverage: float
+) -> tuple[Mask, Mask]:
+    """The landmark and robot sightings inside the gate and not too close, under the sensor scale.
+
+    A residual is judged standardized: over ``1 - h`` for a sighting in the solve (``solved``), which pulled the
+    solution its way, over ``1 + h`` for one left out, which did not (``h``: the sightings' mean leverage). Judged
+    as they are, a sighting left out near the gate would stay out for having been left out.
+    """
+    squares = np.concatenate(q)
+    standard = squares / np.where(solved, 1.0 - leverage, 1.0 + leverage)
+    kept = (standard < gate * scale) & (data.reach > cfg.min_range_sigmas * math.sqrt(scale))
+    return kept[: len(q[0])], kept[len(q[0]) :]
 
 
 def _corrected(data: _Data, biases: Array) -> FactorGraph:

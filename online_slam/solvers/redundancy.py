@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
+
 class SingularMatrix(ValueError):
     """A normal matrix that is singular or indefinite (to the precision of its factorization)."""
 
