@@ -211,9 +211,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("format", "dataset format", "input", ("dataset",), choices=registry.names(), unset="detected",
            lands=("dataset.format",), commands=("replay", "compare")),
     *_dataset_options(),
-    Option("noise", "the noise the source declares (builtin), or fit it to the source's truth (replay: print "
-           "the figures, then replay with the fitted --odometry-noise-scale and --sensor-noise-scale; compare: the "
-           "same in every run, unprinted)", "input", ("replay",), choices=("builtin", "fit"), unset="builtin",
+    Option("noise", "the noise the source declares (builtin), fitted to its truth (fit), or to its own data (self: "
+           "no truth; each sensor's bias too) (replay: print the figures, then replay with them; compare: the same in "
+           "every run, unprinted)", "input", ("replay",), choices=("builtin", "fit", "self"), unset="builtin",
            lands=("dataset.noise",), commands=("replay", "compare")),
     _estimator("odometry_noise_scale", "multiply every odometry covariance of the source by S (a sigma by "
                "sqrt(S)), e.g. as --noise fit prints it", "input", "front-end",
@@ -439,12 +439,12 @@ def _check_estimators(running: tuple[str, ...], given: Mapping[str, Any], naming
 
 
 def _check_noise(given: Mapping[str, Any], naming: Callable[[str], str]) -> None:
-    """Refuse a noise scale given with ``--noise fit``, which fits the scales."""
-    if given.get("noise") != "fit":
+    """Refuse a noise scale given with ``--noise fit`` or ``--noise self``, which fit the scales."""
+    if (mode := given.get("noise")) not in ("fit", "self"):
         return
     for name in ("odometry_noise_scale", "sensor_noise_scale"):
         if given.get(name, 1.0) != 1.0:
-            raise ConfigError(f"{naming(name)}: --noise fit fits the scale; give one or the other")
+            raise ConfigError(f"{naming(name)}: --noise {mode} fits the scale; give one or the other")
 
 
 def on_error_of(given: str | None, source: object) -> str:

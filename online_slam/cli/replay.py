@@ -17,8 +17,8 @@ from online_slam.errors import InputError, OnlineSlamError
 from online_slam.options import add_options, flag, replay_config
 
 if TYPE_CHECKING:
-    from online_slam.evaluation.noise_fit import NoiseFit
     from online_slam.pipeline import ReplayConfig
+    from online_slam.pipeline.noise import Fit
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -136,11 +136,13 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
     return sinks
 
 
-def print_noise_fit(fit: NoiseFit, stderr: bool) -> None:
-    """Print what ``--noise fit`` fitted, before the replay that uses it (on stderr when stdout is the JSON's)."""
-    from online_slam.evaluation.noise_fit import describe
+def print_noise_fit(fit: Fit, stderr: bool) -> None:
+    """Print what ``--noise fit`` or ``--noise self`` fitted, before the replay that uses it (on stderr when stdout
+    is the JSON's)."""
+    from online_slam.evaluation import noise_fit, noise_self
 
-    print(describe(fit), file=sys.stderr if stderr else sys.stdout, flush=True)
+    text = noise_fit.describe(fit) if isinstance(fit, noise_fit.NoiseFit) else noise_self.describe(fit)
+    print(text, file=sys.stderr if stderr else sys.stdout, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:

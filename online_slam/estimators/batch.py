@@ -27,7 +27,7 @@ from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import solve
 
 
-def _median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
+def median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
     """Each landmark at the coordinate-wise median of where its sightings put it from the given poses."""
     points = landmark_from_sighting(poses[graph.obs_pose], graph.obs_z, graph.obs_model)
     out = landmarks.copy()
@@ -135,7 +135,7 @@ class BatchEstimator(LoggedEstimator):
             bound = outlier_threshold(cfg.outlier_false_alarm / len(chi2_values))
             if chi2_values.max() > bound:  # contaminated: robust pass, drop the outliers, least squares on the rest
                 robust_pass = True
-                start = _median_landmarks(graph, poses, landmarks)  # a first sight may be a wrong one
+                start = median_landmarks(graph, poses, landmarks)  # a first sight may be a wrong one
                 robust = solve(graph, poses, start, cfg.solver, loss=cfg.outlier_loss)
                 reject_bound = outlier_threshold(cfg.reject_false_alarm)
                 rejected = observation_chi2(graph, robust.poses, robust.landmarks) > reject_bound

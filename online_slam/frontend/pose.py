@@ -60,6 +60,9 @@ class Step:
     z_model: NDArray[np.int8] = None  # type: ignore[assignment]  # not given: __post_init__ puts zeros, never None
     """Model tag of each observation (:mod:`online_slam.models.observation`), shape (k,); not given: every
     observation is range-bearing (the step then holds zeros)."""
+    sensors: tuple[str | None, ...] = ()
+    """The sensor of each observation (its line's ``sensor``; None: the robot's centre), length k, when the stream
+    declares sensors; empty when it declares none (every sighting is then the centre's)."""
 
     def __post_init__(self) -> None:
         if self.z_model is None:
@@ -97,6 +100,7 @@ class PendingStep:
     z_noise: list[Any] = field(default_factory=list)  # per sighting: its sigma (2,) or its covariance (2, 2)
     z_model: list[int] = field(default_factory=list)  # per sighting: its model's tag
     z_mount: list[tuple[float, ...]] = field(default_factory=list)  # per sighting: its sensor's pose, if ``mounted``
+    z_sensor: list[str | None] = field(default_factory=list)  # per sighting: its sensor's name, if ``mounted``
     mounted: bool = False  # the stream declares sensors: the step's models carry each sighting's mounting
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
     full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
@@ -148,6 +152,7 @@ class PendingStep:
             merged=self.merged,
             **self._robot_fields(),
             z_model=self._models(),
+            sensors=tuple(self.z_sensor),
         )
 
     def _models(self) -> NDArray[Any]:

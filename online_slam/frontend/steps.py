@@ -30,7 +30,7 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.frontend.noise import check_scale, scaled_event
+from online_slam.frontend.noise import SensorBias, check_biases, check_scale, scaled_event, unbiased_event
 from online_slam.frontend.pose import GroundTruth, PendingStep, Step
 from online_slam.models.motion import compose_increments, split_increment
 from online_slam.models.observation import POSITION, RANGE_BEARING
@@ -90,6 +90,10 @@ class FrontEndConfig:
     """Multiply every odometry covariance by this (see :mod:`online_slam.frontend.noise`); 1 leaves it."""
     sensor_noise_scale: float = 1.0
     """Multiply every sighting's covariance by this; 1 leaves it."""
+    sensor_bias: tuple[SensorBias, ...] = ()
+    """Per sensor ``(name, range bias m, bearing bias rad)``, name None for the robot's centre: subtracted from its
+    range-bearing landmark sightings before any estimator sees them (see :mod:`online_slam.frontend.noise`; ``--noise
+    self`` measures them). Empty: none. A sensor the stream does not have is never met."""
     max_latency: float | None = None
     """Lines may arrive up to this many seconds older than the newest line's time: they are held back (a reorder
     buffer) and given on in time order; older ones are skipped and counted. 0: no buffer (time going back is an
@@ -98,6 +102,7 @@ class FrontEndConfig:
     def __post_init__(self) -> None:
         check_scale("odometry_noise_scale", self.odometry_noise_scale)
         check_scale("sensor_noise_scale", self.sensor_noise_scale)
+        check_biases(self.sensor_bias)
         if self.max_latency is not None and not 0.0 <= self.max_latency < math.inf:  # NaN fails too
             raise ValueError("max_latency must be a finite number of seconds >= 0")
 
@@ -200,6 +205,8 @@ class FrontEnd:
         config = cast(FrontEndConfig, self.config)  # never None after __post_init__
         if config.odometry_noise_scale != 1.0 or config.sensor_noise_scale != 1.0:
             event = scaled_event(event, config.odometry_noise_scale, config.sensor_noise_scale)
+        if config.sensor_bias:
+            event = unbiased_event(event, config.sensor_bias)
         first = isinstance(event, Start) and not self.held and self.pending is None  # the start: nothing to wait for
         if config.max_latency and isinstance(event, (Odometry, Observation, Scan, Truth, Start)) and not first:
             self.newest_t = max(self.newest_t, event.t)
@@ -286,6 +293,7 @@ class FrontEnd:
                 pending.full_covariance = True
             if pending.mounted:
                 pending.z_mount.append(self._mount(event.sensor))
+                pending.z_sensor.append(event.sensor)
         else:
             self._attach_scan(event, pending)
 
@@ -299,6 +307,7 @@ class FrontEnd:
         pending.z_model.extend([RANGE_BEARING if event.xy is None else POSITION] * len(keep))
         if pending.mounted:
             pending.z_mount.extend([self._mount(event.sensor)] * len(keep))
+            pending.z_sensor.extend([event.sensor] * len(keep))
         if len(keep) == len(event.landmarks):
             pending.landmarks.extend(event.landmarks)
             pending.z.extend(z)

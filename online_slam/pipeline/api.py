@@ -6,10 +6,9 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from online_slam.errors import InputError
-from online_slam.evaluation.noise_fit import NoiseFit
 from online_slam.evaluation.results import Results
 from online_slam.pipeline.config import Checkpointing, ReplayConfig
-from online_slam.pipeline.noise import fit_source_noise, fits_noise, with_noise_fit
+from online_slam.pipeline.noise import Fit, fit_source_noise, fits_noise, with_noise_fit
 from online_slam.pipeline.run import ReplayRun
 from online_slam.pipeline.score import score_run
 from online_slam.pipeline.source import open_events
@@ -27,7 +26,7 @@ def replay(
     checkpoint: Checkpointing | None = None,
     resume: str | Path | None = None,
     validate: bool = True,
-    on_noise_fit: Callable[[NoiseFit], None] | None = None,
+    on_noise_fit: Callable[[Fit], None] | None = None,
     stop: Callable[[], bool] | None = None,
     on_warning: Callable[[str], None] | None = None,
 ) -> Results:
@@ -48,8 +47,8 @@ def replay(
         validate: Check events given as an iterable (objects or ``dict`` records) by the stream's rules, as a
             file's lines are (an item's position stands for its line). False trusts them: for events this package
             generates (its worlds), whose checks would only cost time.
-        on_noise_fit: With ``--noise fit`` (``config.dataset["noise"] == "fit"``), told of the fit before the
-            replay, which runs with its scales (see :mod:`online_slam.pipeline.noise`).
+        on_noise_fit: With ``--noise fit`` or ``--noise self`` (``config.dataset["noise"]``), told of the fit
+            before the replay, which runs with its scales (see :mod:`online_slam.pipeline.noise`).
         stop: Asked after each step; True ends the replay there, scored like a stream that ended there, with
             ``Results.error`` ``"interrupted"`` (how ``online-slam replay`` keeps its work on Ctrl-C).
         on_warning: Told, once, when most of the first sightings are rejected or lines skipped, with the likely
@@ -63,7 +62,8 @@ def replay(
     Raises:
         InputError: When the input is bad before the first step is complete (nothing to report); a damaged
             checkpoint, one of another source, of other settings or of another format version.
-        OnlineSlamError: ``--noise fit`` on standard input, or on a source without truth.
+        OnlineSlamError: ``--noise fit`` or ``self`` on standard input; ``fit`` on a source without truth, ``self``
+            on one without a landmark sighting with an id.
     """
     cfg = config or ReplayConfig()
     if fits_noise(cfg):

@@ -1,5 +1,6 @@
-"""``--noise fit`` for a replay: the source read once to fit its noise scales to its truth, then replayed with them
-(see :mod:`online_slam.evaluation.noise_fit`)."""
+"""``--noise fit`` and ``--noise self`` for a replay: the source read once to fit its noise (to its truth:
+:mod:`online_slam.evaluation.noise_fit`; to its own data: :mod:`online_slam.evaluation.noise_self`), then replayed
+with the fitted scales (and, for ``self``, each sensor's bias taken off its sightings)."""
 
 from __future__ import annotations
 
@@ -9,45 +10,66 @@ from pathlib import Path
 
 from online_slam.errors import OnlineSlamError
 from online_slam.evaluation.noise_fit import NoiseFit, fit_noise
-from online_slam.frontend.steps import FrontEnd
-from online_slam.pipeline.config import ReplayConfig
+from online_slam.evaluation.noise_self import SelfFit, fit_self
+from online_slam.frontend.steps import FrontEnd, Step
+from online_slam.pipeline.config import ReplayConfig, make_estimator
 from online_slam.pipeline.source import open_events
 from online_slam.sources.events import Event
 
+FITS = ("fit", "self")
+"""The values of the ``noise`` option that fit the noise before the replay."""
+
+Fit = NoiseFit | SelfFit
+"""What a fit of the noise gives: against truth, or from the data alone."""
+
 
 def fits_noise(config: ReplayConfig) -> bool:
-    """Whether the configuration asks for ``--noise fit``."""
-    return config.dataset.get("noise") == "fit"
+    """Whether the configuration asks for ``--noise fit`` or ``--noise self``."""
+    return config.dataset.get("noise") in FITS
 
 
 def fit_source_noise(
     source: str | Path | Iterable[Event], config: ReplayConfig
-) -> tuple[NoiseFit, str | Path | Iterable[Event]]:
-    """Read a source once through the front-end (every noise scale at 1) and fit its noise to its truth.
+) -> tuple[Fit, str | Path | Iterable[Event]]:
+    """Read a source once through the front-end (every noise scale at 1, no bias) and fit its noise.
 
     Returns:
         The fit, and the source to replay: the same path or world, or the events of an iterable kept in a list
         (a Monte Carlo run's world, read once here).
 
     Raises:
-        OnlineSlamError: Standard input (read only once), or a source without truth to fit to.
+        OnlineSlamError: Standard input (read only once); a source without truth to fit to (``fit``), or without
+            a landmark sighting with an id (``self``).
         InputError: The source cannot be read.
     """
+    mode = config.dataset["noise"]
     if str(source) == "-":
-        raise OnlineSlamError("--noise fit reads the source twice (fit, then replay): give a file, not stdin")
+        raise OnlineSlamError(f"--noise {mode} reads the source twice (fit, then replay): give a file, not stdin")
     if not isinstance(source, (str, Path)):
         source = list(source)
-    plain = dataclasses.replace(config.frontend, odometry_noise_scale=1.0, sensor_noise_scale=1.0)
+    plain = dataclasses.replace(config.frontend, odometry_noise_scale=1.0, sensor_noise_scale=1.0, sensor_bias=())
     opened = open_events(source, dataclasses.replace(config, frontend=plain, association="known"))
     frontend = FrontEnd(plain)
-    fit = fit_noise(frontend.steps(opened.events), frontend.truth)
+    steps = frontend.steps(opened.events)
+    fit: Fit = fit_noise(steps, frontend.truth) if mode == "fit" else _fit_self(list(steps), config)
     correlated = frontend.header is not None and bool(frontend.header.meta.get("sightings_correlated"))
     return dataclasses.replace(fit, sightings_correlated=correlated), source
 
 
-def with_noise_fit(config: ReplayConfig, fit: NoiseFit) -> ReplayConfig:
-    """The configuration with the fitted scales in its front-end."""
+def _fit_self(steps: list[Step], config: ReplayConfig) -> SelfFit:
+    """``--noise self`` on the steps, started from the estimate of an EKF of the replay's settings over them (the
+    batch from composed odometry can stop in a poor minimum; the EKF costs a small part of the fit)."""
+    ekf = make_estimator("ekf", config.with_association("known"))
+    for step in steps:
+        ekf.step(step)
+    return fit_self(steps, initial=ekf.finish())
+
+
+def with_noise_fit(config: ReplayConfig, fit: Fit) -> ReplayConfig:
+    """The configuration with the fitted scales (and biases) in its front-end."""
     frontend = dataclasses.replace(
         config.frontend, odometry_noise_scale=fit.odometry_scale, sensor_noise_scale=fit.applied_sensor_scale
     )
+    if isinstance(fit, SelfFit):
+        frontend = dataclasses.replace(frontend, sensor_bias=fit.sensor_bias)
     return dataclasses.replace(config, frontend=frontend)

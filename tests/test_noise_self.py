@@ -1,0 +1,189 @@
+"""Noise calibrated without truth (--noise self): the redundancy numbers, the scales and biases it recovers on
+worlds drawn with known noise and declared wrong, the front-end's bias correction, the replay and the CLI."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from online_slam.errors import OnlineSlamError
+from online_slam.evaluation.noise_self import SelfFit, describe, fit_self
+from online_slam.frontend import FrontEnd, FrontEndConfig
+from online_slam.frontend.noise import MIN_RANGE, scaled_event, unbiased_event
+from online_slam.options import replay_config
+from online_slam.pipeline import replay
+from online_slam.pipeline.noise import with_noise_fit
+from online_slam.solvers.redundancy import gauss_newton, group_traces
+from online_slam.sources.events import Header, Observation, Scan
+from online_slam.sources.meet import MeetConfig, meet_world
+from online_slam.sources.timing import TimingConfig, timing_world
+from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, square_world, without_ids
+from tests.test_cli import cli
+
+MISDECLARED = {
+    "odometry 0.3x": (0.09, 1.0),
+    "odometry 3x": (9.0, 1.0),
+    "sensor 0.3x": (1.0, 0.09),
+    "sensor 3x": (1.0, 9.0),
+}
+"""Factors (odometry, sensor) a stream's covariances are declared with: its sigmas 0.3 or 3 times the true ones."""
+MOUNT = (0.3, -0.05, math.radians(10))
+BIAS = (0.1, 0.02)
+"""A mounted camera's range (m) and bearing (rad) bias."""
+
+
+def _fit(events) -> SelfFit:
+    return fit_self(FrontEnd().steps(events))
+
+
+def _declared(events, factors: tuple[float, float]) -> list:
+    return [scaled_event(e, *factors) for e in events]
+
+
+def _biased(events, bias: tuple[float, float] = BIAS) -> list:
+    return [
+        dataclasses.replace(e, range=e.range + bias[0], bearing=e.bearing + bias[1])
+        if isinstance(e, Observation)
+        else e
+        for e in events
+    ]
+
+
+def test_redundancy_traces_and_step_equal_the_dense_computation() -> None:
+    rng = np.random.default_rng(4)
+    A = (sp.random(120, 30, density=0.15, random_state=5) + sp.vstack([sp.eye(30), sp.csr_matrix((90, 30))])).tocsr()
+    rows = rng.uniform(size=120) < 0.4
+    dense = A.toarray()
+    N_inv = np.linalg.inv(dense.T @ dense)
+    leverage = np.einsum("ij,jk,ik->i", dense, N_inv, dense)
+    traces = group_traces(A, {"some": rows, "rest": ~rows})
+    assert traces["some"] == pytest.approx(leverage[rows].sum(), rel=1e-6)
+    assert traces["some"] + traces["rest"] == pytest.approx(30.0, rel=1e-6)
+    r = rng.normal(size=120)
+    step, cov = gauss_newton(A, r, 4)
+    np.testing.assert_allclose(step, -N_inv @ dense.T @ r, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(cov, N_inv[-4:, -4:], rtol=1e-9, atol=1e-14)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("name", list(MISDECLARED))
+def test_the_self_fit_recovers_a_misdeclared_scale(name: str, seed: int) -> None:
+    """Drawn with the grid's sigmas, declared with 0.3x or 3x of them: the fit finds the true scale within 15%."""
+    factors = MISDECLARED[name]
+    fit = _fit(_declared(grid_world(GridConfig(poses=800, landmarks=80, seed=seed)), factors))
+    assert fit.converged and fit.increments == 799 and not fit.without_id
+    assert fit.odometry_scale * factors[0] == pytest.approx(1.0, rel=0.15)
+    assert fit.sensor_scale * factors[1] == pytest.approx(1.0, rel=0.15)
+    assert 0.5 * 3 * fit.increments < fit.odometry_redundancy < 3 * fit.increments
+    assert not fit.sensor_bias  # no bias drawn: none beyond noise
+
+
+def test_the_self_fit_recovers_a_mounted_sensors_bias_and_the_replay_takes_it_off() -> None:
+    world = TimingConfig(duration=60.0, mount=MOUNT, landmarks=80, seed=3)
+    events = _biased(timing_world(world))
+    fit = _fit(events)
+    (bias,) = fit.biases
+    assert bias.sensor == "camera" and bias.significant == (True, True)
+    assert abs(bias.range_m - BIAS[0]) < 4 * bias.range_sd < 0.02
+    assert abs(bias.bearing_rad - BIAS[1]) < 4 * bias.bearing_sd < 0.02
+    assert fit.sensor_bias == (("camera", bias.range_m, bias.bearing_rad),)
+    assert fit.odometry_scale == pytest.approx(1.0, rel=0.2) and fit.sensor_scale == pytest.approx(1.0, rel=0.15)
+    config = replay_config({"estimators": "batch"})
+    plain = replay(events, config).estimators["batch"].landmark_rmse_m
+    fitted = replay(events, replay_config({"estimators": "batch", "noise": "self"})).estimators["batch"]
+    assert fitted.landmark_rmse_m < 0.5 * plain
+    clean = _fit(timing_world(world))
+    assert not clean.sensor_bias and clean.biases[0].significant == (False, False)
+
+
+def test_several_robots_and_their_sightings_of_each_other() -> None:
+    factors = (9.0, 0.09)
+    fit = _fit(_declared(meet_world(MeetConfig(poses=150, seed=4)), factors))
+    assert fit.robot_sightings > 50 and fit.converged
+    assert fit.odometry_scale * factors[0] == pytest.approx(1.0, rel=0.15)
+    assert fit.sensor_scale * factors[1] == pytest.approx(1.0, rel=0.15)
+
+
+def test_sightings_with_another_landmarks_id_are_left_out() -> None:
+    """Every wrong id of a landmark also sighted right is left out (a landmark only ever sighted wrong fits its
+    sightings: nothing tells them apart), with few inliers, and the scale stays right."""
+    dirty = list(contaminate(grid_world(GridConfig(poses=400, landmarks=60, seed=2)), Contamination(wrong_ids=0.03)))
+    sightings = [e for e in dirty if isinstance(e, Observation)]
+    sighted_right = {e.landmark for e in sightings if e.truth_outlier is None}
+    wrong = [e for e in sightings if e.truth_outlier == "wrong_id"]
+    telling = sum(e.landmark in sighted_right for e in wrong)
+    fit = _fit(_declared(dirty, (1.0, 0.09)))
+    assert telling > 25 and telling <= fit.gated <= len(wrong) + 5
+    assert fit.sensor_scale * 0.09 == pytest.approx(1.0, rel=0.15)
+
+
+def test_only_sightings_with_ids_are_used() -> None:
+    events = list(square_world())
+    with pytest.raises(OnlineSlamError, match="no landmark sighting with an id"):
+        _fit(without_ids(events))
+    mixed = [dataclasses.replace(e, landmark=None) if isinstance(e, Observation) and e.t > 20 else e for e in events]
+    fit = _fit(mixed)
+    assert fit.without_id > 0 and fit.sightings + fit.without_id == 95
+
+
+def test_the_front_end_takes_a_sensors_bias_off_its_range_bearing_landmark_sightings() -> None:
+    biases = (("cam", 0.1, 0.2), (None, -0.05, 0.0))
+    cam = Observation(t=1.0, landmark=3, range=2.0, bearing=3.1, sigma=(0.1, 0.01), sensor="cam")
+    moved = unbiased_event(cam, biases)
+    assert moved.range == pytest.approx(1.9) and moved.bearing == pytest.approx(2.9)
+    wrapped = unbiased_event(dataclasses.replace(cam, bearing=-3.1), (("cam", 0.0, 0.2),))
+    assert wrapped.bearing == pytest.approx(2 * math.pi - 3.3)
+    assert unbiased_event(dataclasses.replace(cam, range=0.05), biases).range == MIN_RANGE
+    robot = Observation(t=1.0, landmark=None, range=2.0, bearing=0.1, sigma=(0.1, 0.01), robot_seen=2)
+    xy = Observation(t=1.0, landmark=3, sigma=(0.1, 0.1), xy=(1.0, 2.0))
+    other = dataclasses.replace(cam, sensor="other")
+    assert all(unbiased_event(e, biases) is e for e in (robot, xy, other))
+    scan = Scan(t=1.0, landmarks=(1, 2), ranges=(1.0, 2.0), bearings=(0.0, 0.1), noise=((0.1, 0.01),) * 2)
+    assert unbiased_event(scan, biases).ranges == pytest.approx((1.05, 2.05))
+    with pytest.raises(ValueError, match="sensor_bias"):
+        FrontEndConfig(sensor_bias=(("cam", 0.1, float("nan")),))
+    with pytest.raises(ValueError, match="named twice"):
+        FrontEndConfig(sensor_bias=(("cam", 0.1, 0.0), ("cam", 0.0, 0.1)))
+
+
+def test_correlated_sightings_keep_their_sigmas_and_have_no_bias_taken_off() -> None:
+    """A header ``sightings_correlated`` (MRCLAM): the sensor scale and biases are measured and shown, not applied."""
+    header, *rest = _biased(timing_world(TimingConfig(duration=30.0, mount=MOUNT, landmarks=60, seed=4)))
+    assert isinstance(header, Header)
+    marked = [dataclasses.replace(header, meta={**header.meta, "sightings_correlated": True}), *rest]
+    told: list = []
+    replay(marked, replay_config({"noise": "self", "estimators": "ekf"}), on_noise_fit=told.append)
+    (fit,) = told
+    assert fit.sightings_correlated and fit.biases[0].significant == (True, True)
+    assert fit.applied_sensor_scale == 1.0 and fit.sensor_bias == ()
+    assert "sensor scale and biases not applied" in describe(fit)
+    frontend = with_noise_fit(replay_config({}), fit).frontend
+    assert frontend.sensor_bias == () and frontend.sensor_noise_scale == 1.0
+    assert frontend.odometry_noise_scale == fit.odometry_scale
+
+
+def test_cli_noise_self_prints_the_fit_and_replays() -> None:
+    result = cli("replay", "square", "--noise", "self", "--estimators", "ekf,batch")
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    assert "noise self-fit (no truth): 24 odometry increments, 95 landmark sightings" in out
+    assert "odometry scale" in out and "sensor scale" in out and "(centre)" in out
+    assert out.index("replaying with --odometry-noise-scale") < out.index("estimator ")
+
+
+@pytest.mark.parametrize(
+    ("args", "stdin", "message"),
+    [
+        (("square", "--noise", "self", "--sensor-noise-scale", "2"), None, "--noise self fits the scale"),
+        (("square", "--noise", "self", "--odometry-noise-scale", "0.09"), None, "--noise self fits the scale"),
+        (("-", "--noise", "self"), "", "--noise self reads the source twice"),
+    ],
+)
+def test_cli_noise_self_refuses_a_scale_and_stdin(args: tuple[str, ...], stdin: str | None, message: str) -> None:
+    result = cli("replay", *args, stdin=stdin)
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1 and message in result.stderr
