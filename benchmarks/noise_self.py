@@ -110,11 +110,11 @@ def simulated(seeds: int, poses: int, say: Callable[[str], None] = print) -> dic
     summary = {name: _summary(cells) for name, cells in rows.items()}
     say(f"\nworst / median over {seeds} seeds (RMSE x: online RMSE with --noise self over the stream declared right)")
     columns = ("scale error", "other scale error", *(f"{k} RMSE x" for k in ONLINE), *(f"{k} NEES" for k in ONLINE))
-    say("misdeclared    " + "".join(f"{c:>20}" for c in (*columns, "ekf NEES declared right")))
+    say("misdeclared    " + "".join(f"{c:>20}" for c in columns) + "  ekf NEES declared right")
     for name, s in summary.items():
         cells = [f"{s[c + ' worst']:.3f} / {s[c + ' median']:.3f}" for c in columns]
         right = f"{s['ekf NEES declared right worst']:.2f} / {s['ekf NEES declared right median']:.2f}"
-        say(f"{name:<15}" + "".join(f"{c:>20}" for c in (*cells, right)))
+        say(f"{name:<15}" + "".join(f"{c:>20}" for c in cells) + f"  {right:>23}")
     return summary
 
 

@@ -245,8 +245,9 @@ def fit_self(steps: Iterable[Step], config: SelfFitConfig | None = None, initial
         except SingularMatrix as exc:
             raise OnlineSlamError(f"--noise self: at solve {iterations}, {exc}") from None
         converged = bool(change < cfg.tolerance)
-        if judged and _key(state) != judged[-1]:  # a set seen before, not the last one: the judgement cycles
-            judged = [] if _key(state) in judged else [*judged, _key(state)]
+        key = _key(state)
+        if judged and key != judged[-1]:
+            judged = [] if key in judged else [*judged, key]  # back to an earlier set: it cycles; judge no more
     close = int(np.sum(data.reach <= cfg.min_range_sigmas * math.sqrt(state.scales[1])))
     return _result(data, state, iterations, converged, float(norm.isf(cfg.bias_false_alarm / 2.0)), close)
 
