@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from online_slam.importers.mrclam.noise import fit_camera_on, fit_mrclam_noise, with_camera
-from online_slam.importers.mrclam.reader import MrclamNoise, half_span, read_mrclam
+from online_slam.importers.mrclam.reader import MrclamNoise, half_of, read_mrclam, recording_span
 from online_slam.importers.mrclam.robots import ROBOTS, read_mrclam_robots
 from online_slam.pipeline import replay
 from online_slam.pipeline.config import ReplayConfig
@@ -64,23 +64,21 @@ class Job:
     span: tuple[float, float]
 
 
-def fits(folder: str | Path) -> dict[str, MrclamNoise]:
-    """The fitted models: ``builtin``, ``first``, ``second`` (a half's fit) and ``without N`` (robot N left out,
-    its camera from its first half)."""
-    first = half_span(Path(folder), "first")
+def fits(folder: str | Path, spans: dict[str, tuple[float, float]]) -> dict[str, MrclamNoise]:
+    """The fitted models: ``builtin``, ``first``, ``second`` (a half's fit, ``spans`` by half) and ``without N``
+    (robot N left out, its camera from its first half)."""
     models = {"builtin": MrclamNoise()}
     for half in ("first", "second"):
-        models[half] = fit_mrclam_noise(folder, span=half_span(Path(folder), half)).noise
+        models[half] = fit_mrclam_noise(folder, span=spans[half]).noise
     for robot in ROBOTS:
         others = tuple(r for r in ROBOTS if r != robot)
         fitted = fit_mrclam_noise(folder, robots=others).noise
-        models[f"without {robot}"] = with_camera(fitted, robot, fit_camera_on(folder, robot, first))
+        models[f"without {robot}"] = with_camera(fitted, robot, fit_camera_on(folder, robot, spans["first"]))
     return models
 
 
-def jobs(folder: str | Path, models: dict[str, MrclamNoise]) -> list[Job]:
+def jobs(models: dict[str, MrclamNoise], spans: dict[str, tuple[float, float]]) -> list[Job]:
     """Every replay of the benchmark, in the order of its table."""
-    spans = {half: half_span(Path(folder), half) for half in ("first", "second")}
     other = {"first": "second", "second": "first"}
     out = []
     for half in ("first", "second"):
@@ -113,8 +111,9 @@ def run_job(folder: str, job: Job) -> Cell:
 
 def run_heldout(folder: str | Path, workers: int | None = None) -> list[Cell]:
     """Fit every model, then run every replay (``workers`` processes; None: every core)."""
-    models = fits(folder)
-    todo = jobs(folder, models)
+    recording = recording_span(Path(folder))
+    spans = {half: half_of(recording, half) for half in ("first", "second")}
+    todo = jobs(fits(folder, spans), spans)
     with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
         return list(pool.map(run_job, [str(folder)] * len(todo), todo))
 

@@ -80,18 +80,19 @@ class Mrclam:
 
     def open(self, path: Path, options: MrclamOptions) -> Iterator[Event]:
         """One robot's events, or all five robots' (``robot="all"``), under the built-in or a refitted model."""
-        from online_slam.importers.mrclam.reader import half_span, read_mrclam
+        from online_slam.importers.mrclam.reader import half_of, read_mrclam, recording_span
         from online_slam.importers.mrclam.robots import read_mrclam_robots
 
         if options.robot is None:
             raise InputError(str(path), 0, "robot", "an MRCLAM folder needs --robot N (1..5) or --robot all")
         noise = None
+        recording = recording_span(path) if options.half or options.fit_half else None  # read once for both
         if options.refit or options.fit_half is not None:
             from online_slam.importers.mrclam.noise import fit_mrclam_noise
 
-            fit_span = None if options.fit_half is None else half_span(path, options.fit_half)
+            fit_span = None if recording is None or options.fit_half is None else half_of(recording, options.fit_half)
             noise = fit_mrclam_noise(path, span=fit_span).noise
-        span = None if options.half is None else half_span(path, options.half)
+        span = None if recording is None or options.half is None else half_of(recording, options.half)
         if options.robot == "all":
             return read_mrclam_robots(path, noise, span)
         try:

@@ -276,7 +276,12 @@ def recording_span(root: Path) -> tuple[float, float]:
 def half_span(root: Path, half: str) -> tuple[float, float]:
     """The ``first`` or ``second`` half of the folder's recording by time (the same cut for every robot), as
     ``(start, end)`` with ``end`` excluded."""
-    first, last = recording_span(root)
+    return half_of(recording_span(root), half)
+
+
+def half_of(recording: tuple[float, float], half: str) -> tuple[float, float]:
+    """The ``first`` or ``second`` half of a recording's ``(first, last)`` sighting times (:func:`half_span`)."""
+    first, last = recording
     middle = 0.5 * (first + last)
     return (first, middle) if half == "first" else (middle, float(np.nextafter(last, np.inf)))
 
