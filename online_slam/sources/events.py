@@ -274,6 +274,56 @@ class LandmarkTruth:
 
 
 @dataclass(frozen=True)
+class Position:
+    """An absolute position fix (GPS, a surveyed point): the point ``offset`` of the robot frame (an antenna) is at
+    ``xy`` in the map frame at time ``t``."""
+
+    t: float
+    """Time of the fix, seconds; it belongs to the robot's pose at that time, as a sighting does."""
+    xy: Vector
+    """``[x, y]`` of the fixed point in the map frame, metres."""
+    sigma: Vector | None = None
+    """Standard deviations ``[sx, sy]``, or None when ``cov`` is given."""
+    cov: Matrix | None = None
+    """Full 2x2 covariance of ``xy``, or None when ``sigma`` is given."""
+    offset: Vector | None = None
+    """``[dx, dy]`` of the fixed point (an antenna) in the robot frame, or None: the robot's centre."""
+    robot: RobotId | None = None
+    """The robot fixed, or None in a stream of one unnamed robot."""
+
+    @property
+    def covariance(self) -> NDArray[np.float64]:
+        """Covariance of ``xy``, shape (2, 2)."""
+        return _covariance(self.sigma, self.cov, 2)
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        record = {"type": "position", "t": self.t, "xy": list(self.xy), **_noise_record(self.sigma, self.cov)}
+        if self.offset is not None:
+            record["offset"] = list(self.offset)
+        return {**record, **_robot_record(self.robot)}
+
+
+@dataclass(frozen=True)
+class Heading:
+    """An absolute heading fix (a compass, a surveyed direction): the robot's heading in the map frame at ``t``."""
+
+    t: float
+    """Time of the fix, seconds; it belongs to the robot's pose at that time."""
+    theta: float
+    """Heading in the map frame, radians."""
+    sigma: float
+    """Its standard deviation, radians (> 0)."""
+    robot: RobotId | None = None
+    """The robot fixed, or None in a stream of one unnamed robot."""
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        record = {"type": "heading", "t": self.t, "theta": self.theta, "sigma": self.sigma}
+        return {**record, **_robot_record(self.robot)}
+
+
+@dataclass(frozen=True)
 class Scan:
     """Several observations taken at one time (the engine API's ``add_observations``; not a stream-v1 line)."""
 
