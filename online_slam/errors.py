@@ -46,6 +46,7 @@ class InputError(OnlineSlamError, ValueError):
             (field == "t", "time_order"),
             (field in ("type", "format", "version"), "out_of_order"),
             ("gzip" in message or "UTF-8" in message, "corrupt_data"),
+            (message.startswith("cut line"), "cut_line"),
         )
         return next((name for hit, name in rules if hit), "wrong_value")
 

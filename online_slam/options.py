@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 from online_slam.errors import ConfigError
 from online_slam.importers import registry
+from online_slam.sources.address import on_error_of
 from online_slam.sources.worlds import WORLDS
 from online_slam.wording import counted
 
@@ -204,7 +205,8 @@ _WORLD_NAMES = ", ".join(WORLDS)
 
 OPTIONS: dict[str, Option] = {o.name: o for o in (
     # -- input ----------------------------------------------------------------------------------------------
-    Option("source", f"stream file (.jsonl/.gz), '-' (stdin), dataset path, or world ({_WORLD_NAMES})", "input",
+    Option("source", f"stream file (.jsonl/.gz), '-' (stdin), tcp://HOST:PORT (listen, one client at a time), "
+           f"dataset path, or world ({_WORLD_NAMES})", "input",
            ("replay",), default="square", nargs="?", commands=("replay", "compare")),
     Option("sources", f"stream files, dataset paths or worlds ({_WORLD_NAMES})", "input", ("replay",),
            nargs="+", commands=("sweep",)),
@@ -224,10 +226,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                lands=("frontend.sensor_noise_scale",)),
     Option("max_latency", "lines may arrive up to S seconds late (a reorder buffer puts them in time order, "
            "delaying the estimate by S); later ones are skipped and counted", "input", ("front-end",), kind=float,
-           field=("FrontEndConfig", "max_latency"), unset="0 for files, 0.5 s for stdin", metavar="S", unit="s",
+           field=("FrontEndConfig", "max_latency"), unset="0 for files, 0.5 s for stdin, tcp://", metavar="S", unit="s",
            lands=("frontend.max_latency",)),
     Option("on_error", "a bad line of a stream: stop there, or report it on stderr and skip it", "input",
-           ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin",
+           ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin and tcp://",
            lands=("on_error",), commands=_DATASET),
     Option("strict", "exit 2 when most of the first sightings are rejected or lines skipped (wrong units? "
            "sigmas?), keeping the figures before it; without it, one warning names the likely cause", "input",
@@ -333,6 +335,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            commands=("replay", "compare")),
     Option("rate", "pace the replay at R times the stream's clock", "live/checkpoint", ("cli",), kind=float,
            metavar="R", unset="as fast as possible", commands=("replay",)),
+    Option("emit", "write a JSON line per step as estimated: to a file, '-' (stdout; the table on stderr) or tcp://HOST:"
+           "PORT (a reader listening there)", "live/checkpoint", ("cli",), metavar="DEST", commands=("replay",)),
+    Option("emit_estimator", "whose estimate --emit writes, or all", "live/checkpoint", ("cli",), metavar="NAME",
+           unset="the first online one of --estimators", commands=("replay",)),
     Option("checkpoint", "save the whole replay state to DIR/replay.ckpt every --checkpoint-every steps",
            "live/checkpoint", ("cli",), metavar="DIR", commands=("replay",)),
     Option("checkpoint_every", "steps between checkpoints", "live/checkpoint", ("cli",), kind=int,
@@ -445,12 +451,6 @@ def _check_noise(given: Mapping[str, Any], naming: Callable[[str], str]) -> None
     for name in ("odometry_noise_scale", "sensor_noise_scale"):
         if given.get(name, 1.0) != 1.0:
             raise ConfigError(f"{naming(name)}: --noise {mode} fits the scale; give one or the other")
-
-
-def on_error_of(given: str | None, source: object) -> str:
-    """The ``--on-error`` policy asked for, or the default for this source (skip for stdin: a live stream goes
-    on; else stop)."""
-    return given or ("skip" if str(source) == "-" else "stop")
 
 
 def _set(target: Any, path: list[str], value: Any) -> Any:

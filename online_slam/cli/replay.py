@@ -130,10 +130,39 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
         name = "<stdin>" if args.source == "-" else str(args.source)
         layout = Layout(*estimator_names(config))
         sinks.append(RerunSink(RerunConfig(path=args.rrd, connect=args.connect), name, layout))
+    if args.emit is not None:
+        from online_slam.sinks.emit import EstimateStream
+
+        sinks.append(EstimateStream(args.emit, emitted(args, config), tell=report))
+    elif args.emit_estimator is not None:
+        raise OnlineSlamError("--emit-estimator: give --emit DEST too")
     progress = Progress()
     if progress.enabled and not args.quiet:  # a source is counted for its total only when a bar is drawn
         sinks.append(progress)
     return sinks
+
+
+def emitted(args: argparse.Namespace, config: ReplayConfig) -> tuple[str, ...]:
+    """The estimators whose estimates ``--emit`` writes: ``--emit-estimator``'s, by default the first online one."""
+    from online_slam.pipeline import estimator_names
+
+    online = estimator_names(config)[0]  # dead reckoning first
+    choice = args.emit_estimator
+    if choice is None:
+        return online[1:2] or online[:1]
+    if choice == "all":
+        return online[1:] or online[:1]
+    if choice not in online:
+        expected = ", ".join((*online, "all"))
+        raise OnlineSlamError(
+            f"--emit-estimator: {choice!r} gives no estimate per step here; expected one of {expected}"
+        )
+    return (choice,)
+
+
+def report(message: str) -> None:
+    """Say something about the run on stderr."""
+    print(f"online-slam: {message}", file=sys.stderr, flush=True)
 
 
 def print_noise_fit(fit: Fit, stderr: bool) -> None:
@@ -153,6 +182,11 @@ def run(args: argparse.Namespace) -> int:
 
     config = config_from(args)
     check_outputs(args.json, args.tum)
+    stdout_taken = args.json == "-" or args.emit == "-"  # the table then goes to stderr
+    if args.json == "-" and args.emit == "-":
+        raise OnlineSlamError("--json - and --emit -: both would write to stdout; give one of them a path")
+    if args.emit not in (None, "-") and "://" not in args.emit:
+        check_writable("--emit", args.emit)
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     if args.resume and (args.rrd or args.connect):
@@ -164,11 +198,11 @@ def run(args: argparse.Namespace) -> int:
     with interrupts() as stopped:
         results = replay(
             args.source, config, sinks=sinks, on_skip=SkipReport(), checkpoint=checkpoint, resume=args.resume,
-            on_noise_fit=None if args.quiet else lambda fit: print_noise_fit(fit, args.json == "-"),
+            on_noise_fit=None if args.quiet else lambda fit: print_noise_fit(fit, stdout_taken),
             stop=stopped.is_set, on_warning=report_warning,
         )  # fmt: skip
-    if not args.quiet:  # with --json - stdout is the JSON's: the table goes to stderr
-        print(format_results(results), file=sys.stderr if args.json == "-" else sys.stdout)
+    if not args.quiet:  # with --json - (or --emit -) stdout is the JSON's: the table goes to stderr
+        print(format_results(results), file=sys.stderr if stdout_taken else sys.stdout)
     if args.json:
         write_json(args.json, results.to_json())
     if args.tum:

@@ -11,6 +11,7 @@ from typing import Any
 
 from online_slam.errors import InputError
 from online_slam.importers import registry
+from online_slam.sources.address import is_tcp
 from online_slam.sources.events import Event
 from online_slam.sources.stream import read_stream, source_name
 from online_slam.sources.worlds import WORLDS
@@ -21,6 +22,7 @@ def open_source(
     spec: str | Path,
     on_error: Callable[[InputError], None] | None = None,
     max_latency: float = 0.0,
+    stop: Callable[[], bool] | None = None,
     **dataset_options: Any,
 ) -> tuple[str, Iterator[Event]]:
     """Open a source lazily.
@@ -28,10 +30,12 @@ def open_source(
     Args:
         spec: A built-in world name (``square``, ``grid``) unless a file of that name exists; a path to a
             stream-v1 file (``.gz`` allowed); ``-`` for standard input; or a dataset (an MRCLAM folder, a
-            GTSAM/iSAM text file, a ``.g2o`` file), converted on the fly.
-        on_error: Stream files and stdin: given each bad line, which is then skipped (None: the first one
+            GTSAM/iSAM text file, a ``.g2o`` file), converted on the fly; or ``tcp://HOST:PORT``: listen there
+            and read a stream from one client at a time (:mod:`online_slam.sources.tcp`).
+        on_error: Stream files, stdin and TCP: given each bad line, which is then skipped (None: the first one
             raises). Datasets and built-in worlds ignore it (an importer stops at its first bad record).
-        max_latency: Stream files and stdin: seconds a line may lie before the newest (a later stage reorders).
+        max_latency: Stream files, stdin and TCP: seconds a line may lie before the newest (a later stage reorders).
+        stop: TCP: asked while waiting for a client or a line; True ends the stream.
         dataset_options: Passed to the dataset importer (``robot``, ``truth``, ``dt``, ``convention``, ``format``).
 
     Returns:
@@ -43,6 +47,13 @@ def open_source(
     """
     text = str(spec)
     options = {k: v for k, v in dataset_options.items() if v is not None}
+    if is_tcp(text):
+        from online_slam.sources.tcp import open_tcp
+
+        if options:
+            flag = "--" + next(iter(options)).replace("_", "-")
+            raise InputError(text, 0, "", f"{flag} applies to dataset files, not to a TCP stream")
+        return open_tcp(text, on_error, max_latency, stop)
     is_world = text in WORLDS and not Path(text).exists()
     forced = options.pop("format", None)
     if forced is not None and (is_world or text == "-"):
@@ -86,7 +97,7 @@ def _check_options(text: str, kind: str | None, is_world: bool, options: dict[st
 def check_source(spec: str | Path) -> None:
     """Raise :class:`InputError` at once when ``spec`` is neither ``-``, a built-in world nor an existing path."""
     text = str(spec)
-    if text != "-" and text not in WORLDS and not Path(text).exists():
+    if text != "-" and not is_tcp(text) and text not in WORLDS and not Path(text).exists():
         raise _not_found(text)
 
 

@@ -33,7 +33,8 @@ def replay(
     """Replay a stream through the front-end and the estimators, step by step, and evaluate.
 
     Args:
-        source: A built-in world name, a stream path (``.gz`` allowed), ``-`` for stdin, or an iterable of events.
+        source: A built-in world name, a stream path (``.gz`` allowed), ``-`` for stdin, ``tcp://HOST:PORT`` (listen
+            there: :mod:`online_slam.sources.tcp`), or an iterable of events.
         config: What to run; defaults run dead reckoning, the EKF, the smoother and the batch solver.
         name: Source name for reports (defaults to the path or world name).
         sinks: Given every step with all estimators' snapshots (``wall_s`` set), then the results; progress sinks
@@ -49,8 +50,9 @@ def replay(
             generates (its worlds), whose checks would only cost time.
         on_noise_fit: With ``--noise fit`` or ``--noise self`` (``config.dataset["noise"]``), told of the fit
             before the replay, which runs with its scales (see :mod:`online_slam.pipeline.noise`).
-        stop: Asked after each step; True ends the replay there, scored like a stream that ended there, with
-            ``Results.error`` ``"interrupted"`` (how ``online-slam replay`` keeps its work on Ctrl-C).
+        stop: Asked after each step (and by a TCP source while it waits); True ends the replay there, scored like a
+            stream that ended there, with ``Results.error`` ``"interrupted"`` (how ``online-slam replay`` keeps its
+            work on Ctrl-C).
         on_warning: Told, once, when most of the first sightings are rejected or lines skipped, with the likely
             cause (wrong units?); also in ``Results.warning``. With ``config.strict`` the replay stops there
             instead, ``Results.error`` saying why.
@@ -72,7 +74,7 @@ def replay(
         if on_noise_fit is not None:
             on_noise_fit(fit)
     watched = any(isinstance(sink, ProgressSink) for sink in sinks)
-    opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate, count=watched)
+    opened = open_events(source, cfg, name=name, on_skip=on_skip, validate=validate, count=watched, stop=stop)
     run = ReplayRun(opened, cfg, sinks, checkpoint, stop, on_warning)
     if resume is not None:
         run.resume(resume)

@@ -14,6 +14,7 @@ from online_slam.evaluation.noise_self import SelfFit, fit_self
 from online_slam.frontend.steps import FrontEnd, Step
 from online_slam.pipeline.config import ReplayConfig, make_estimator
 from online_slam.pipeline.source import open_events
+from online_slam.sources.address import is_live
 from online_slam.sources.events import Event
 
 FITS = ("fit", "self")
@@ -43,8 +44,9 @@ def fit_source_noise(
         InputError: The source cannot be read.
     """
     mode = config.dataset["noise"]
-    if str(source) == "-":
-        raise OnlineSlamError(f"--noise {mode} reads the source twice (fit, then replay): give a file, not stdin")
+    if is_live(source):
+        what = "stdin" if str(source) == "-" else "a TCP stream"
+        raise OnlineSlamError(f"--noise {mode} reads the source twice (fit, then replay): give a file, not {what}")
     if not isinstance(source, (str, Path)):
         source = list(source)
     plain = dataclasses.replace(config.frontend, odometry_noise_scale=1.0, sensor_noise_scale=1.0, sensor_bias=())

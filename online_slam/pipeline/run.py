@@ -234,11 +234,10 @@ class ReplayRun:
                 for record in records:
                     self._take(record)
                     self._suspect(self.units.step(record, self.skipped.by_reason, self._position.consumed))
-                if records and self._stop is not None and self._stop():  # at a step's end
-                    self.error = INTERRUPTED
-                    if self._checkpoint is not None:  # resumable from here, not only from the last periodic one
-                        self._save(self._checkpoint)
+                if records and self._interrupted():  # at a step's end
                     break
+            else:
+                self._interrupted()  # a live source ends when asked to stop
         except InputError as exc:
             if self.engine.steps == 0 and self.engine.frontend.pending is None:
                 raise
@@ -260,6 +259,16 @@ class ReplayRun:
             self.error = self.error or str(exc)
         batch = any(isinstance(e, BatchEstimator) for e in self.estimators)
         self._tell(f"batch: solving {counted(self.engine.steps, 'pose')}" if batch else "scoring")
+
+    def _interrupted(self) -> bool:
+        """Whether to stop here (``stop`` says so): then ``error`` says :data:`INTERRUPTED`, and a checkpoint is
+        written, so that the run is resumable from here, not only from the last periodic one."""
+        if self._stop is None or not self._stop():
+            return False
+        self.error = INTERRUPTED
+        if self._checkpoint is not None:
+            self._save(self._checkpoint)
+        return True
 
     def _suspect(self, message: str | None) -> None:
         """Give the warning about suspect input (once); with ``strict``, raise it instead."""

@@ -16,6 +16,7 @@ from online_slam.frontend.steps import STDIN_LATENCY
 from online_slam.importers import registry
 from online_slam.importers.resolve import open_source
 from online_slam.pipeline.config import ReplayConfig
+from online_slam.sources.address import is_live
 from online_slam.sources.events import Event, Observation, Scan
 from online_slam.sources.validate import validate_events
 from online_slam.sources.worlds import WORLDS
@@ -56,7 +57,7 @@ class OpenedSource:
     """Items it holds (see :class:`~online_slam.sinks.protocol.ReplayProgress`), when counted and countable."""
     latency: float = 0.0
     """Seconds its lines may arrive late (``max_latency`` resolved: :data:`~online_slam.frontend.steps.STDIN_LATENCY`
-    for stdin when not given)."""
+    for a live source, stdin or TCP, when not given)."""
 
 
 def open_events(
@@ -67,11 +68,13 @@ def open_events(
     on_skip: Callable[[InputError], None] | None = None,
     validate: bool = True,
     count: bool = False,
+    stop: Callable[[], bool] | None = None,
 ) -> OpenedSource:
     """Open a replay's source (see :func:`~online_slam.pipeline.replay` for the other arguments).
 
     Args:
         count: Count the items the source holds, for a progress display (see :func:`count_items`).
+        stop: A TCP source asks it while it waits for a client or a line: True ends the stream.
 
     Raises:
         InputError: A path that does not exist; a bad line before the first sighting (``on_error="stop"``).
@@ -79,13 +82,13 @@ def open_events(
     skipped = SkippedLines(on_skip)
     latency = config.frontend.max_latency
     if latency is None:
-        latency = STDIN_LATENCY if isinstance(source, (str, Path)) and str(source) == "-" else 0.0
+        latency = STDIN_LATENCY if isinstance(source, (str, Path)) and is_live(str(source)) else 0.0
     on_error: Callable[[InputError], None] | None = skipped if config.on_error == "skip" else None
     if on_error is None and latency > 0.0:
         on_error = functools.partial(_late_only, skipped)
     events: Iterable[Event]
     if isinstance(source, (str, Path)):
-        label, events = open_source(source, on_error, latency, **importer_options(source, config.dataset))
+        label, events = open_source(source, on_error, latency, stop, **importer_options(source, config.dataset))
     else:
         label, events = "<events>", validate_events(source, on_error, max_latency=latency) if validate else iter(source)
     total = None
@@ -126,7 +129,7 @@ def count_items(source: str | Path | Iterable[Event], events: Iterable[Event]) -
     if text in WORLDS and not path.exists():
         events = list(events)
         return len(events), events
-    if text == "-" or not path.is_file() or registry.detect(path) is not None:
+    if is_live(text) or not path.is_file() or registry.detect(path) is not None:
         return None, events
     opener = gzip.open if path.suffix == ".gz" else open
     lines, last = 0, b"\n"

@@ -1,6 +1,7 @@
 """Sources: where events come from (stream files, stdin, built-in simulated worlds)."""
 
 from online_slam.sources.events import (
+    End,
     Event,
     GeneratedId,
     Header,
@@ -26,6 +27,7 @@ from online_slam.sources.worlds import (
 
 __all__ = [
     "WORLDS",
+    "End",
     "Event",
     "GeneratedId",
     "GridConfig",

@@ -324,6 +324,16 @@ class Heading:
 
 
 @dataclass(frozen=True)
+class End:
+    """The end of a stream (``{"type": "end"}``): a live source stops there and the run ends with its results; a
+    file may carry it too (its lines after it are not read)."""
+
+    def to_record(self) -> dict[str, Any]:
+        """The JSON object of this event."""
+        return {"type": "end"}
+
+
+@dataclass(frozen=True)
 class Scan:
     """Several observations taken at one time (the engine API's ``add_observations``; not a stream-v1 line)."""
 
@@ -348,5 +358,5 @@ class Scan:
         raise TypeError("a scan is not a stream-v1 line; write its sightings as observation lines")
 
 
-Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth
+Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth | End
 """Any event of stream format v1."""

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import IO, cast
 
 from online_slam.errors import InputError
-from online_slam.sources.events import Event
+from online_slam.sources.events import End, Event
 from online_slam.sources.validate import EventValidator
 
 
@@ -54,39 +54,64 @@ def read_stream(
             :class:`~online_slam.errors.LateInput`.
 
     Yields:
-        Events in file order.
+        Events in file order, up to an ``end`` line (not given on: the lines after it are not read).
 
     Raises:
         InputError: On the first bad line without ``on_error`` (or an unreadable/truncated file).
     """
     name = source_name(path)
     handle = _open_text(path)
-    validator = EventValidator(name, max_latency=max_latency)
-    number = 0
     try:
         with handle:
-            while True:
-                try:
-                    line = handle.readline()
-                except (EOFError, OSError, zlib.error) as exc:
-                    raise InputError(name, number + 1, "", f"truncated or corrupt gzip data ({exc})") from None
-                except UnicodeDecodeError as exc:
-                    raise InputError(name, number + 1, "", f"not UTF-8 text ({exc.reason})") from None
-                if not line:
-                    return
-                number += 1
-                if not line.strip():
-                    continue
-                try:
-                    event = validator.parse_line(line, number)
-                except InputError as exc:
-                    if on_error is None:
-                        raise
-                    on_error(exc)
-                    continue
-                yield event
+            yield from parse_lines(name, _file_lines(name, handle), on_error, max_latency)
     finally:
         handle.close()
+
+
+def _file_lines(name: str, handle: IO[str]) -> Iterator[str]:
+    """A text file's lines; data that cannot be read on raises (naming the line it would have been)."""
+    number = 0
+    while True:
+        try:
+            line = handle.readline()
+        except (EOFError, OSError, zlib.error) as exc:
+            raise InputError(name, number + 1, "", f"truncated or corrupt gzip data ({exc})") from None
+        except UnicodeDecodeError as exc:
+            raise InputError(name, number + 1, "", f"not UTF-8 text ({exc.reason})") from None
+        if not line:
+            return
+        number += 1
+        yield line
+
+
+def parse_lines(
+    name: str,
+    lines: Iterable[str | InputError],
+    on_error: Callable[[InputError], None] | None = None,
+    max_latency: float = 0.0,
+) -> Iterator[Event]:
+    """Stream-v1 lines as validated events, up to an ``end`` line (see :func:`read_stream` for the arguments).
+
+    Args:
+        lines: The lines in order, numbered from 1; an :class:`InputError` in their place is a line that could not
+            be read (a live source's cut line), raised or skipped as a bad line is.
+    """
+    validator = EventValidator(name, max_latency=max_latency)
+    for number, line in enumerate(lines, 1):
+        try:
+            if isinstance(line, InputError):
+                raise InputError(name, number, line.field, line.message)
+            if not line.strip():
+                continue
+            event = validator.parse_line(line, number)
+        except InputError as exc:
+            if on_error is None:
+                raise
+            on_error(exc)
+            continue
+        if type(event) is End:
+            return
+        yield event
 
 
 def write_stream(destination: str | Path | IO[str], events: Iterable[Event]) -> int:

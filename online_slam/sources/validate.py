@@ -20,6 +20,7 @@ import numpy as np
 from online_slam.errors import InputError, LateInput
 from online_slam.sources.events import (
     OUTLIER_KINDS,
+    End,
     Event,
     Header,
     LandmarkId,
@@ -66,6 +67,7 @@ FIELDS: dict[str, set[str]] = {
     | ROBOT_FIELDS["observation"],
     "truth": {"type", "t", "pose", "position"} | ROBOT_FIELDS["truth"],
     "landmark_truth": {"type", "landmark", "position"},
+    "end": {"type"},
 }
 """Allowed fields of each event type."""
 
@@ -425,6 +427,9 @@ class EventValidator(ScanRules, RobotRules):
         self._pending.seen_content = True
         return LandmarkTruth(landmark=landmark, position=self.vector(record, "position", 2, line))
 
+    def _end(self, record: dict[str, Any], line: int) -> End:
+        return End()
+
 
 _SCALARS = frozenset({float, int, str, bool, type(None)})
 
@@ -460,7 +465,7 @@ def validate_events(
         max_latency: Seconds an item may be older than the newest (see :class:`EventValidator`).
 
     Yields:
-        The validated events.
+        The validated events, up to an ``end`` (not given on: the stream ends there).
     """
     validator = EventValidator(name, max_latency=max_latency)
     for position, item in enumerate(items, 1):
@@ -479,4 +484,6 @@ def validate_events(
                 raise
             on_error(exc)
             continue
+        if type(event) is End:
+            return
         yield event
