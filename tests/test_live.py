@@ -93,6 +93,23 @@ def test_an_address_that_cannot_be_listened_on_is_one_line() -> None:
             open_tcp(f"tcp://127.0.0.1:{port}", tell=lambda _: None)
 
 
+def test_live_options_are_checked_before_anything_runs(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from online_slam.cli.main import main
+
+    cases = {
+        ("square", "--emit-estimator", "ekf"): "--emit-estimator: give --emit DEST too",
+        ("square", "--json", "-", "--emit", "-"): "both would write to stdout",
+        ("square", "--emit", str(tmp_path / "e.jsonl"), "--emit-estimator", "batch"): "'batch' estimates no step",
+        ("square", "--emit", "tcp://nohost"): "--emit: expected tcp://HOST:PORT",
+        ("square", "--emit", str(tmp_path / "no" / "e.jsonl")): "--emit: cannot write",
+        ("tcp://127.0.0.1:0", "--noise", "fit"): "give a file, not a TCP stream",
+        ("tcp://127.0.0.1:0", "--robot", "2"): "--robot applies to dataset files, not to a TCP stream",
+    }
+    for args, message in cases.items():
+        assert main(["replay", *args]) == 2, args
+        assert message in capsys.readouterr().err, args
+
+
 # -- the TCP source, in this process -----------------------------------------------------------------------------
 def _listen(**kw) -> tuple[int, list[str], object]:
     told: list[str] = []

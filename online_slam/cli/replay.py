@@ -154,9 +154,7 @@ def emitted(args: argparse.Namespace, config: ReplayConfig) -> tuple[str, ...]:
         return online[1:] or online[:1]
     if choice not in online:
         expected = ", ".join((*online, "all"))
-        raise OnlineSlamError(
-            f"--emit-estimator: {choice!r} gives no estimate per step here; expected one of {expected}"
-        )
+        raise OnlineSlamError(f"--emit-estimator: {choice!r} estimates no step here; expected one of {expected}")
     return (choice,)
 
 
