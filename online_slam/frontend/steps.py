@@ -97,7 +97,7 @@ class FrontEndConfig:
     max_latency: float | None = None
     """Lines may arrive up to this many seconds older than the newest line's time: they are held back (a reorder
     buffer) and given on in time order; older ones are skipped and counted. 0: no buffer (time going back is an
-    input error). None: 0, but :data:`STDIN_LATENCY` for a replay of standard input."""
+    input error). None: 0, but :data:`STDIN_LATENCY` for a replay of a live source (standard input, TCP)."""
 
     def __post_init__(self) -> None:
         check_scale("odometry_noise_scale", self.odometry_noise_scale)
@@ -113,9 +113,9 @@ Ahead = Observation | Scan | Truth
 """A line stamped after its robot's newest pose: it waits for the odometry that spans its time."""
 
 STDIN_LATENCY = 0.5
-"""Seconds a line of standard input may arrive late (``--max-latency`` not given): a camera and its detector lag
-the odometry by tens to a few hundred milliseconds; half a second holds them with a margin and delays a live
-estimate by as much (the newest pose is still predicted with the held odometry: ``Slam.estimate``)."""
+"""Seconds a line of a live source (standard input, TCP) may arrive late (``--max-latency`` not given): a camera
+and its detector lag the odometry by tens to a few hundred milliseconds; half a second holds them with a margin and
+delays a live estimate by as much (the newest pose is still predicted with the held odometry: ``Slam.estimate``)."""
 
 TIME_TOLERANCE = 1e-6
 """Seconds within which two times are the same pose's: a sighting this close to a pose attaches to it, a later one
