@@ -109,7 +109,8 @@ def config_from(args: argparse.Namespace) -> ReplayConfig:
 
 
 def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
-    """Progress bar, pacing and Rerun logging, as the options ask (a --connect without a viewer raises here)."""
+    """Progress bar, pacing, Rerun logging and the estimate stream, as the options ask (a --connect without a viewer
+    raises here)."""
     from online_slam.sinks.live import Pacer, Progress
 
     sinks: list = []
@@ -130,11 +131,11 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
         name = "<stdin>" if args.source == "-" else str(args.source)
         layout = Layout(*estimator_names(config))
         sinks.append(RerunSink(RerunConfig(path=args.rrd, connect=args.connect), name, layout))
-    if args.emit is not None:
+    if getattr(args, "emit", None) is not None:  # replay's, not compare's
         from online_slam.sinks.emit import EstimateStream
 
         sinks.append(EstimateStream(args.emit, emitted(args, config), tell=report))
-    elif args.emit_estimator is not None:
+    elif getattr(args, "emit_estimator", None) is not None:
         raise OnlineSlamError("--emit-estimator: give --emit DEST too")
     progress = Progress()
     if progress.enabled and not args.quiet:  # a source is counted for its total only when a bar is drawn
