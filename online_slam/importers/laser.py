@@ -56,28 +56,53 @@ def detect(
         detector: The settings.
         intensities: The returns' intensities (n,), read when ``detector.min_intensity`` is set.
     """
+    one = np.ones(1)
+    found, keep, _ = detect_many(np.asarray(ranges, dtype=float)[None, :], angle_min * one, increment * one,
+                                 valid_range[0] * one, valid_range[1] * one, detector,
+                                 None if intensities is None else np.asarray(intensities)[None, :])  # fmt: skip
+    return found, keep
+
+
+def detect_many(
+    ranges: Array, angle_min: Array, increment: Array, range_min: Array, range_max: Array, detector: Detector,
+    intensities: Array | None = None,
+) -> tuple[Array, NDArray[np.bool_], NDArray[np.intp]]:  # fmt: skip
+    """:func:`detect` over m scans of n beams at once: ranges (m, n), each scan's angles and valid range (m,).
+
+    Returns:
+        Every object found (k, 3), which pass the limits (k,), and the scan each is of (k,), in scan order.
+    """
     r = np.asarray(ranges, dtype=float)
-    valid = np.isfinite(r) & (r >= valid_range[0]) & (r <= valid_range[1])
+    m, n = r.shape
+    valid = np.isfinite(r) & (r >= range_min[:, None]) & (r <= range_max[:, None])
     if detector.min_intensity is not None and intensities is not None:
         valid &= np.asarray(intensities, dtype=float) >= detector.min_intensity
-    idx = np.flatnonzero(valid)
-    if len(idx) == 0:
-        return np.zeros((0, 3)), np.zeros(0, dtype=bool)
-    rv = r[idx]
-    starts = np.r_[True, (np.diff(idx) > 1) | (np.abs(np.diff(rv)) > detector.jump)]
+    flat = np.flatnonzero(valid)
+    if len(flat) == 0:
+        return np.zeros((0, 3)), np.zeros(0, dtype=bool), np.zeros(0, dtype=np.intp)
+    scan, beam = np.divmod(flat, n)
+    rv = r.ravel()[flat]
+    starts = np.empty(len(flat), dtype=bool)
+    starts[0] = True
+    np.logical_or(np.diff(flat) > 1, np.abs(np.diff(rv)) > detector.jump, out=starts[1:])
+    starts[1:] |= np.diff(scan) != 0
     first = np.flatnonzero(starts)
-    last = np.r_[first[1:], len(idx)] - 1
+    last = np.empty_like(first)
+    last[:-1], last[-1] = first[1:] - 1, len(flat) - 1
+    of = scan[first]
     count = (last - first + 1).astype(float)
     mean = np.add.reduceat(rv, first) / count
-    diameter = count * increment * mean
-    found = np.stack([mean + diameter / 2.0, angle_min + 0.5 * (idx[first] + idx[last]) * increment, diameter], -1)
+    diameter = count * increment[of] * mean
+    found = np.empty((len(first), 3))
+    found[:, 0], found[:, 2] = mean + diameter / 2.0, diameter
+    found[:, 1] = angle_min[of] + 0.5 * (beam[first] + beam[last]) * increment[of]
     if detector.decimals is not None:
         found = np.round(found, detector.decimals)
     rng, bearing, d = found.T
     keep = (rng >= detector.min_range) & (rng <= detector.max_range)
     keep &= (bearing >= detector.min_bearing) & (bearing <= detector.max_bearing)
     keep &= (d >= detector.min_diameter) & (d <= detector.max_diameter)
-    return found, keep
+    return found, keep, of
 
 
 def to_robot_frame(z: Array, mount: tuple[float, float, float], sigma: tuple[float, float]) -> tuple[Array, Array]:
