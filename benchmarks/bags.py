@@ -15,6 +15,8 @@ of :data:`VP_OPTIONS` to give the acfr importer's events:
   the detection printed to 5 decimals (``--scan-decimals 5``). Ranges and angles are float32 in a LaserScan; the
   scan's ``angle_min`` (within 1e-7 rad of 0) is chosen so that its float32 beam angles round to the log's
   bearings. The writer checks that the detector gives back every detection;
+- ``/tf_static``: the laser's mounting, and the GPS antenna at the rear axle's centre (where the log's GPS is
+  compared with the pose);
 - ``/gps`` (``sensor_msgs/msg/NavSatFix``): the log's GPS x, y as east, north about :data:`VP_ORIGIN`.
 """
 
@@ -54,6 +56,8 @@ class BagWriter:
     def __init__(self, writer: Any, typestore: Any, ros1: bool) -> None:
         self.writer, self.ts, self.ros1 = writer, typestore, ros1
         self.connections: dict[str, Any] = {}
+        self.count = 0
+        """Messages written."""
 
     def msg(self, name: str, **fields: Any) -> Any:
         """A message of type ``name`` (``pkg/msg/Type``)."""
@@ -73,6 +77,7 @@ class BagWriter:
             self.connections[topic] = self.writer.add_connection(topic, msgtype, typestore=self.ts)
         raw = self.ts.serialize_ros1(message, msgtype) if self.ros1 else self.ts.serialize_cdr(message, msgtype)
         self.writer.write(self.connections[topic], round(t * 1e9), raw)
+        self.count += 1
 
     def vector(self, x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
         """A ``geometry_msgs/msg/Vector3``."""
@@ -146,13 +151,13 @@ def write_victoria_park(raw: str | Path, out: str | Path, ros1: bool, until: flo
         inputs, measurements, gps = (a[a[:, 0] <= until] for a in (inputs, measurements, gps))
     lat, lon = from_local_plane(gps[:, 1:3], VP_ORIGIN)
     records: list[tuple[float, int, str, Any]] = []
-    count = 0
     with open_bag(out, ros1) as bag:
         bag.mount(0.0, "base_link", "laser", (3.78, 0.50, -math.pi / 2))
+        bag.mount(0.0, "base_link", "gps", (0.0, 0.0, 0.0))  # where the log's GPS is taken to be (its truth)
         for t, speed, steer in inputs:
             twist = bag.msg("geometry_msgs/msg/Twist", linear=bag.vector(speed), angular=bag.vector(z=steer))
-            records.append((t, 0, "/wheels", bag.msg("geometry_msgs/msg/TwistStamped", header=bag.header(t, "base_link"),
-                                                      twist=twist)))  # fmt: skip
+            stamped = bag.msg("geometry_msgs/msg/TwistStamped", header=bag.header(t, "base_link"), twist=twist)
+            records.append((t, 0, "/wheels", stamped))
         times, starts = np.unique(measurements[:, 0], return_index=True)
         for t, a, z in zip(times, starts, np.r_[starts[1:], len(measurements)]):
             ranges, angle_min = _scan_of(measurements[a:z, 1:4])
@@ -165,13 +170,13 @@ def write_victoria_park(raw: str | Path, out: str | Path, ros1: bool, until: flo
         status = bag.msg("sensor_msgs/msg/NavSatStatus", status=0, service=1)
         for (t, _, _), la, lo in zip(gps, lat, lon):
             fix = bag.msg("sensor_msgs/msg/NavSatFix", header=bag.header(t, "gps"), status=status, latitude=la,
-                          longitude=lo, altitude=0.0, position_covariance=np.zeros(9), position_covariance_type=0)  # fmt: skip
+                          longitude=lo, altitude=0.0, position_covariance=np.zeros(9),
+                          position_covariance_type=0)  # fmt: skip
             records.append((t, 2, "/gps", fix))
         records.sort(key=lambda item: item[:2])
         for t, _, topic, message in records:
             bag.write(topic, t, message)
-            count += 1
-    return count + 1
+    return bag.count
 
 
 def _check_scan(scan: Any, expected: np.ndarray) -> None:
@@ -189,7 +194,7 @@ def write_stream_bag(events: Iterable[Event], out: str | Path, ros1: bool) -> in
     its position in ``base_link``) and its truth (``/truth``: Odometry) as a bag; the number of messages."""
     from online_slam.geometry.se2 import compose
 
-    pose, count = None, 0
+    pose = None
     with open_bag(out, ros1) as bag:
 
         def odometry(topic: str, t: float, p: Any, cov: np.ndarray) -> None:
@@ -218,10 +223,7 @@ def write_stream_bag(events: Iterable[Event], out: str | Path, ros1: bool) -> in
                     "visualization_msgs/msg/Marker", **_marker_fields(bag, event.t, int(event.landmark), x, y)
                 )
                 bag.write("/landmarks", event.t, bag.msg("visualization_msgs/msg/MarkerArray", markers=[marker]))
-            else:
-                continue
-            count += 1
-    return count
+    return bag.count
 
 
 def _marker_fields(bag: BagWriter, t: float, landmark: int, x: float, y: float) -> dict[str, Any]:
@@ -233,9 +235,10 @@ def _marker_fields(bag: BagWriter, t: float, landmark: int, x: float, y: float) 
         "lifetime": bag.msg("builtin_interfaces/msg/Duration", sec=0, nanosec=0), "frame_locked": False,
         "points": [], "colors": [], "text": "", "mesh_resource": "", "mesh_use_embedded_materials": False}  # fmt: skip
     if "texture" in fields:
-        out.update(texture_resource="", texture=bag.msg("sensor_msgs/msg/CompressedImage", header=bag.header(t, ""),
-                   format="", data=np.zeros(0, dtype=np.uint8)), uv_coordinates=[],
-                   mesh_file=bag.msg("visualization_msgs/msg/MeshFile", filename="", data=np.zeros(0, dtype=np.uint8)))  # fmt: skip
+        empty = np.zeros(0, dtype=np.uint8)
+        image = bag.msg("sensor_msgs/msg/CompressedImage", header=bag.header(t, ""), format="", data=empty)
+        mesh = bag.msg("visualization_msgs/msg/MeshFile", filename="", data=empty)
+        out.update(texture_resource="", texture=image, uv_coordinates=[], mesh_file=mesh)
     return out
 
 

@@ -81,7 +81,7 @@ def truth_at(fixes: Array, times: Array, max_gap: float, max_speed: float) -> tu
     a = np.where(exact, b, a)
     span = t[b] - t[a]
     jump = np.linalg.norm(fixes[b, 1:] - fixes[a, 1:], axis=1)
-    ok = (t[a] <= times) & (times <= t[b]) & (span <= max_gap) & (jump <= max_speed * span + 1e-9)
+    ok = (t[a] <= times) & (times <= t[b]) & (span <= max_gap) & (jump <= min(max_speed, 1e300) * span + 1e-9)
     weight = np.where(span > 0, (times - t[a]) / np.where(span > 0, span, 1.0), 0.0)
     positions = fixes[a, 1:] + weight[:, None] * (fixes[b, 1:] - fixes[a, 1:])
     return positions, ok
