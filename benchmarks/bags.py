@@ -258,3 +258,33 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def time_reading(raw: str | Path, repeats: int, until: float | None = None) -> list[tuple[str, int, float, float]]:
+    """Write the log's bags to a temporary folder and time reading them: per storage, the messages, the best
+    seconds of reading the topics (decoding, the laser detector), and of reading them into events."""
+    import tempfile
+    import time
+
+    from online_slam.importers.bag import BagOptions
+    from online_slam.importers.bag.messages import read_topics
+    from online_slam.importers.bag.reader import _detector, read_bag
+
+    options = BagOptions(**VP_OPTIONS)  # type: ignore[arg-type]
+    topics = {"odom": "/wheels", "scan": "/scan", "truth": "/gps"}
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for name, ros1 in (("ROS 2 MCAP", False), ("ROS 1", True)):
+            path = Path(folder) / ("vp.bag" if ros1 else "vp.mcap")
+            write_victoria_park(raw, path, ros1, until)
+            read_topics(path, topics, _detector(options))  # imports and type generation, once
+            best_read, best_events, messages = math.inf, math.inf, 0
+            for _ in range(repeats):
+                start = time.perf_counter()
+                messages = read_topics(path, topics, _detector(options)).messages
+                best_read = min(best_read, time.perf_counter() - start)
+                start = time.perf_counter()
+                sum(1 for _ in read_bag(path, options))
+                best_events = min(best_events, time.perf_counter() - start)
+            rows.append((name, messages, best_read, best_events))
+    return rows

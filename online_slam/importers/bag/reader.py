@@ -118,8 +118,8 @@ def _events(path: Path, bag: Bag, o: BagOptions) -> Iterator[Event]:
         c = cov[k - 1]
         timed.append((float(times[k]), 0, k, Odometry(t=float(times[k]), delta=tuple(map(float, increments[k - 1])),
                                                       cov=tuple(tuple(map(float, row)) for row in c))))  # fmt: skip
-    for k in np.flatnonzero(covered):
-        timed.append((float(times[k]), 1, int(k), Truth(t=float(times[k]), pose=tuple(map(float, truth[k])))))
+    for j in np.flatnonzero(covered).tolist():
+        timed.append((float(times[j]), 1, j, Truth(t=float(times[j]), pose=tuple(map(float, truth[j])))))
     for i, fix in enumerate(_fixes(path, bag, o, base, origin)):
         timed.append((fix.t, 2, i, cast("Event", fix)))  # Position joins Event with the fixes' estimators
     for i, (t, observation) in enumerate(sightings):
@@ -173,7 +173,7 @@ def _observation(
     t: float, landmark: Any, z: Array, xy: bool, o: BagOptions, mount: tuple[float, float, float] | None,
     frame: str, sensors: dict,
 ) -> Observation:  # fmt: skip
-    sigma = (o.xy_sigma, o.xy_sigma) if xy else (o.range_sigma, o.bearing_sigma)
+    sigma = cast("tuple[float, float]", (o.xy_sigma, o.xy_sigma) if xy else (o.range_sigma, o.bearing_sigma))
     sensor = None
     if mount is not None and o.sensor_to_base:
         if xy:
@@ -182,7 +182,7 @@ def _observation(
             p = rot @ z[0] + np.array(mount[:2])
             cov = rot @ np.diag(np.square(sigma)) @ rot.T
             return Observation(t=t, landmark=landmark, xy=(float(p[0]), float(p[1])), cov=_tuples(cov))
-        zr, cov = to_robot_frame(z, mount, cast("tuple[float, float]", sigma))
+        zr, cov = to_robot_frame(z, mount, sigma)
         return Observation(t=t, landmark=landmark, range=float(zr[0, 0]), bearing=float(zr[0, 1]),
                            cov=_tuples(cov[0]))  # fmt: skip
     if mount is not None:
