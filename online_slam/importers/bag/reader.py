@@ -153,49 +153,58 @@ def _sightings(path: Path, bag: Bag, o: BagOptions, base: str, sensors: dict) ->
         if not xy and (o.range_sigma is None or o.bearing_sigma is None):
             raise InputError(str(path), 0, "landmarks", f"topic {o.landmarks}: give --xy-sigma S (position "
                              "sightings) or --range-sigma and --bearing-sigma")  # fmt: skip
-        for (t, x, y), (frame, landmark) in zip(markers.array, markers.labels):
+        a = markers.array
+        z = a[:, 1:3] if xy else np.column_stack([np.hypot(a[:, 1], a[:, 2]), np.arctan2(a[:, 2], a[:, 1])])
+        frames = np.array([frame for frame, _ in markers.labels], dtype=object)
+        for frame in dict.fromkeys(frames.tolist()):
+            rows = np.flatnonzero(frames == frame)
             mount = _mount(path, bag, frame, base, "landmarks")
-            z = np.array([[x, y]]) if xy else np.array([[math.hypot(x, y), math.atan2(y, x)]])
-            out.append((float(t), _observation(float(t), landmark, z, xy, o, mount, frame, sensors)))
+            landmarks = [markers.labels[i][1] for i in rows]
+            out += _batch(a[rows, 0], landmarks, z[rows], xy, o, mount, frame, sensors)
     if scan is not None and len(scan.array):
         if o.range_sigma is None or o.bearing_sigma is None:
             raise InputError(str(path), 0, "scan", f"topic {o.scan}: give --range-sigma and --bearing-sigma")
-        for (t, r, b, kept), frame in zip(scan.array, scan.labels):
-            if kept:
-                mount = _mount(path, bag, frame, base, "scan")
-                out.append((float(t), _observation(float(t), None, np.array([[r, b]]), False, o, mount, frame,
-                                                   sensors)))  # fmt: skip
+        a = scan.array
+        frames = np.array(scan.labels, dtype=object)
+        for frame in dict.fromkeys(frames.tolist()):
+            rows = np.flatnonzero((frames == frame) & (a[:, 3] > 0))
+            mount = _mount(path, bag, frame, base, "scan")
+            out += _batch(a[rows, 0], [None] * len(rows), a[rows, 1:3], False, o, mount, frame, sensors)
     out.sort(key=lambda item: item[0])
     return out
 
 
-def _observation(
-    t: float, landmark: Any, z: Array, xy: bool, o: BagOptions, mount: tuple[float, float, float] | None,
+def _batch(
+    t: Array, landmarks: list, z: Array, xy: bool, o: BagOptions, mount: tuple[float, float, float] | None,
     frame: str, sensors: dict,
-) -> Observation:  # fmt: skip
+) -> list[tuple[float, Observation]]:  # fmt: skip
+    """The sightings of one frame: ``z`` (k, 2) as ``xy`` or range and bearing, at times ``t`` (k,)."""
     sigma = cast("tuple[float, float]", (o.xy_sigma, o.xy_sigma) if xy else (o.range_sigma, o.bearing_sigma))
-    sensor = None
+    times = t.tolist()
     if mount is not None and o.sensor_to_base:
         if xy:
             c, s = math.cos(mount[2]), math.sin(mount[2])
             rot = np.array([[c, -s], [s, c]])
-            p = rot @ z[0] + np.array(mount[:2])
-            cov = rot @ np.diag(np.square(sigma)) @ rot.T
-            return Observation(t=t, landmark=landmark, xy=(float(p[0]), float(p[1])), cov=_tuples(cov))
-        zr, cov = to_robot_frame(z, mount, sigma)
-        return Observation(t=t, landmark=landmark, range=float(zr[0, 0]), bearing=float(zr[0, 1]),
-                           cov=_tuples(cov[0]))  # fmt: skip
+            p = z @ rot.T + np.array(mount[:2])
+            cov = _tuples(rot @ np.diag(np.square(sigma)) @ rot.T)
+            return [(ti, Observation(t=ti, landmark=lm, xy=(pi[0], pi[1]), cov=cov))
+                    for ti, lm, pi in zip(times, landmarks, p.tolist())]  # fmt: skip
+        zr, covs = to_robot_frame(z, mount, sigma)
+        return [(ti, Observation(t=ti, landmark=lm, range=zi[0], bearing=zi[1], cov=(tuple(ci[0]), tuple(ci[1]))))
+                for ti, lm, zi, ci in zip(times, landmarks, zr.tolist(), covs.tolist())]  # fmt: skip
+    sensor = None
     if mount is not None:
         sensors[frame] = mount
         sensor = frame
     if xy:
-        return Observation(t=t, landmark=landmark, xy=(float(z[0, 0]), float(z[0, 1])), sigma=sigma, sensor=sensor)
-    return Observation(t=t, landmark=landmark, range=float(z[0, 0]), bearing=float(z[0, 1]), sigma=sigma,
-                       sensor=sensor)  # fmt: skip
+        return [(ti, Observation(t=ti, landmark=lm, xy=(zi[0], zi[1]), sigma=sigma, sensor=sensor))
+                for ti, lm, zi in zip(times, landmarks, z.tolist())]  # fmt: skip
+    return [(ti, Observation(t=ti, landmark=lm, range=zi[0], bearing=zi[1], sigma=sigma, sensor=sensor))
+            for ti, lm, zi in zip(times, landmarks, z.tolist())]  # fmt: skip
 
 
 def _tuples(matrix: Array) -> tuple[tuple[float, ...], ...]:
-    return tuple(tuple(map(float, row)) for row in matrix)
+    return tuple(map(tuple, np.asarray(matrix, dtype=float).tolist()))
 
 
 def _noise(path: Path, o: BagOptions, ds: Array, da: Array) -> Array:
