@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from conftest import assert_close
 
+import online_slam
 from benchmarks.bags import VP_OPTIONS, write_stream_bag
 from online_slam.cli.main import main
 from online_slam.errors import InputError
@@ -21,6 +22,7 @@ from online_slam.importers.acfr.reader import read_acfr
 from online_slam.importers.bag import BagOptions
 from online_slam.importers.bag.reader import from_local_plane, local_plane, read_bag
 from online_slam.importers.laser import Detector, detect
+from online_slam.pipeline import ReplayConfig
 from online_slam.sources.events import Header, Observation, Odometry, Position, Start, Truth
 from online_slam.sources.worlds import square_world
 
@@ -143,3 +145,43 @@ def test_the_laser_detector_finds_runs_of_returns() -> None:
     assert keep.tolist() == [True, True, True]
     _, keep = detect(ranges, 0.0, increment, (0.0, 80.0), Detector(max_range=15.0, min_diameter=0.32))
     assert keep.tolist() == [True, False, False]
+
+
+def test_messages_out_of_order_read_as_in_order(tmp_path: Path) -> None:
+    stream = list(square_world())
+    sightings = [e for e in stream if isinstance(e, Observation)]
+    times = sorted({e.t for e in sightings}, reverse=True)  # written last, the latest first (one time's in order)
+    shuffled = [e for e in stream if not isinstance(e, Observation)] + [e for t in times for e in sightings if e.t == t]
+    options = BagOptions(odom="/odom", landmarks="/landmarks", range_sigma=SIGMA[0], bearing_sigma=SIGMA[1])
+    write_stream_bag(stream, tmp_path / "ordered.mcap", ros1=False)
+    write_stream_bag(shuffled, tmp_path / "shuffled.mcap", ros1=False)
+    ordered, late = (list(read_bag(tmp_path / f"{n}.mcap", options))[1:] for n in ("ordered", "shuffled"))
+    assert_close(ordered, late, rtol=0.0)
+
+
+@pytest.mark.slow
+def test_a_sensor_off_the_centre_is_declared_and_replays() -> None:
+    options = replace(BagOptions(**VP_OPTIONS), sensor_to_base=False)
+    events = list(read_bag(BAGS[0], options))
+    assert events[0].meta["sensors"] == {"laser": {"pose": [3.78, 0.5, pytest.approx(-math.pi / 2, abs=1e-15)]}}
+    sightings = [e for e in events if isinstance(e, Observation)]
+    assert {e.sensor for e in sightings} == {"laser"} and sightings[0].sigma == (0.2, 0.005)
+    assert min(e.bearing for e in sightings) >= 0.0 and max(e.bearing for e in sightings) <= math.pi  # laser frame
+    results = online_slam.replay(events, ReplayConfig(estimators=("ekf",)))
+    assert results.error is None and results.observations == len(sightings)
+
+
+def test_a_body_twist_integrates_and_odometry_without_covariance_takes_the_option(tmp_path: Path) -> None:
+    from benchmarks.bags import open_bag
+
+    with open_bag(tmp_path / "twist.bag", ros1=True) as bag:
+        for k in range(11):  # 1 m/s ahead turning at 0.1 rad/s, one message a second
+            twist = bag.msg("geometry_msgs/msg/Twist", linear=bag.vector(1.0), angular=bag.vector(z=0.1))
+            bag.write("/cmd", float(k), bag.msg("geometry_msgs/msg/TwistStamped", header=bag.header(float(k), ""),
+                                                twist=twist))  # fmt: skip
+    events = list(read_bag(tmp_path / "twist.bag", BagOptions(odom="/cmd", odom_sigma=(0.1, 0.1, 0.01), pose_gap=2.5)))
+    steps = [e for e in events if isinstance(e, Odometry)]
+    assert [e.t for e in steps] == [2.5, 5.0, 7.5]  # no sighting: a pose every 2.5 s (none at the end: acfr's rule)
+    arc = 2 * math.sin(0.125) / 0.25 * 2.5  # chord of 2.5 m turning 0.25 rad
+    assert np.allclose(steps[0].delta, [arc * math.cos(0.125), arc * math.sin(0.125), 0.25], atol=1e-12)
+    assert np.allclose(steps[0].covariance, np.diag([0.01, 0.01, 0.0001]))
