@@ -23,6 +23,7 @@ REGISTRY = (
     "online_slam.importers.acfr",
     "online_slam.importers.g2o",
     "online_slam.importers.gtsam_text",
+    "online_slam.importers.bag",
 )
 """The importers' modules, in the order detection asks them; each holds ``IMPORTER``."""
 

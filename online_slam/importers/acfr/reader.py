@@ -40,6 +40,8 @@ from online_slam.errors import InputError
 from online_slam.geometry.se2 import between
 from online_slam.importers._lines import numbered_lines, numbers
 from online_slam.importers.acfr import FILES
+from online_slam.importers.laser import to_robot_frame
+from online_slam.importers.motion import ackermann, integrate, pose_times, start_from_positions, truth_at
 from online_slam.sources.events import Event, Header, Observation, Odometry, Start, Truth
 
 Array = NDArray[np.float64]
@@ -113,85 +115,6 @@ def _table(path: Path, names: tuple[str, ...]) -> Array:
     return table
 
 
-def _integrate(inputs: Array, times: Array, vehicle: AcfrVehicle) -> tuple[Array, Array, Array]:
-    """Dead-reckoned poses at ``times`` (N, 3), and path length and turned angle up to each (N,).
-
-    Each input ``(t, speed, steer)`` holds from t to the next input; before the first one the car stands.
-    """
-    t_in, speed, steer = inputs[:, 0], inputs[:, 1], inputs[:, 2]
-    tan = np.tan(steer)
-    v = speed / (1.0 - tan * vehicle.encoder_offset / vehicle.wheelbase)
-    w = v * tan / vehicle.wheelbase
-    # boundaries: every input time and every requested time
-    edges = np.union1d(t_in, times)
-    edges = edges[edges >= min(t_in[0], times[0])]
-    k = np.searchsorted(t_in, edges[:-1], side="right") - 1  # input holding on [edges[i], edges[i+1])
-    dt = np.diff(edges)
-    vk = np.where(k >= 0, v[np.maximum(k, 0)], 0.0)
-    wk = np.where(k >= 0, w[np.maximum(k, 0)], 0.0)
-    dtheta = wk * dt
-    theta = np.r_[0.0, np.cumsum(dtheta)]
-    small = np.abs(dtheta) < 1e-9
-    safe = np.where(small, 1.0, dtheta)
-    # exact arc in the frame of the segment's start: chord length and direction (half the turn)
-    chord = np.where(small, vk * dt, 2.0 * vk * dt * np.sin(safe / 2.0) / safe)
-    direction = theta[:-1] + dtheta / 2.0
-    x = np.r_[0.0, np.cumsum(chord * np.cos(direction))]
-    y = np.r_[0.0, np.cumsum(chord * np.sin(direction))]
-    path = np.r_[0.0, np.cumsum(np.abs(vk) * dt)]
-    turn = np.r_[0.0, np.cumsum(np.abs(dtheta))]
-    at = np.searchsorted(edges, times)
-    return np.stack([x[at], y[at], theta[at]], -1), path[at], turn[at]
-
-
-def _truth_at(gps: Array, times: Array, noise: AcfrNoise) -> tuple[Array, NDArray[np.bool_]]:
-    """GPS positions interpolated at ``times`` (N, 2) and which times have one."""
-    t = gps[:, 0]
-    b = np.searchsorted(t, times, side="left")
-    a = np.maximum(b - 1, 0)
-    b = np.minimum(b, len(t) - 1)
-    exact = t[b] == times
-    a = np.where(exact, b, a)
-    span = t[b] - t[a]
-    jump = np.linalg.norm(gps[b, 1:] - gps[a, 1:], axis=1)
-    ok = (t[a] <= times) & (times <= t[b]) & (span <= noise.truth_gap) & (jump <= noise.truth_speed * span + 1e-9)
-    weight = np.where(span > 0, (times - t[a]) / np.where(span > 0, span, 1.0), 0.0)
-    positions = gps[a, 1:] + weight[:, None] * (gps[b, 1:] - gps[a, 1:])
-    return positions, ok
-
-
-def _start_from_gps(poses: Array, path: Array, truth: Array, covered: NDArray[np.bool_], distance: float) -> Array:
-    """A start pose in the GPS frame: the first covered position, and the heading that turns the dead-reckoned
-    displacement over the first ``distance`` metres onto the GPS one (zeros when GPS does not allow it)."""
-    first = np.flatnonzero(covered)
-    if len(first) == 0:
-        return np.zeros(3)
-    a = int(first[0])
-    later = np.flatnonzero(covered & (path - path[a] >= distance))
-    if len(later) == 0:
-        return np.zeros(3)
-    b = int(later[0])
-    gps_move, dr_move = truth[b] - truth[a], poses[b, :2] - poses[a, :2]
-    heading = math.atan2(gps_move[1], gps_move[0]) - math.atan2(dr_move[1], dr_move[0])
-    c, s = math.cos(heading), math.sin(heading)
-    origin = truth[a] - np.array([c * poses[a, 0] - s * poses[a, 1], s * poses[a, 0] + c * poses[a, 1]])
-    return np.array([origin[0], origin[1], math.atan2(s, c)])
-
-
-def _sightings(rows: Array, vehicle: AcfrVehicle, noise: AcfrNoise) -> tuple[Array, Array]:
-    """Laser detections ``(range, bearing)`` -> range and bearing from the rear axle (k, 2), covariances (k, 2, 2)."""
-    r, b = rows[:, 0], rows[:, 1] - math.pi / 2
-    px, py = r * np.cos(b) + vehicle.laser_x, r * np.sin(b) + vehicle.laser_y
-    rv = np.hypot(px, py)
-    # Jacobian of (rv, bv) w.r.t. (r, b): through the point p = laser + r [cos b, sin b]
-    dp = np.stack([np.stack([np.cos(b), -r * np.sin(b)], -1), np.stack([np.sin(b), r * np.cos(b)], -1)], -2)
-    dz = np.stack([np.stack([px / rv, py / rv], -1), np.stack([-py / rv**2, px / rv**2], -1)], -2)
-    J = dz @ dp
-    R = np.diag([noise.range_sigma**2, noise.bearing_sigma**2])
-    cov = J @ R @ np.swapaxes(J, 1, 2)
-    return np.stack([rv, np.arctan2(py, px)], -1), 0.5 * (cov + np.swapaxes(cov, 1, 2))
-
-
 def read_acfr(
     folder: str | Path, noise: AcfrNoise | None = None, vehicle: AcfrVehicle | None = None
 ) -> Iterator[Event]:
@@ -219,12 +142,9 @@ def read_acfr(
     scan_times = np.unique(kept[:, 0])
     start = float(min(inputs[0, 0], measurements[0, 0]))
     end = float(max(inputs[-1, 0], kept[-1, 0] if len(kept) else start))
-    times = np.union1d(np.r_[start, scan_times], [])
-    gaps = np.diff(np.r_[times, end])
-    fillers = [times[i] + cfg.max_gap * np.arange(1, math.ceil(g / cfg.max_gap)) for i, g in enumerate(gaps)]
-    times = np.union1d(times, np.concatenate(fillers) if fillers else [])
-    times = times[times <= end]
-    poses, path, turn = _integrate(inputs, times, car)
+    times = pose_times(start, scan_times, end, cfg.max_gap)
+    v, w = ackermann(inputs[:, 1], inputs[:, 2], car.wheelbase, car.encoder_offset)
+    poses, path, turn = integrate(inputs[:, 0], v, w, times)
     increments = between(poses[:-1], poses[1:])
     ds, da = np.diff(path), np.diff(turn)
     variances = np.stack(
@@ -235,9 +155,10 @@ def read_acfr(
         ],
         -1,
     )
-    z, z_cov = _sightings(kept[:, 1:3], car, cfg)
-    truth, covered = _truth_at(gps, times, cfg)
-    start_pose = _start_from_gps(poses, path, truth, covered, cfg.start_distance)
+    mount = (car.laser_x, car.laser_y, -math.pi / 2)  # the file's bearing 0 is the laser's right
+    z, z_cov = to_robot_frame(kept[:, 1:3], mount, (cfg.range_sigma, cfg.bearing_sigma))
+    truth, covered = truth_at(gps, times, cfg.truth_gap, cfg.truth_speed)
+    start_pose = start_from_positions(poses, path, truth, covered, cfg.start_distance)
     yield Header(
         name="Victoria Park (ACFR raw log)",
         meta={

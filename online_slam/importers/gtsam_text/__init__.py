@@ -17,7 +17,9 @@ FIRST_WORDS = ("ODOMETRY", "EDGE2", "LANDMARK", "BR")
 class GtsamTextOptions:
     """How to read a GTSAM/iSAM text file."""
 
-    truth: str | None = option(None, "GTSAM/iSAM text: the noise-free twin file (truth)", metavar="PATH")
+    truth: str | None = option(
+        None, "GTSAM/iSAM text: the noise-free twin file (truth); ROS bag: the truth topic", metavar="PATH|TOPIC"
+    )
     """The file's noise-free twin (same lines), for truth poses and landmarks."""
     dt: float = option(1.0, "seconds per pose for files without timestamps", kind=float, metavar="S", unset="1 s",
                        positive=True)  # fmt: skip
