@@ -6,7 +6,9 @@ step time as a ratio to GTSAM's iSAM2 run on the same steps in the same process)
 ``--gate`` measures again and fails when an accuracy figure moves by more than :data:`ACCURACY_RTOL` (relative)
 or a time ratio grows by more than :data:`TIME_GROWTH`. Accuracy is deterministic on one machine and equal to
 about 1e-12 across CPUs; a time ratio cancels most of the machine's speed but not its noise, hence the looser bound.
-RESULTS.md's table of current figures is generated from the baseline (:mod:`benchmarks.results_page`).
+Both also measure what the socket of a live source costs per step over a file (:mod:`benchmarks.live`), recorded
+beside the rows and held to its target. RESULTS.md's table of current figures is generated from the baseline
+(:mod:`benchmarks.results_page`).
 """
 
 from __future__ import annotations
@@ -111,8 +113,21 @@ def measure(sources: tuple[str, ...] = SOURCES, tell: Any = print) -> list[Basel
     return rows
 
 
-def record(rows: list[BaselineRow], path: Path = BASELINE) -> dict[str, Any]:
-    """Write the baseline: rows, commit, date and the tolerances the gate applies."""
+def measure_live(tell: Any = print) -> float:
+    """What the socket of a live source costs per step over a file, ms (:mod:`benchmarks.live`, reading alone)."""
+    from benchmarks.live import socket_ms_per_step
+    from online_slam.sources.worlds import GridConfig
+
+    ms = socket_ms_per_step(GridConfig())
+    tell(f"live input: the socket costs {ms:.4f} ms per step over a file")
+    return ms
+
+
+def record(rows: list[BaselineRow], path: Path = BASELINE, live_ms: float | None = None) -> dict[str, Any]:
+    """Write the baseline: rows, the live input's cost per step (when measured), commit, date and the tolerances
+    and limit the gate applies."""
+    from benchmarks.live import TARGET_MS
+
     document = {
         "commit": _commit(),
         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -120,6 +135,8 @@ def record(rows: list[BaselineRow], path: Path = BASELINE) -> dict[str, Any]:
         "time_growth": TIME_GROWTH,
         "rows": [asdict(r) for r in rows],
     }
+    if live_ms is not None:
+        document.update(live_ms_per_step=live_ms, live_limit_ms=TARGET_MS)
     path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     return document
 
@@ -129,11 +146,18 @@ def read(path: Path = BASELINE) -> dict[str, Any]:
     return json.loads(path.read_text(encoding="utf-8"))
 
 
-def gate(baseline: dict[str, Any], rows: list[BaselineRow]) -> list[str]:
-    """What moved beyond the baseline's tolerances: one line per figure (empty: the gate passes)."""
+def gate(baseline: dict[str, Any], rows: list[BaselineRow], live_ms: float | None = None) -> list[str]:
+    """What moved beyond the baseline's tolerances, or a live input's cost per step (``live_ms``) beyond its limit
+    (an absolute one: the figure is a small difference of two times, mostly the machine's noise, so no ratio to
+    a recorded value means anything): one line per figure (empty: the gate passes)."""
+    from benchmarks.live import TARGET_MS
+
     rtol, growth = baseline["accuracy_rtol"], baseline["time_growth"]
     now = {(r.source, r.estimator): r for r in rows}
     failures = []
+    limit = baseline.get("live_limit_ms", TARGET_MS)
+    if live_ms is not None and live_ms > limit:
+        failures.append(f"live input: the socket costs {live_ms:.4f} ms per step over a file (at most {limit} ms)")
     for old in baseline["rows"]:
         key = (old["source"], old["estimator"])
         new = now.get(key)

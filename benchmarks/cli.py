@@ -99,12 +99,13 @@ def run_baseline(args: argparse.Namespace) -> int:
     if args.gate and not baseline.BASELINE.is_file():
         raise OnlineSlamError(f"--gate: no baseline at {baseline.BASELINE} (record one with --record)")
     rows = baseline.measure()
+    live_ms = baseline.measure_live()
     if args.record:
-        document = baseline.record(rows)
+        document = baseline.record(rows, live_ms=live_ms)
         results_page.update(document)
         print(f"wrote {baseline.BASELINE} ({len(rows)} rows) and the table in {results_page.RESULTS}")
         return 0
-    failures = baseline.gate(baseline.read(), rows)
+    failures = baseline.gate(baseline.read(), rows, live_ms)
     for line in failures:
         print(f"moved: {line}")
     print(f"gate: {'FAILED' if failures else 'passed'} ({len(rows)} rows against {baseline.BASELINE.name})")

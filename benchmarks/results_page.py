@@ -33,6 +33,9 @@ def render(baseline: dict[str, Any]) -> str:
     for row in baseline["rows"]:
         cells = ["-" if row[key] is None else fmt.format(row[key]) for key, _, fmt in _COLUMNS]
         lines.append(f"| `{row['source']}` | {row['estimator']} | " + " | ".join(cells) + " |")
+    if "live_ms_per_step" in baseline:
+        lines += ["", f"Live input (`--only live`): the socket costs {baseline['live_ms_per_step']:.4f} ms per step "
+                  f"over a file; `--gate` fails above {baseline['live_limit_ms']} ms."]  # fmt: skip
     return "\n".join([*lines, END])
 
 

@@ -47,3 +47,16 @@ def test_time_ratios_fail_only_when_they_grow_beyond_their_tolerance() -> None:
 def test_a_row_not_measured_fails_the_gate() -> None:
     document = baseline.read()
     assert baseline.gate(document, _rows(document)[1:])[0].endswith("not measured")
+
+
+def test_the_live_input_cost_is_gated_to_its_limit_and_shown_once_recorded() -> None:
+    document = baseline.read()
+    rows = _rows(document)
+    limit = document.get("live_limit_ms", 0.1)
+    assert baseline.gate(document, rows, live_ms=0.5 * limit) == []
+    (failure,) = baseline.gate(document, rows, live_ms=2.0 * limit)
+    assert failure.startswith("live input: the socket costs") and f"at most {limit} ms" in failure
+    recorded = {**document, "live_ms_per_step": 0.0213, "live_limit_ms": 0.1}
+    assert "the socket costs 0.0213 ms per step over a file; `--gate` fails above 0.1 ms" in results_page.render(
+        recorded
+    )
