@@ -54,8 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--record",
         action="store_true",
-        help="measure the baseline (every estimator on the built-in worlds and replay/'s streams, iSAM2 beside) and "
-        "write benchmarks/baseline.json and RESULTS.md's table of current figures",
+        help="measure the baseline (every estimator on the built-in worlds and replay/'s streams, iSAM2 beside; the "
+        "live input's cost per step) and write benchmarks/baseline.json and RESULTS.md's table of current figures",
     )
     p.add_argument(
         "--gate",
