@@ -17,6 +17,7 @@ from online_slam.estimators.problem import LoggedEstimator, ProblemLog
 from online_slam.estimators.protocol import Estimate
 from online_slam.factors.graph import (
     FactorGraph,
+    evaluate,
     observation_chi2,
     robot_sighting_chi2,
     without_observations,
@@ -24,7 +25,9 @@ from online_slam.factors.graph import (
 )
 from online_slam.factors.robust import outlier_threshold
 from online_slam.models.observation import landmark_from_sighting
-from online_slam.solvers.least_squares import solve
+from online_slam.solvers.least_squares import SolveResult, solve
+
+Array = NDArray[np.float64]
 
 
 def median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
@@ -36,6 +39,44 @@ def median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: 
     for j, group in zip(ids, np.split(order, starts[1:])):
         out[j] = np.median(points[group], axis=0)
     return out
+
+
+TRIMMED_ROUNDS = 3
+"""Most times :func:`trimmed` judges the sightings again at its least-squares solution."""
+
+
+def truncated_cost(
+    graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64], bound: float
+) -> float:
+    """Half the squared whitened residuals with each sighting's (landmark or robot) capped at ``bound``: the cost
+    of a solution together with its outlier decisions (an outlier costs the bound), which compares solutions that
+    reject different sightings (Torr & Zisserman's MSAC)."""
+    r = evaluate(graph, poses, landmarks)
+    split = 3 * len(graph.prior_pose) + 3 * len(graph.odo_from)
+    s = np.sum(r[split:].reshape(-1, 2) ** 2, axis=1)
+    return 0.5 * float(r[:split] @ r[:split]) + 0.5 * float(np.minimum(s, bound).sum())
+
+
+def trimmed(
+    graph: FactorGraph, poses: Array, landmarks: Array, bound: float, cfg: BatchConfig
+) -> tuple[SolveResult, NDArray[np.bool_], NDArray[np.bool_], float]:
+    """Trimmed least squares from an estimate: sightings whose residual there exceeds ``bound`` are outliers, least
+    squares on the rest, judged again at that solution until the decisions hold (at most :data:`TRIMMED_ROUNDS`).
+
+    Returns the solution, the rejected landmark and robot sightings, and its :func:`truncated_cost`.
+    """
+    rejected = observation_chi2(graph, poses, landmarks) > bound
+    rejected_robots = robot_sighting_chi2(graph, poses) > bound
+    for _ in range(TRIMMED_ROUNDS):
+        kept = without_robot_sightings(without_observations(graph, rejected), rejected_robots)
+        result = solve(kept, poses, landmarks, cfg.solver)
+        poses, landmarks = result.poses, result.landmarks
+        judged = observation_chi2(graph, poses, landmarks) > bound
+        judged_robots = robot_sighting_chi2(graph, poses) > bound
+        if np.array_equal(judged, rejected) and np.array_equal(judged_robots, rejected_robots):
+            break
+        rejected, rejected_robots = judged, judged_robots
+    return result, rejected, rejected_robots, truncated_cost(graph, poses, landmarks, bound)
 
 
 class BatchEstimator(LoggedEstimator):
@@ -133,15 +174,15 @@ class BatchEstimator(LoggedEstimator):
                 [observation_chi2(graph, result.poses, result.landmarks), robot_sighting_chi2(graph, result.poses)]
             )
             bound = outlier_threshold(cfg.outlier_false_alarm / len(chi2_values))
-            if chi2_values.max() > bound:  # contaminated: robust pass, drop the outliers, least squares on the rest
+            if chi2_values.max() > bound:  # contaminated: drop the outliers, least squares on the rest
                 robust_pass = True
+                reject_bound = outlier_threshold(cfg.reject_false_alarm)
                 start = median_landmarks(graph, poses, landmarks)  # a first sight may be a wrong one
                 robust = solve(graph, poses, start, cfg.solver, loss=cfg.outlier_loss)
-                reject_bound = outlier_threshold(cfg.reject_false_alarm)
-                rejected = observation_chi2(graph, robust.poses, robust.landmarks) > reject_bound
-                rejected_robots = robot_sighting_chi2(graph, robust.poses) > reject_bound
-                kept = without_robot_sightings(without_observations(graph, rejected), rejected_robots)
-                result = solve(kept, robust.poses, robust.landmarks, cfg.solver)
+                candidates = [trimmed(graph, robust.poses, robust.landmarks, reject_bound, cfg)]
+                if initial is not None:  # another estimator's judgement: its estimate decides first
+                    candidates.append(trimmed(graph, poses, landmarks, reject_bound, cfg))
+                result, rejected, rejected_robots, _ = min(candidates, key=lambda c: c[3])
         info = {
             "iterations": result.iterations,
             "converged": result.converged,
