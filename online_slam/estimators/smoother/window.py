@@ -344,7 +344,7 @@ def system(window: Window, prior: Prior | None, active: Index, fej: bool = False
     (:func:`first_estimates`).
     """
     graph, local = window_graph(window, active)
-    graph = replace(graph, **map_factors(window, prior, active))
+    graph = with_map_factors(graph, window, prior, active)
     sparse = layout(graph, entries=False)
     quadratic, recover, point = None, None, None
     held = np.zeros(0, dtype=np.int64)
@@ -356,17 +356,18 @@ def system(window: Window, prior: Prior | None, active: Index, fej: bool = False
     return System(graph, sparse, quadratic, recover, window.values(), held, point)
 
 
-def map_factors(window: Window, prior: Prior | None, active: Index) -> dict[str, Array]:
-    """The map's priors on the active landmarks the marginal prior does not hold (it holds the others' with their
-    sightings), over the active landmarks' local order (keyword arguments of a graph)."""
+def with_map_factors(graph: FactorGraph, window: Window, prior: Prior | None, active: Index) -> FactorGraph:
+    """The window's graph with the map's priors on the active landmarks the marginal prior does not hold (it holds
+    the others' with their sightings), over the active landmarks' local order."""
     rows = active[active < window.map_size]
     if prior is not None:
         rows = rows[~np.isin(rows, prior.landmarks)]
-    return {
-        "lp_landmark": np.searchsorted(active, rows).astype(np.int64),
-        "lp_mean": window.map_xy[rows],
-        "lp_sqrt_info": sqrt_information(window.map_cov[rows]) if len(rows) else np.zeros((0, 2, 2)),
-    }
+    return replace(
+        graph,
+        lp_landmark=np.searchsorted(active, rows).astype(np.int64),
+        lp_mean=window.map_xy[rows],
+        lp_sqrt_info=sqrt_information(window.map_cov[rows]) if len(rows) else np.zeros((0, 2, 2)),
+    )
 
 
 def first_estimates(prior: Prior, held: Index, active: Index) -> JacobianPoint:
