@@ -170,3 +170,27 @@ def test_slam_starts_from_a_map_and_gives_its_own(tmp_path: Path, estimator: str
     assert read_map(tmp_path / "out.json").ids == saved.ids
     free = Slam(estimator, map=read_map(path))
     assert free.map().ids == saved.ids and np.allclose(free.map().cov, saved.cov)
+
+
+@pytest.mark.slow
+def test_the_commands_write_and_read_maps(tmp_path: Path) -> None:
+    env = {"PYTHONPATH": str(ROOT), "PATH": ""}
+
+    def cli(*args: str) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-m", "online_slam", *args]
+        return subprocess.run(command, capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
+
+    survey = cli("convert", "stream", str(ROOT / "replay" / "square.jsonl"), "--map-out", "survey.json")
+    assert survey.returncode == 0, survey.stderr
+    known = read_map(tmp_path / "survey.json")
+    assert len(known) == 12 and not known.cov.any()
+    run = cli("replay", "square", "--map", "survey.json", "--map-fixed", "--map-out", "out.json", "--json", "r.json")
+    assert run.returncode == 0, run.stderr
+    written = read_map(tmp_path / "out.json")
+    assert set(written.ids) == set(known.ids)
+    where = dict(zip(known.ids, known.xy))
+    assert np.abs(written.xy - np.array([where[lid] for lid in written.ids])).max() <= 1e-6
+    report = json.loads((tmp_path / "r.json").read_text())["map"]
+    assert report["loaded"] == 12 and report["fixed"] and report["final_landmarks"] == 12
+    refused = cli("replay", "square", "--map-fixed")
+    assert refused.returncode == 2 and refused.stderr.strip() == "online-slam: error: --map-fixed needs --map"

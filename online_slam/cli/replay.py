@@ -138,15 +138,16 @@ def sinks_from(args: argparse.Namespace, config: ReplayConfig) -> list:
     return sinks
 
 
-def write_final_map(path: str, results: Results) -> None:
-    """Write the run's final map (``--map-out``), and say so on stderr."""
+def write_final_map(path: str, results: Results, quiet: bool = False) -> None:
+    """Write the run's final map (``--map-out``), and say so on stderr (unless ``quiet``)."""
     from online_slam.sources.landmark_map import write_map
 
     final = None if results.map is None else results.map.final
     if final is None:
         raise OnlineSlamError("--map-out: the map's covariances come from the smoother or the EKF; run one")
     write_map(path, final)
-    print(f"online-slam: wrote a map of {counted(len(final), 'landmark')} to {path}", file=sys.stderr)
+    if not quiet:
+        print(f"online-slam: wrote a map of {counted(len(final), 'landmark')} to {path}", file=sys.stderr)
 
 
 def print_noise_fit(fit: Fit, stderr: bool) -> None:
@@ -191,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
 
         write_tum(args.tum, results)
     if args.map_out:
-        write_final_map(args.map_out, results)
+        write_final_map(args.map_out, results, args.quiet)
     interrupted = results.error == INTERRUPTED
     failures = [None if interrupted else results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):
