@@ -194,3 +194,8 @@ def test_the_commands_write_and_read_maps(tmp_path: Path) -> None:
     assert report["loaded"] == 12 and report["fixed"] and report["final_landmarks"] == 12
     refused = cli("replay", "square", "--map-fixed")
     assert refused.returncode == 2 and refused.stderr.strip() == "online-slam: error: --map-fixed needs --map"
+
+
+def test_a_generated_id_is_kept_apart_from_a_stream_id_of_its_name() -> None:
+    mapped = LandmarkMap.of(["new-0", GeneratedId(0)], [[0.0, 0.0], [1.0, 1.0]])
+    assert mapped.ids == ("new-0", "new-0#2") and mapped.generated == (False, True)

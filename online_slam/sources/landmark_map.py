@@ -85,7 +85,8 @@ class LandmarkMap:
         cov = np.zeros((len(xy), 2, 2)) if cov is None else np.asarray(cov, dtype=float).reshape(-1, 2, 2)
         cov = np.where(np.isfinite(cov), cov, 0.0)
         flags = tuple(isinstance(lid, GeneratedId) for lid in ids)
-        names = tuple(str(lid) if isinstance(lid, GeneratedId) else lid for lid in ids)
+        taken = {lid for lid in ids if not isinstance(lid, GeneratedId)}
+        names = tuple(_spelled(lid, taken) if isinstance(lid, GeneratedId) else lid for lid in ids)
         return cls(names, xy, 0.5 * (cov + cov.transpose(0, 2, 1)), source, flags if any(flags) else ())
 
     def to_json(self) -> dict[str, Any]:
@@ -97,6 +98,16 @@ class LandmarkMap:
                 entry["generated"] = True
             landmarks.append(entry)
         return {"format": FORMAT, "version": VERSION, "source": self.source, "frame": "map", "landmarks": landmarks}
+
+
+def _spelled(lid: GeneratedId, taken: set[LandmarkId]) -> str:
+    """A generated id's string, ``new-<n>``; ``new-<n>#2``, ``#3``... when a stream's id is already that string."""
+    name, k = str(lid), 1
+    while name in taken:
+        k += 1
+        name = f"{lid}#{k}"
+    taken.add(name)
+    return name
 
 
 def write_map(path: str | Path, landmark_map: LandmarkMap) -> None:
