@@ -50,6 +50,7 @@ _SHARED = frozenset({"front-end", "association"})
 CONFIGS = {
     "ReplayConfig": "online_slam.pipeline.config",
     "Checkpointing": "online_slam.pipeline.config",
+    "MapConfig": "online_slam.pipeline.config",
     "CompareConfig": "online_slam.compare_config",
     "BatchConfig": "online_slam.estimators.batch_config",
     "EkfConfig": "online_slam.estimators.ekf_config",
@@ -234,6 +235,13 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("strict", "exit 2 when most of the first sightings are rejected or lines skipped (wrong units? "
            "sigmas?), keeping the figures before it; without it, one warning names the likely cause", "input",
            ("replay",), kind=bool, field=("ReplayConfig", "strict"), lands=("strict",), commands=("replay",)),
+    Option("map", "start from this map (online-slam-map JSON): its landmarks as priors with their covariances; the "
+           "stream's start pose must be in the map's frame", "input", ("replay",), metavar="PATH",
+           field=("MapConfig", "path"), unset="none", lands=("map.path",), commands=("replay",)),
+    Option("map_fixed", "--map's landmarks are known: held where the map puts them", "input", ("replay",),
+           kind=bool, field=("MapConfig", "fixed"), lands=("map.fixed",), commands=("replay",)),
+    Option("map_only", "with --map: skip (and count) sightings of landmarks not in the map; needs ids", "input",
+           ("replay",), kind=bool, field=("MapConfig", "only"), lands=("map.only",), commands=("replay",)),
     # -- estimators -----------------------------------------------------------------------------------------
     Option("estimators", "comma-separated estimators to run (ekf, smoother, batch)", "estimators", ("replay",),
            field=("ReplayConfig", "estimators"), metavar="NAMES", lands=("estimators",)),
@@ -322,6 +330,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            "robots: one file per robot, NAME_robot<ID>.tum)", "output", ("cli",), metavar="DIR", commands=("replay",)),
     Option("plot", "write the figures (map, error, NEES, latency) to this PNG", "output", ("cli",),
            metavar="PATH", commands=("compare",)),
+    Option("map_out", "write the final map: the batch's positions if it ran, else the smoother's, else the EKF's; "
+           "covariances of the smoother, else the EKF (convert: the source's landmark truth, known)", "output",
+           ("cli",), metavar="PATH", commands=("replay", "convert")),
     Option("rrd", "log every step to a Rerun recording (.rrd) (compare: every configuration in one)", "output",
            ("cli",), metavar="PATH", commands=("replay", "compare")),
     Option("output", "the command's output file: simulate and convert write a stream (.jsonl; .gz compresses; "
@@ -566,35 +577,7 @@ def _list_of(option: Option) -> Callable[[str], tuple]:
 
 # -- docs -----------------------------------------------------------------------------------------------------
 def markdown() -> str:
-    """The docs' option list (``docs/options.md``), rendered from the table."""
-    lines = [
-        "# Options",
-        "",
-        "Generated from the option table in `online_slam/options.py` (its docstring says how); a test checks",
-        "that this page equals the rendering. Each option is a flag of the commands listed (`--window-distance`)",
-        'and, for the estimator options, a keyword of `Slam` (`Slam("smoother", window_distance=10.0)`) and a',
-        "comma-separated list of `sweep` (every combination runs). `compare --window` and",
-        "`compare --relinearize-every` take lists too: one smoother per (W, K), each row labelled with what ran",
-        "(`smoother W=20..120 D=18 K=1 invariant`: at least 20 poses, more until the window's path is 18 m, at",
-        "most 120, with the invariant prior; `smoother W=5 K=1` with",
-        "`--window-distance 0 --smoother-linearization standard`: exactly 5 poses, the standard prior).",
-        "",
-        "Owners: `ekf`, `smoother`, `batch`, `front-end` (how events become steps) and `association` configure the",
-        "estimators (a `Slam` takes those of its estimator, the front-end's and the association's); `dataset`",
-        "options read files; `replay` options choose what runs and how it is scored; `cli` options are about",
-        "output, live viewing, checkpoints and runs.",
-    ]
-    for group in GROUPS:
-        members = [o for o in OPTIONS.values() if o.group == group]
-        lines += ["", f"## {group}", "", "| option | type | default | owner | commands | what it does |"]
-        lines.append("|---|---|---|---|---|---|")
-        for o in members:
-            kind = " \\| ".join(f"`{c}`" for c in o.choices) if o.choices else o.kind.__name__
-            slam = o.estimator and (o.fits("ekf") or o.fits("smoother"))
-            commands = ", ".join((*o.commands, "Slam") if slam else o.commands)
-            shown, owners = o.shown_default() or "-", ", ".join(o.owners)
-            flags = ", ".join(f"`{f}`" for f in (o.short, o.flag) if f)
-            told = ("advanced (`--help-all`): " if o.name in ADVANCED else "") + o.help
-            row = (flags, kind, shown, owners, commands, told.replace("|", "\\|"))
-            lines.append("| " + " | ".join(row) + " |")
-    return "\n".join(lines) + "\n"
+    """The docs' option list (``docs/options.md``), rendered from the table (:mod:`online_slam.options_page`)."""
+    from online_slam.options_page import markdown as page
+
+    return page()

@@ -48,6 +48,7 @@ from online_slam.slam_estimate import (
     _read_only,
 )
 from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
+from online_slam.sources.landmark_map import LandmarkMap, read_map, write_map
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
 from online_slam.wording import did_you_mean
 
@@ -130,6 +131,9 @@ class Slam:
         config: The estimator's whole configuration (:class:`~online_slam.estimators.ekf_config.EkfConfig` or
             :class:`~online_slam.estimators.smoother.SmootherConfig`): every field, flags or not.
         frontend: The front-end's (:class:`~online_slam.frontend.steps.FrontEndConfig`: keyframes, noise scales).
+        map: Start from this map (a :class:`~online_slam.sources.landmark_map.LandmarkMap` or a map file): its
+            landmarks as priors with their covariances; the first pose (``start``) must be in the map's frame.
+        map_fixed: The map's landmarks are known (held), not priors.
         **options: Or settings named as the CLI's flags (see :data:`OPTIONS`), e.g. ``window=50``,
             ``robust="cauchy"``, ``gate_probability=0.999`` (not with ``config`` or ``frontend``).
 
@@ -150,6 +154,8 @@ class Slam:
         *,
         config: EkfConfig | SmootherConfig | None = None,
         frontend: FrontEndConfig | None = None,
+        map: LandmarkMap | str | Path | None = None,  # noqa: A002 - the option's name
+        map_fixed: bool = False,
         **options: Any,
     ) -> None:
         self.typed: tuple[EkfConfig | SmootherConfig | None, FrontEndConfig | None] = (None, None)
@@ -168,6 +174,9 @@ class Slam:
         self._estimator: SlamEstimator = (
             EkfSlam(config) if isinstance(config, EkfConfig) else SlidingWindowSmoother(config)
         )
+        self._loaded = map if isinstance(map, LandmarkMap) or map is None else read_map(map)
+        if self._loaded is not None:
+            self._estimator.load_map(self._loaded, map_fixed)
         self._engine = Engine([self._estimator], frontend, records=False)
         self._validator = EventValidator("Slam", max_latency=frontend.max_latency or 0.0)
         self._validator.latency_name = "max_latency"
@@ -490,6 +499,19 @@ class Slam:
         """Poses so far, of all robots (0 before the first event)."""
         frontend = self._engine.frontend
         return self._engine.steps + (frontend.pending is not None) + len(frontend.later)
+
+    def map(self) -> LandmarkMap:
+        """The current map: every landmark's position and 2x2 marginal covariance (write it with
+        :func:`~online_slam.sources.landmark_map.write_map`, or :meth:`save_map`); before the first pose, the map
+        it started from."""
+        estimate = self.estimate()
+        if estimate.index < 0 and self._loaded is not None:
+            return self._loaded
+        return LandmarkMap.of(estimate.landmark_ids, estimate.landmark_array, estimate.landmark_cov_array, "Slam")
+
+    def save_map(self, path: str | Path) -> None:
+        """Write :meth:`map` as a map file."""
+        write_map(path, self.map())
 
     # -- checkpoints ---------------------------------------------------------------------------------
     def save(self, path: str | Path) -> None:

@@ -1,4 +1,5 @@
-"""``online-slam convert FORMAT INPUT -o STREAM``: a dataset to stream v1 (or a stream to g2o)."""
+"""``online-slam convert FORMAT INPUT -o STREAM``: a dataset to stream v1 (or a stream to g2o); ``--map-out MAP``:
+its landmark truth (a survey) as a map file, known exactly (zero covariance)."""
 
 from __future__ import annotations
 
@@ -41,28 +42,61 @@ def _first_poses(events, limit: int | None):  # noqa: ANN001, ANN202 - a generat
         yield event
 
 
+def _surveyed(events, found: dict):  # noqa: ANN001, ANN202 - a generator filter
+    """Pass the events on, keeping each landmark truth's position in ``found`` by id."""
+    from online_slam.sources.events import LandmarkTruth
+
+    for event in events:
+        if isinstance(event, LandmarkTruth):
+            found[event.landmark] = event.position
+        yield event
+
+
+def _write_survey(path: str, found: dict, source: str) -> None:
+    """The landmark truth read as a map file (known exactly)."""
+    from online_slam.sources.landmark_map import LandmarkMap, write_map
+
+    if not found:
+        raise OnlineSlamError(f"--map-out: {source} holds no landmark truth")
+    write_map(path, LandmarkMap.of(list(found), list(found.values()), None, source))
+    print(f"online-slam convert: wrote a map of {counted(len(found), 'landmark')} to {path}", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
-    """Convert and write; a one-line summary on stderr."""
+    """Convert and write; a one-line summary on stderr. With ``--map-out`` and no ``-o``, only the map."""
+    found: dict = {}
+    if args.map_out and not args.output:
+        events = _surveyed(_opened(args), found)
+        for _ in _first_poses(events, args.poses):
+            pass
+        _write_survey(args.map_out, found, args.input)
+        return 0
     output = args.output or "-"
     if args.format == "stream":
         from online_slam.importers.g2o.reader import write_g2o
-        from online_slam.sources.stream import read_stream
 
         if not str(output).endswith(".g2o"):
             raise OnlineSlamError("convert stream: the output must be a .g2o file")
-        on_error = report_skip if on_error_of(args.on_error, args.input) == "skip" else None
-        lines = write_g2o(output, _first_poses(read_stream(args.input, on_error), args.poses))
+        lines = write_g2o(output, _first_poses(_surveyed(_opened(args), found), args.poses))
     else:
-        if args.on_error == "skip":
-            raise OnlineSlamError(
-                "convert: --on-error skip applies to stream input; dataset readers stop at a bad record"
-            )
-        given = {name: getattr(args, name, None) for name in registry.dataset_options()}
-        events = registry.open_dataset(args.input, args.format, **{k: v for k, v in given.items() if v is not None})
         try:
-            lines = write_stream(output, _first_poses(events, args.poses))
+            lines = write_stream(output, _first_poses(_surveyed(_opened(args), found), args.poses))
         except OSError as exc:
             raise OnlineSlamError(f"{output}: cannot write ({exc.strerror or exc})") from None
     where = "<stdout>" if output == "-" else output
     print(f"online-slam convert: wrote {counted(lines, 'line')} to {where}", file=sys.stderr)
+    if args.map_out:
+        _write_survey(args.map_out, found, args.input)
     return 0
+
+
+def _opened(args: argparse.Namespace):  # noqa: ANN202 - the events of a dataset or a stream
+    """The input's events (a dataset, read with its options; or a stream)."""
+    if args.format == "stream":
+        from online_slam.sources.stream import read_stream
+
+        return read_stream(args.input, report_skip if on_error_of(args.on_error, args.input) == "skip" else None)
+    if args.on_error == "skip":
+        raise OnlineSlamError("convert: --on-error skip applies to stream input; dataset readers stop at a bad record")
+    given = {name: getattr(args, name, None) for name in registry.dataset_options()}
+    return registry.open_dataset(args.input, args.format, **{k: v for k, v in given.items() if v is not None})

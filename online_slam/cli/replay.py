@@ -15,8 +15,10 @@ from typing import TYPE_CHECKING
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.options import add_options, flag, replay_config
+from online_slam.wording import counted
 
 if TYPE_CHECKING:
+    from online_slam.evaluation.results import Results
     from online_slam.pipeline import ReplayConfig
     from online_slam.pipeline.noise import Fit
 
@@ -164,6 +166,18 @@ def report(message: str) -> None:
     print(f"online-slam: {message}", file=sys.stderr, flush=True)
 
 
+def write_final_map(path: str, results: Results, quiet: bool = False) -> None:
+    """Write the run's final map (``--map-out``), and say so on stderr (unless ``quiet``)."""
+    from online_slam.sources.landmark_map import write_map
+
+    final = None if results.map is None else results.map.final
+    if final is None:
+        raise OnlineSlamError("--map-out: the map's covariances come from the smoother or the EKF; run one")
+    write_map(path, final)
+    if not quiet:
+        print(f"online-slam: wrote a map of {counted(len(final), 'landmark')} to {path}", file=sys.stderr)
+
+
 def print_noise_fit(fit: Fit, stderr: bool) -> None:
     """Print what ``--noise fit`` or ``--noise self`` fitted, before the replay that uses it (on stderr when stdout
     is the JSON's)."""
@@ -186,6 +200,8 @@ def run(args: argparse.Namespace) -> int:
         raise OnlineSlamError("--json - and --emit -: both would write to stdout; give one of them a path")
     if args.emit not in (None, "-") and "://" not in args.emit:
         check_writable("--emit", args.emit)
+    if args.map_out:
+        check_writable("--map-out", args.map_out)
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     if args.resume and (args.rrd or args.connect):
@@ -208,6 +224,8 @@ def run(args: argparse.Namespace) -> int:
         from online_slam.sinks.tum import write_tum
 
         write_tum(args.tum, results)
+    if args.map_out:
+        write_final_map(args.map_out, results, args.quiet)
     interrupted = results.error == INTERRUPTED
     failures = [None if interrupted else results.error] + [getattr(sink, "error", None) for sink in sinks]
     for failure in filter(None, failures):

@@ -26,6 +26,7 @@ from online_slam.factors.graph import (
 from online_slam.factors.robust import outlier_threshold
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import SolveResult, solve
+from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
 
@@ -38,6 +39,7 @@ def median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: 
     ids, starts = np.unique(graph.obs_landmark[order], return_index=True)
     for j, group in zip(ids, np.split(order, starts[1:])):
         out[j] = np.median(points[group], axis=0)
+    out[graph.lp_landmark] = graph.lp_mean  # a map's landmark starts where the map puts it
     return out
 
 
@@ -53,8 +55,10 @@ def truncated_cost(
     reject different sightings (Torr & Zisserman's MSAC)."""
     r = evaluate(graph, poses, landmarks)
     split = 3 * len(graph.prior_pose) + 3 * len(graph.odo_from)
-    s = np.sum(r[split:].reshape(-1, 2) ** 2, axis=1)
-    return 0.5 * float(r[:split] @ r[:split]) + 0.5 * float(np.minimum(s, bound).sum())
+    end = len(r) - 2 * len(graph.lp_landmark)  # landmark priors (a map): never capped
+    s = np.sum(r[split:end].reshape(-1, 2) ** 2, axis=1)
+    quadratic = float(r[:split] @ r[:split]) + float(r[end:] @ r[end:])
+    return 0.5 * quadratic + 0.5 * float(np.minimum(s, bound).sum())
 
 
 def trimmed(
@@ -93,6 +97,10 @@ class BatchEstimator(LoggedEstimator):
         self.config = config or BatchConfig()
         self.log = ProblemLog(use_ids=self.config.use_ids)
 
+    def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
+        """Start from a map: a prior factor per landmark (see :meth:`ProblemLog.load_map`)."""
+        self.log.load_map(landmark_map, fixed)
+
     def finish(self, initial: Estimate | None = None) -> Estimate:
         """Solve the full problem, from composed odometry or from another estimate (same poses, same ids).
 
@@ -120,7 +128,7 @@ class BatchEstimator(LoggedEstimator):
                     ids.append(lid)
                     landmarks.append(initial.landmarks[given[lid]])
                 index[row] = where[lid]
-        graph = self.log.graph(labels=index, n_landmarks=len(ids))
+        graph = self.log.graph(labels=index, n_landmarks=len(ids), ids=ids)
         poses = np.array(self.log.poses).reshape(-1, 3)
         estimate = self._solve(graph, poses, np.array(landmarks).reshape(-1, 2), tuple(ids), initial, started)
         if not len(without):
@@ -139,7 +147,7 @@ class BatchEstimator(LoggedEstimator):
             raise ValueError("batch without ids needs the associations of an estimator that saw every sighting")
         where = {lid: k for k, lid in enumerate(initial.landmark_ids)}
         index = np.array([where.get(lid, -1) if lid is not None else -1 for lid in labels], dtype=np.int64)
-        graph = self.log.graph(labels=index, n_landmarks=len(initial.landmark_ids))
+        graph = self.log.graph(labels=index, n_landmarks=len(initial.landmark_ids), ids=initial.landmark_ids)
         ids = tuple(initial.landmark_ids)
         landmarks = initial.landmarks.copy()
         plain = Estimate(initial.estimator, initial.poses, ids, landmarks)
@@ -201,6 +209,7 @@ class BatchEstimator(LoggedEstimator):
         if rejected.any():  # a landmark whose every sighting is an outlier is no landmark: leave it out of the map
             supported = np.zeros(len(ids), dtype=bool)
             supported[graph.obs_landmark[~rejected]] = True
+            supported[graph.lp_landmark] = True  # a map's landmark stays
             ids, positions = tuple(lid for lid, ok in zip(ids, supported) if ok), positions[supported]
             info["landmarks_dropped"] = int((~supported).sum())
         return Estimate(self.name, result.poses, ids, positions, info)

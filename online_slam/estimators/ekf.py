@@ -78,6 +78,7 @@ from online_slam.models.observation import (
     wrap_bearings,
 )
 from online_slam.sources.events import LandmarkId
+from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
 
@@ -238,6 +239,24 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         self.state.first = np.vstack([self.state.first, position[None]])
         self._grow(position, cross, 0.5 * (block + block.T))
 
+    def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
+        """Start from a map (before the first step): its landmarks enter the state as independent priors with their
+        covariances, confirmed. ``fixed``: with zero covariance instead, so that no update moves them (their rows
+        of the gain are exactly zero: they act as known points) and they are never re-anchored; the invariant
+        retraction, which turns the whole map with each heading correction, gives way to the standard update."""
+        if len(self.landmark_ids) or len(self.state.history):
+            raise OnlineSlamError("a map is loaded before the first step, into an empty filter")
+        m = len(landmark_map)
+        block = np.zeros((2 * m, 2 * m))
+        if not fixed:  # the 2x2 blocks on the diagonal
+            block.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :] = landmark_map.cov
+        self.landmark_ids.extend(landmark_map.ids)
+        self.state.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
+        self.state.streak, self.state.confirmed = np.zeros(m, dtype=np.int64), np.ones(m, dtype=bool)
+        self.state.first = landmark_map.xy.copy()
+        self.state.fixed = m if fixed else 0
+        self._grow(landmark_map.xy.reshape(-1), np.zeros((2 * m, self.dim_x)), block)
+
     def _placed(self, z: Array, model: int) -> tuple[Array, Array, Array]:
         """A landmark placed from sighting z (2,) at the robot's estimate: (position (2,), d/drobot (2, 3),
         d/dz (2, 2)); fej and oc take d/drobot at the newest pose as predicted (``[I, J (l - p_k|k-1)]``)."""
@@ -333,6 +352,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
                 accepted |= ~passed & ~beyond & confirmed & (streak >= self.config.gate_persistence - 1)
             if self.config.reanchor:  # the scan agrees with the filter, or no drift explains it: the landmark is off
                 due = ~passed & (beyond | (not drifted)) & (streak >= REANCHOR_AFTER - 1)
+                due &= indices >= self.state.fixed  # a fixed map's landmark stays
                 if due.any():
                     reanchor = due & ekf_gating.recent_agree(self.state.recent, indices)
         self.state.agreement.append((int((confirmed & ~passed).sum()), int((confirmed & passed).sum())))
@@ -393,7 +413,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
     def _apply(self, PHt: Array, S: Array, y: Array) -> None:
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
         dx, W, L_inv = apply_update(self.P, PHt, S, y)
-        if self.config.linearization == "invariant" and len(self.state.robots) == 1:  # the map turns with it
+        if self.config.linearization == "invariant" and len(self.state.robots) == 1 and not self.state.fixed:
             self.x[:, 0], column = invariant_retraction(self.x[:, 0], dx)
             transport(self.P, column)
         else:

@@ -69,6 +69,8 @@ class EkfState:
     """Sightings rejected by the gate so far."""
     reanchored: int = 0
     """Landmarks restarted from a sighting so far."""
+    fixed: int = 0
+    """The first ``fixed`` landmarks are a fixed map's (``--map-fixed``): zero covariance, never re-anchored."""
     history: PoseHistory = field(default_factory=PoseHistory)
     """Every pose before the newest, as it was when newest."""
     step_nis: list[Array] = field(default_factory=list)

@@ -20,6 +20,7 @@ from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
 from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.sources.events import LandmarkId, RobotId
+from online_slam.sources.landmark_map import FIXED_STD, LandmarkMap
 
 Array = NDArray[np.float64]
 
@@ -133,6 +134,12 @@ class ProblemLog(Checkpointed):
     """Their covariances, shape (k, 2, 2)."""
     _obs_model: list[NDArray[np.int8]] = field(default_factory=list)
     """Their model tags, shape (k,)."""
+    map_size: int = 0
+    """The first ``map_size`` landmarks are a map's (``--map``): each has a prior factor."""
+    map_xy: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    """The map's positions, shape (map_size, 2)."""
+    map_cov: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    """Their prior covariances, shape (map_size, 2, 2) (a fixed map's: :data:`FIXED_STD` squared)."""
     _landmark_index: dict[LandmarkId, int] = field(init=False)
     """Index of each landmark id in ``landmark_ids``."""
     _cached_obs: int = field(init=False)
@@ -192,6 +199,29 @@ class ProblemLog(Checkpointed):
     def landmarks(self) -> Array:
         """Initial landmark values, shape (M, 2)."""
         return np.array(self._landmarks).reshape(-1, 2)
+
+    def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
+        """Start from a map (before the first step): its landmarks come first, at their positions, each with a prior
+        factor of its covariance (at least :data:`FIXED_STD` squared; exactly that with ``fixed``)."""
+        if self.poses or self.landmark_ids:
+            raise ValueError("a map is loaded before the first step")
+        floor = FIXED_STD**2 * np.eye(2)
+        self.landmark_ids = tuple(landmark_map.ids)
+        self._landmark_index = {lid: k for k, lid in enumerate(self.landmark_ids)}
+        self._landmarks = list(landmark_map.xy.copy())
+        self.map_size, self.map_xy = len(landmark_map), landmark_map.xy.copy()
+        self.map_cov = np.broadcast_to(floor, landmark_map.cov.shape).copy() if fixed else landmark_map.cov + floor
+
+    def map_priors(self, ids: Sequence[LandmarkId] | None = None) -> dict[str, Any]:
+        """The map's prior factors (keyword arguments of a graph) on the landmarks ``ids`` index (default: this
+        log's landmarks); none without a map."""
+        if not self.map_size:
+            return {}
+        where = {lid: k for k, lid in enumerate(self.landmark_ids[: self.map_size])}
+        pairs = [(j, where[lid]) for j, lid in enumerate(self.landmark_ids if ids is None else ids) if lid in where]
+        rows = np.array([j for j, _ in pairs], dtype=np.int64)
+        of = np.array([k for _, k in pairs], dtype=np.int64)
+        return {"lp_landmark": rows, "lp_mean": self.map_xy[of], "lp_sqrt_info": sqrt_information(self.map_cov[of])}
 
     def landmark_indices(self, ids: Sequence[LandmarkId | None]) -> NDArray[np.int64]:
         """Indices of known landmarks (-1 for unknown ids, and for None)."""
@@ -272,12 +302,18 @@ class ProblemLog(Checkpointed):
         pose, landmark, z, cov, _, model = self._observation_arrays()
         return pose, landmark, z, cov, model
 
-    def graph(self, labels: NDArray[np.int64] | None = None, n_landmarks: int | None = None) -> FactorGraph:
-        """All factors recorded so far as one graph (start pose fixed, or a prior on it).
+    def graph(
+        self,
+        labels: NDArray[np.int64] | None = None,
+        n_landmarks: int | None = None,
+        ids: Sequence[LandmarkId] | None = None,
+    ) -> FactorGraph:
+        """All factors recorded so far as one graph (start pose fixed, or a prior on it; the map's priors).
 
         Args:
             labels: Landmark index of every sighting (-1: left out) instead of the logged ids' indices.
             n_landmarks: Landmarks the labels index (with ``labels``).
+            ids: The ids of the landmarks the labels index (with ``labels``; for the map's priors).
         """
         if not self.keep_factors:
             raise ValueError("this log keeps no factors")
@@ -308,6 +344,7 @@ class ProblemLog(Checkpointed):
             obs_sqrt_info=obs_sqrt[used],
             obs_model=obs_model[used],
             **robot_factors,
+            **self.map_priors(ids if labels is not None else None),
         )
 
     def _priors(self) -> tuple[list[int], dict[str, Any]]:

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from online_slam.estimators.protocol import Estimate
 from online_slam.evaluation.association import AssociationScore
 from online_slam.sources.events import LandmarkId
+from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
 
@@ -183,6 +184,35 @@ class Row:
     """Median of the same per-step NIS (an outlier does not move it; chi-square median 1.39 on 2 dof)."""
     nees_band: NeesBand | None = None
     """Where ``nees_mean`` lies in 95% of runs like this one for a consistent estimator."""
+
+
+@dataclass(frozen=True)
+class MapReport:
+    """The map a replay started from (``--map``) and the final map (``--map-out`` writes it)."""
+
+    loaded: int
+    """Landmarks of the map started from (0: none)."""
+    fixed: bool
+    """They were held (``--map-fixed``)."""
+    not_in_map: int
+    """Sightings skipped by ``--map-only`` (of landmarks not in the map)."""
+    final: LandmarkMap | None = field(default=None, repr=False)
+    """The final map (None when no estimator with covariances ran)."""
+    positions_from: str = ""
+    """The estimator whose final landmark positions it holds."""
+    covariances_from: str = ""
+    """The estimator whose final covariances it holds."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``"map"`` object of the results JSON."""
+        return {
+            "loaded": self.loaded,
+            "fixed": self.fixed,
+            "not_in_map": self.not_in_map,
+            "final_landmarks": None if self.final is None else len(self.final),
+            "positions_from": self.positions_from,
+            "covariances_from": self.covariances_from,
+        }
 
 
 @dataclass(frozen=True)
@@ -360,6 +390,8 @@ class Results:
     warning: str | None = None
     """Why the input looks wrong (most of the first sightings rejected or lines skipped) and its likely cause, or
     None."""
+    map: MapReport | None = None
+    """The map started from and the final map (see :class:`MapReport`)."""
 
     def rows(self) -> dict[str, Row]:
         """One flat record per estimator by name, dead reckoning (``odometry``) first: its online figures are its
@@ -384,4 +416,5 @@ class Results:
             "trajectory_times": [] if self.step_times is None else [float(t) for t in self.step_times],
             "warning": self.warning,
             **({"left": list(self.left)} if self.left else {}),
+            "map": None if self.map is None else self.map.to_json(),
         }

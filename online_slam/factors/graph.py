@@ -8,7 +8,8 @@ Three factor kinds, all whitened by the square-root information ``W`` (``W^T W =
   (:mod:`online_slam.models.observation`: range-bearing, bearing wrapped, or the landmark's position in the
   robot frame), tagged per observation in ``obs_model``;
 - range-bearing sighting of a robot: pose b's position seen from pose a, ``W (h(a, b_xy) - z)`` (bearing wrapped;
-  one robot's pose sighted from another's). Its rows come last.
+  one robot's pose sighted from another's). Its rows follow the observations;
+- prior on a landmark (a map's, ``--map``): ``W (l - mean)``. Its rows come last; the robust loss never applies.
 
 The state vector holds the free poses then the landmarks; fixed poses have no columns.
 """
@@ -27,7 +28,7 @@ from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
 from online_slam.models.observation import RANGE_BEARING, predict, predict_with_jacobians, tags, wrap_bearings
-from online_slam.models.range_bearing import range_bearing_with_jacobians
+from online_slam.models.range_bearing import robot_sighting_residual_with_jacobians
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -92,6 +93,12 @@ class FactorGraph:
     """Measured ``[range, bearing]`` to the sighted pose's position, shape (R, 2)."""
     rob_sqrt_info: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Square-root information of the robot sightings, shape (R, 2, 2)."""
+    lp_landmark: Index = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """Landmark of each landmark prior (a map's), shape (Q,)."""
+    lp_mean: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    """Prior means, shape (Q, 2)."""
+    lp_sqrt_info: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    """Prior square-root information, shape (Q, 2, 2)."""
 
     @staticmethod
     def build(
@@ -148,7 +155,8 @@ class FactorGraph:
     @property
     def n_residuals(self) -> int:
         """Number of scalar residuals."""
-        return 3 * len(self.prior_pose) + 3 * len(self.odo_from) + 2 * len(self.obs_pose) + 2 * len(self.rob_from)
+        pairs = len(self.obs_pose) + len(self.rob_from) + len(self.lp_landmark)
+        return 3 * len(self.prior_pose) + 3 * len(self.odo_from) + 2 * pairs
 
 
 @dataclass(frozen=True)
@@ -212,6 +220,10 @@ def layout(graph: FactorGraph, entries: bool = True) -> SparseLayout:
             _block_indices(rob_rows, 2, pose_column[graph.rob_from], 3),
             _block_indices(rob_rows, 2, pose_column[graph.rob_to], 3),
         ]
+    if len(graph.lp_landmark):
+        first = graph.n_residuals - 2 * len(graph.lp_landmark)
+        lp_rows = first + 2 * np.arange(len(graph.lp_landmark), dtype=np.int64)
+        parts.append(_block_indices(lp_rows, 2, landmark_column[graph.lp_landmark], 2))
     rows = np.concatenate([p[0] for p in parts])
     cols = np.concatenate([p[1] for p in parts])
     keep = cols >= 0
@@ -279,24 +291,6 @@ def _errors(
     return e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
 
 
-def robot_sighting_residual_with_jacobians(pose_a: Array, pose_b: Array, z: Array) -> tuple[Array, Array, Array]:
-    """Residual of robot sightings (pose b's position seen from pose a) with its Jacobians.
-
-    Args:
-        pose_a: Sighting poses, shape (R, 3). pose_b: Sighted poses, shape (R, 3).
-        z: Measured ``[range, bearing]``, shape (R, 2).
-
-    Returns:
-        (e = h(a, b_xy) - z with the bearing wrapped (R, 2), de/da (R, 2, 3), de/db (R, 2, 3); b's heading has none).
-    """
-    h, J_a, J_xy = range_bearing_with_jacobians(pose_a, pose_b[:, :2])
-    e = h - z
-    e[:, 1] = wrap(e[:, 1])
-    J_b = np.zeros_like(J_a)
-    J_b[:, :, :2] = J_xy
-    return e, J_a, J_b
-
-
 def _robot_rows(
     graph: FactorGraph, poses: Array, loss: RobustLoss | None, at: Array | None = None
 ) -> tuple[Array, Array, Array, float]:
@@ -339,7 +333,14 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     ]
     if len(graph.rob_from):
         parts.append(_robot_rows(graph, poses, None)[0].reshape(-1))
+    if len(graph.lp_landmark):
+        parts.append(_landmark_prior_rows(graph, landmarks).reshape(-1))
     return np.concatenate(parts)
+
+
+def _landmark_prior_rows(graph: FactorGraph, landmarks: Array) -> Array:
+    """Whitened residuals of the landmark priors, shape (Q, 2) (their Jacobian is ``lp_sqrt_info``)."""
+    return _whiten(graph.lp_sqrt_info, landmarks[graph.lp_landmark] - graph.lp_mean)
 
 
 def sighting_chi2(poses: Array, landmarks: Array, z: Array, sqrt_info: Array, model: ArrayLike) -> Array:
@@ -403,6 +404,9 @@ def subgraph(
         rob_to=graph.rob_to[rob],
         rob_z=graph.rob_z[rob],
         rob_sqrt_info=graph.rob_sqrt_info[rob],
+        lp_landmark=graph.lp_landmark,
+        lp_mean=graph.lp_mean,
+        lp_sqrt_info=graph.lp_sqrt_info,
     )
 
 
@@ -431,10 +435,12 @@ def cost(graph: FactorGraph, r: Array, loss: RobustLoss | None = None) -> float:
     if loss is None:
         return 0.5 * float(r @ r)
     split = 3 * len(graph.prior_pose) + 3 * len(graph.odo_from)
-    s = np.sum(r[split:].reshape(-1, 2) ** 2, axis=1)
+    end = len(r) - 2 * len(graph.lp_landmark)  # landmark priors: least squares
+    s = np.sum(r[split:end].reshape(-1, 2) ** 2, axis=1)
     if not len(s) or s.max() <= loss.quadratic_within:
         return 0.5 * float(r @ r)
-    return 0.5 * float(r[:split] @ r[:split]) + 0.5 * float(np.sum(loss.rho(s)))
+    quadratic = float(r[:split] @ r[:split]) + float(r[end:] @ r[end:])
+    return 0.5 * quadratic + 0.5 * float(np.sum(loss.rho(s)))
 
 
 def linearize(
@@ -480,6 +486,9 @@ def linearize(
         r_rob, WJ_from, WJ_to, _ = _robot_rows(graph, poses, loss, None if point is None else point[0])
         r_parts.append(r_rob.reshape(-1))
         data_parts += [WJ_from.reshape(-1), WJ_to.reshape(-1)]
+    if len(graph.lp_landmark):
+        r_parts.append(_landmark_prior_rows(graph, landmarks).reshape(-1))
+        data_parts.append(graph.lp_sqrt_info.reshape(-1))
     r = np.concatenate(r_parts)
     data = np.concatenate(data_parts)[sparse.keep]
     J = sp.csr_matrix((data, (sparse.rows, sparse.cols)), shape=(graph.n_residuals, sparse.n_columns))
@@ -518,6 +527,8 @@ class DenseAssembler:
             self._columns["robot"] = columns(
                 (sparse.pose_column[graph.rob_from], 3), (sparse.pose_column[graph.rob_to], 3)
             )
+        if len(graph.lp_landmark):
+            self._columns["landmark prior"] = columns((sparse.landmark_column[graph.lp_landmark], 2))
         h_index, g_index = [], []
         # Which entries of each kind's (K, c, c) block products and (K, c) gradients land (None: all of them).
         self._keep: dict[str, tuple[NDArray[np.bool_] | None, NDArray[np.bool_] | None]] = {}
@@ -564,6 +575,10 @@ class DenseAssembler:
             r_rob, WJ_from, WJ_to, rob_cost = _robot_rows(graph, poses, loss, None if point is None else point[0])
             factors["robot"] = (r_rob, np.concatenate([WJ_from, WJ_to], axis=2))
             total += rob_cost
+        if len(graph.lp_landmark):
+            r_lp = _landmark_prior_rows(graph, landmarks)
+            factors["landmark prior"] = (r_lp, graph.lp_sqrt_info)
+            total += 0.5 * float(np.sum(r_lp**2))
         h_value, g_value = [], []
         for kind, (r, J) in factors.items():
             keep_h, keep_g = self._keep[kind]

@@ -96,3 +96,21 @@ def landmark_from_observation_with_jacobians(pose: ArrayLike, z: ArrayLike) -> t
     J_z[..., 1, 1] = rng * c
     value = np.stack([pose[..., 0] + rng * c, pose[..., 1] + rng * s], -1)
     return value, J_p, J_z
+
+
+def robot_sighting_residual_with_jacobians(pose_a: Array, pose_b: Array, z: Array) -> tuple[Array, Array, Array]:
+    """Residual of robot sightings (pose b's position seen from pose a) with its Jacobians.
+
+    Args:
+        pose_a: Sighting poses, shape (R, 3). pose_b: Sighted poses, shape (R, 3).
+        z: Measured ``[range, bearing]``, shape (R, 2).
+
+    Returns:
+        (e = h(a, b_xy) - z with the bearing wrapped (R, 2), de/da (R, 2, 3), de/db (R, 2, 3); b's heading has none).
+    """
+    h, J_a, J_xy = range_bearing_with_jacobians(pose_a, pose_b[:, :2])
+    e = h - z
+    e[:, 1] = wrap(e[:, 1])
+    J_b = np.zeros_like(J_a)
+    J_b[:, :, :2] = J_xy
+    return e, J_a, J_b

@@ -15,16 +15,17 @@ from online_slam.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from online_slam.pipeline.api import replay
-    from online_slam.pipeline.config import ESTIMATORS, Checkpointing, ReplayConfig, estimator_names
+    from online_slam.pipeline.config import ESTIMATORS, Checkpointing, MapConfig, ReplayConfig, estimator_names
 
 _HOMES = {
     "ESTIMATORS": "online_slam.pipeline.config",
     "Checkpointing": "online_slam.pipeline.config",
+    "MapConfig": "online_slam.pipeline.config",
     "ReplayConfig": "online_slam.pipeline.config",
     "estimator_names": "online_slam.pipeline.config",
     "replay": "online_slam.pipeline.api",
 }
 """Each public name's module (imported on first use: the configuration without the engine)."""
 
-__all__ = ["ESTIMATORS", "Checkpointing", "ReplayConfig", "estimator_names", "replay"]
+__all__ = ["ESTIMATORS", "Checkpointing", "MapConfig", "ReplayConfig", "estimator_names", "replay"]
 __getattr__, __dir__ = lazy_exports(__name__, _HOMES)

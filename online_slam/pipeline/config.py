@@ -32,6 +32,18 @@ class Checkpointing:
             raise OnlineSlamError("--checkpoint-every must be >= 1")
 
 
+@dataclass(frozen=True)
+class MapConfig:
+    """A map to start from (``--map``; docs/commands.md, "Maps: save and reuse")."""
+
+    path: str | None = None
+    """The map file (``online-slam-map`` JSON), or None: no map."""
+    fixed: bool = False
+    """Its landmarks are known (held), not priors with their covariances."""
+    only: bool = False
+    """Sightings of landmarks not in the map are skipped (counted), never added; needs sightings with ids."""
+
+
 ESTIMATORS = ("ekf", "smoother", "batch")
 """Names of the estimators ``replay`` can run (all run by default)."""
 
@@ -65,6 +77,8 @@ class ReplayConfig:
     on_error: str = "stop"
     """A bad line of a stream file or stdin: ``stop`` the replay there (figures cover what came before), or
     ``skip`` it and go on (counted in ``Results.input``; the results equal those of the stream without it)."""
+    map: MapConfig = field(default_factory=MapConfig)
+    """A map to start from: its landmarks as priors, or known (see :class:`MapConfig`)."""
     strict: bool = False
     """When most of the first sightings are rejected, or lines skipped (wrong units?), stop there with an error
     (figures cover what came before), not only warn (:mod:`~online_slam.pipeline.units`)."""

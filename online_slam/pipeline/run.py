@@ -15,17 +15,18 @@ from numpy.typing import NDArray
 
 from online_slam.checkpoint import read_checkpoint, write_checkpoint
 from online_slam.engine import Engine, EngineCheckpoint, StepRecord
-from online_slam.errors import InputError, OnlineSlamError
+from online_slam.errors import ConfigError, InputError, OnlineSlamError
 from online_slam.estimators.batch import BatchEstimator
 from online_slam.estimators.dead_reckoning import DeadReckoning
-from online_slam.estimators.protocol import Snapshot
+from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.evaluation.results import INTERRUPTED
 from online_slam.faults import crash_point
 from online_slam.pipeline.config import Checkpointing, ReplayConfig, build_estimators
 from online_slam.pipeline.source import OpenedSource
 from online_slam.pipeline.units import FIRST, SuspectInput, UnitWatch, probe_with
 from online_slam.sinks.protocol import ProgressSink, ReplayProgress, ReplaySink
-from online_slam.sources.events import Event, LandmarkId
+from online_slam.sources.events import Event, LandmarkId, Observation
+from online_slam.sources.landmark_map import LandmarkMap, read_map
 from online_slam.wording import counted
 
 Array = NDArray[np.float64]
@@ -102,6 +103,8 @@ class ReplayCheckpoint:
     """The stream's id of every sighting (association scoring)."""
     without_id: int
     """Sightings without an id."""
+    not_in_map: int = 0
+    """Sightings skipped by ``--map-only``."""
 
 
 class _CheckpointFailure(OnlineSlamError):
@@ -158,6 +161,13 @@ class ReplayRun:
         """Dead reckoning, the baseline."""
         self.estimators = build_estimators(config.with_association(opened.association))
         """The estimators, in table order."""
+        self.landmark_map = _load_map(config, opened.association, self.estimators)
+        """The map the estimators started from (``--map``), or None."""
+        self.not_in_map = 0
+        """Sightings ``--map-only`` skipped: of landmarks not in the map."""
+        self.map_fixed = config.map.fixed
+        """The map's landmarks are held (``--map-fixed``)."""
+        self._map_only = frozenset(self.landmark_map.ids) if self.landmark_map and config.map.only else None
         frontend = dataclasses.replace(config.frontend, max_latency=opened.latency)
         self.engine = Engine([self.odometry, *self.estimators], frontend)
         """The engine: front-end, dead reckoning and estimators."""
@@ -210,6 +220,7 @@ class ReplayRun:
             self.step_times.extend(saved.step_times)
             self.sighting_ids.extend(saved.sighting_ids)
             self.without_id = saved.without_id
+            self.not_in_map = saved.not_in_map
             self.skipped.by_reason.update(saved.skipped)
             if saved.consumed:
                 self._resumption = _Resumption(folder, saved.consumed, saved.fingerprint)
@@ -229,6 +240,9 @@ class ReplayRun:
         try:
             for event in self._events:
                 self._position.take(event)
+                if self._map_only is not None and _off_map(event, self._map_only):
+                    self.not_in_map += 1
+                    continue
                 self.units.take(event)
                 records = self.engine.push(event)
                 for record in records:
@@ -330,12 +344,37 @@ class ReplayRun:
     def _save(self, checkpoint: Checkpointing) -> None:
         state = ReplayCheckpoint(
             self.source, self.settings, self._position.consumed, self._position.fingerprint, self.skipped.by_reason,
-            self.engine.checkpoint(), self.tracks, self.step_times, self.sighting_ids, self.without_id,
+            self.engine.checkpoint(), self.tracks, self.step_times, self.sighting_ids, self.without_id, self.not_in_map,
         )  # fmt: skip
         try:
             write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
         except OnlineSlamError as exc:  # stop here as at a bad line: report what was estimated
             raise _CheckpointFailure(str(exc)) from None
+
+
+def _load_map(config: ReplayConfig, association: str, estimators: list[Estimator]) -> LandmarkMap | None:
+    """Read ``--map`` and start every estimator from it (None: no map).
+
+    Raises:
+        InputError: A bad map file. ConfigError: ``--map-fixed``/``--map-only`` without a map; ``--map-only``
+            without ids.
+    """
+    settings = config.map
+    if settings.path is None:
+        if settings.fixed or settings.only:
+            raise ConfigError(f"--map-{'fixed' if settings.fixed else 'only'} needs --map")
+        return None
+    if settings.only and association != "known":
+        raise ConfigError(f"--map-only needs sightings with ids (association known, not {association})")
+    landmark_map = read_map(settings.path)
+    for estimator in estimators:
+        estimator.load_map(landmark_map, settings.fixed)  # type: ignore[attr-defined]
+    return landmark_map
+
+
+def _off_map(event: Event, ids: frozenset[LandmarkId]) -> bool:
+    """Whether ``--map-only`` skips this event: a landmark sighting of no map landmark (or without an id)."""
+    return isinstance(event, Observation) and event.robot_seen is None and event.landmark not in ids
 
 
 def _ekf_run(config: ReplayConfig, association: str) -> Callable[[Iterable[Event]], tuple[Array, int]]:

@@ -16,6 +16,7 @@ from online_slam.evaluation.association import AssociationScore, majority, score
 from online_slam.evaluation.results import (
     EstimatorResult,
     InputReport,
+    MapReport,
     OdometryResult,
     Results,
     Series,
@@ -33,6 +34,7 @@ from online_slam.evaluation.scoring import (
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
 from online_slam.sources.events import LandmarkId
+from online_slam.sources.landmark_map import LandmarkMap
 
 
 def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
@@ -81,7 +83,31 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         left=tuple(run.engine.state.left),
         step_robots=tuple(run.odometry.log.robots) if robots else (),
         warning=run.warning,
+        map=map_report(run, estimates),
     )
+
+
+def map_report(run: ReplayRun, estimates: Mapping[str, Estimate]) -> MapReport:
+    """The map started from and the final map: positions of the batch if it ran, else of the smoother, else of the
+    EKF; covariances of the smoother, else of the EKF (the batch has none): where those lack a landmark, or are not
+    finite, the map's own (a landmark never seen keeps its prior)."""
+    loaded = run.landmark_map
+    fixed = loaded is not None and run.map_fixed
+    online = next((estimates[n] for n in ("smoother", "ekf") if n in estimates), None)
+    report = MapReport(0 if loaded is None else len(loaded), fixed, run.not_in_map)
+    if online is None or online.landmark_covs is None:
+        return report
+    best = next(estimates[n] for n in ("batch", "smoother", "ekf") if n in estimates)
+    covs = {lid: c for lid, c in zip(online.landmark_ids, online.landmark_covs)}
+    prior = {} if loaded is None else dict(zip(loaded.ids, np.zeros((len(loaded), 2, 2)) if fixed else loaded.cov))
+    rows = []
+    for lid in best.landmark_ids:
+        cov = covs.get(lid)
+        rows.append(cov if cov is not None and np.isfinite(cov).all() else prior.get(lid, np.full((2, 2), np.nan)))
+    known = [k for k, cov in enumerate(rows) if np.isfinite(cov).all()]  # a landmark without covariance is left out
+    covariances = np.array(rows)[known].reshape(-1, 2, 2)
+    final = LandmarkMap.of([best.landmark_ids[k] for k in known], best.landmarks[known], covariances, run.source)
+    return dataclasses.replace(report, final=final, positions_from=best.estimator, covariances_from=online.estimator)
 
 
 def initial_values(batch: BatchConfig, estimates: Mapping[str, Estimate]) -> Estimate | None:

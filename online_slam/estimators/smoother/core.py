@@ -43,7 +43,7 @@ from online_slam.estimators.smoother.global_solve import (
     solve_now,
     start_job,
 )
-from online_slam.estimators.smoother.prior import Prior, Sightings, initial_prior, marginalize, release
+from online_slam.estimators.smoother.prior import Prior, Sightings, fold_map, initial_prior, marginalize, release
 from online_slam.estimators.smoother.relinearize import rejudged, solve_all
 from online_slam.estimators.smoother.robots import SeveralRobots
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
@@ -60,6 +60,7 @@ from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
 from online_slam.solvers.least_squares import SolveResult
 from online_slam.sources.events import LandmarkId
+from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -122,6 +123,19 @@ class SlidingWindowSmoother(SeveralRobots):
     def association(self) -> AssociationState:
         """Association's state, and the last solve's information it reads."""
         return self.state.association
+
+    def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
+        """Start from a map (before the first step): its landmarks come first, each with a prior of its covariance
+        (at least :data:`~online_slam.sources.landmark_map.FIXED_STD` squared; exactly that with ``fixed``), in
+        the window's graph while the marginal prior does not hold it, and in the global solves' graphs."""
+        w, log = self.window, self.relinearization.log
+        if w.indices or w.landmark_ids:
+            raise ValueError("a map is loaded before the first step")
+        log.load_map(landmark_map, fixed)
+        w.landmark_ids = list(landmark_map.ids)
+        w.index = {lid: j for j, lid in enumerate(w.landmark_ids)}
+        w.landmarks = landmark_map.xy.copy()
+        w.map_size, w.map_xy, w.map_cov = len(landmark_map), log.map_xy.copy(), log.map_cov.copy()
 
     # -- protocol --------------------------------------------------------------------------------
     def step(self, step: Step) -> Snapshot:
@@ -425,6 +439,7 @@ class SlidingWindowSmoother(SeveralRobots):
         assert p.pose == o
         sightings = self._sightings_to_fold(o)
         delta, _, W = w.odometry[n1]
+        held = p.landmarks
         self.prior = marginalize(
             p,
             w.poses[o],
@@ -435,6 +450,9 @@ class SlidingWindowSmoother(SeveralRobots):
             self.config.robust.loss,
             self.config.linearization,
         )
+        come = self.prior.landmarks[(self.prior.landmarks < w.map_size) & ~np.isin(self.prior.landmarks, held)]
+        if len(come):  # a map's landmarks the prior holds from now on: it carries their priors
+            fold_map(self.prior, come, w.map_xy[come], w.map_cov[come])
         w.drop_oldest()
         self.progress.marginalized += 1
 

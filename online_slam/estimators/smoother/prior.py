@@ -416,6 +416,20 @@ def _grown(index: int, landmarks: Index, x_lin: Array, mu: Array, Sigma: Array, 
     return Prior(index, landmarks, x_lin, mu, grown)
 
 
+def fold_map(prior: Prior, rows: Index, xy: Array, cov: Array) -> None:
+    """Fold a map's priors on landmarks the prior holds (rows: their landmark indices, just come in with their
+    sightings) into it, in place: a Kalman update with ``H`` selecting them, ``z = xy`` (k, 2), ``R = cov``
+    (k, 2, 2). From then on the prior carries them; the window's graph no longer adds them."""
+    where = {int(j): i for i, j in enumerate(prior.landmarks)}
+    columns = np.array([2 * where[int(j)] + c for j in rows for c in range(2)], dtype=np.int64)
+    k = len(rows)
+    S = prior.Sigma[np.ix_(columns, columns)].copy()
+    S.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] += cov
+    y = (xy - (prior.x_lin[columns] + prior.mu[columns]).reshape(-1, 2)).reshape(-1)
+    dx, _, _ = apply_update(prior.Sigma, prior.Sigma[:, columns].copy(), S, y)
+    prior.mu += dx
+
+
 def release(prior: Prior, stale: list[int]) -> tuple[Prior, int]:
     """The prior with landmarks ``stale`` marginalized out (in covariance form: their rows and columns dropped),
     and how many it held."""

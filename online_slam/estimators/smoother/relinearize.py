@@ -24,6 +24,7 @@ pose left the window (:func:`outlier_mask`).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -52,7 +53,15 @@ def history_graph(graph: FactorGraph, oldest: int) -> FactorGraph:
     odo = graph.odo_to <= oldest
     obs = graph.obs_pose < oldest
     prior = graph.prior_pose < oldest
-    return subgraph(graph, oldest + 1, graph.fixed_poses[graph.fixed_poses <= oldest], prior, odo, obs)
+    return _map_seen(subgraph(graph, oldest + 1, graph.fixed_poses[graph.fixed_poses <= oldest], prior, odo, obs))
+
+
+def _map_seen(past: FactorGraph) -> FactorGraph:
+    """A history graph with the map's priors on the landmarks it saw only (the ones the marginal prior holds)."""
+    seen = np.isin(past.lp_landmark, past.obs_landmark)
+    return replace(
+        past, lp_landmark=past.lp_landmark[seen], lp_mean=past.lp_mean[seen], lp_sqrt_info=past.lp_sqrt_info[seen]
+    )
 
 
 def prior_marginal(
@@ -226,7 +235,7 @@ def several_history_graph(graph: FactorGraph, left: Index, kept: Index, folded: 
     inside[kept] = True
     odo, obs, prior = gone[graph.odo_from], gone[graph.obs_pose], inside[graph.prior_pose]
     fixed = np.union1d(np.flatnonzero(~inside), graph.fixed_poses[gone[graph.fixed_poses]])
-    return subgraph(graph, graph.n_poses, fixed.astype(np.int64), prior, odo, obs, folded)
+    return _map_seen(subgraph(graph, graph.n_poses, fixed.astype(np.int64), prior, odo, obs, folded))
 
 
 def rejudged(

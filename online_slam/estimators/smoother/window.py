@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, cast
 
 import numpy as np
@@ -91,6 +91,13 @@ class Window:
     """Robot sightings of the log read so far."""
     sightings_waiting: list[int] = field(default_factory=list)
     """Robot sightings read whose seen pose may still come (their time is the newest step's)."""
+    map_size: int = 0
+    """The first ``map_size`` landmarks are a map's (``--map``): each has a prior, in the window's graph until the
+    marginal prior holds it (:func:`~.prior.fold_map`)."""
+    map_xy: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    """The map's positions, shape (map_size, 2)."""
+    map_cov: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    """Their prior covariances, shape (map_size, 2, 2)."""
     index: dict[LandmarkId, int] = field(init=False)
     """Each landmark id's row in ``landmarks``."""
 
@@ -337,6 +344,7 @@ def system(window: Window, prior: Prior | None, active: Index, fej: bool = False
     (:func:`first_estimates`).
     """
     graph, local = window_graph(window, active)
+    graph = with_map_factors(graph, window, prior, active)
     sparse = layout(graph, entries=False)
     quadratic, recover, point = None, None, None
     held = np.zeros(0, dtype=np.int64)
@@ -346,6 +354,20 @@ def system(window: Window, prior: Prior | None, active: Index, fej: bool = False
         if fej:
             point = first_estimates(prior, held, active)
     return System(graph, sparse, quadratic, recover, window.values(), held, point)
+
+
+def with_map_factors(graph: FactorGraph, window: Window, prior: Prior | None, active: Index) -> FactorGraph:
+    """The window's graph with the map's priors on the active landmarks the marginal prior does not hold (it holds
+    the others' with their sightings), over the active landmarks' local order."""
+    rows = active[active < window.map_size]
+    if prior is not None:
+        rows = rows[~np.isin(rows, prior.landmarks)]
+    return replace(
+        graph,
+        lp_landmark=np.searchsorted(active, rows).astype(np.int64),
+        lp_mean=window.map_xy[rows],
+        lp_sqrt_info=sqrt_information(window.map_cov[rows]) if len(rows) else np.zeros((0, 2, 2)),
+    )
 
 
 def first_estimates(prior: Prior, held: Index, active: Index) -> JacobianPoint:
