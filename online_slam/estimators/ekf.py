@@ -56,6 +56,7 @@ from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
 from online_slam.estimators.ekf_config import EkfConfig
+from online_slam.estimators.ekf_fixes import AbsoluteFixes
 from online_slam.estimators.ekf_robots import SeveralRobots, landmark_columns
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
@@ -93,7 +94,7 @@ by a wrong id and then seen where it is reads 51,000, and letting it in moved th
 10% wrong ids, world 2, seed 0)."""
 
 
-class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
+class EkfSlam(SeveralRobots, AbsoluteFixes, ExtendedKalmanFilter):
     """EKF-SLAM with a growing state; follows the estimator protocol (``step`` / ``finish``)."""
 
     name = "ekf"
@@ -415,6 +416,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         """The newest step grew: update with its observations ``start:`` (no prediction)."""
         with self.single_threaded():
             self._observe(step, start)
+            self._fix(step, self.state.fixes_used)
             return self.snapshot(step)
 
     def _step(self, step: Step) -> Snapshot:
@@ -439,6 +441,8 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         self.state.robot_steps[0], self.state.robot_times[0] = step.index, step.t
         self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
+        self.state.fixes_used = 0
+        self._fix(step)
         if step.robots_seen or self.state.waiting:
             self._sight_robots(step)
         return self.snapshot(step)
@@ -570,6 +574,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
             {
                 "gated_observations": self.state.gated_total,
                 "landmarks_reanchored": self.state.reanchored,
+                **({"fixes_used": len(self.state.fix_nis)} if self.state.fix_nis else {}),
                 "state_size": self.dim_x,
                 "linearization": self.config.linearization,
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),

@@ -348,5 +348,5 @@ class Scan:
         raise TypeError("a scan is not a stream-v1 line; write its sightings as observation lines")
 
 
-Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth
+Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth | Position | Heading
 """Any event of stream format v1."""

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from online_slam.importers.registry import option
 from online_slam.sources.events import Event
 
 FILES = ("inputs.dat", "measurements.dat", "gps.dat")
@@ -15,7 +16,15 @@ FILES = ("inputs.dat", "measurements.dat", "gps.dat")
 
 @dataclass(frozen=True)
 class AcfrOptions:
-    """The raw log takes no option: its noise model and the car's geometry are :mod:`.reader`'s."""
+    """How GPS is used; the noise model and the car's geometry are :mod:`.reader`'s."""
+
+    gps_fix_every: float | None = option(None, "ACFR: one GPS reading every S seconds becomes a position fix (the "
+                                         "rest stays truth, for scoring)", kind=float, metavar="S", positive=True,
+                                         unset="none: GPS is truth only")  # fmt: skip
+    """Seconds between GPS readings given to the estimators as ``position`` fixes; None: none (GPS is truth only)."""
+    gps_sigma: float = option(3.0, "ACFR: standard deviation of a GPS position fix, metres", kind=float, metavar="M",
+                              positive=True)  # fmt: skip
+    """Standard deviation of each axis of a GPS fix, metres."""
 
 
 class Acfr:
@@ -37,7 +46,7 @@ class Acfr:
         """The log's events."""
         from online_slam.importers.acfr.reader import read_acfr
 
-        return read_acfr(path)
+        return read_acfr(path, fixes=(options.gps_fix_every, options.gps_sigma))
 
 
 IMPORTER = Acfr()

@@ -24,6 +24,11 @@ carry no landmark ids, so the stream's sightings have none (the estimators assoc
   rigidly. Poses without such fixes have no truth. The start pose (held fixed) is put in the GPS frame: the
   first GPS position, and the heading that turns the first ``start_distance`` metres of dead reckoning onto GPS;
   so recordings draw the path over GPS (errors are still computed after rigid alignment).
+- GPS fixes (``fixes``: every S seconds, sigma): the first GPS reading at or after each multiple of S seconds that
+  agrees with both neighbours (no jump, no gap) becomes a ``position`` fix at its own time (the front-end gives it
+  a pose of its own on the split odometry); those readings are left out of the truth, so that the score is taken
+  against the GPS held back only. The car's geometry states no antenna position: the fix is of the rear axle
+  centre (no offset).
 """
 
 from __future__ import annotations
@@ -40,7 +45,7 @@ from online_slam.errors import InputError
 from online_slam.geometry.se2 import between
 from online_slam.importers._lines import numbered_lines, numbers
 from online_slam.importers.acfr import FILES
-from online_slam.sources.events import Event, Header, Observation, Odometry, Start, Truth
+from online_slam.sources.events import Event, Header, Observation, Odometry, Position, Start, Truth
 
 Array = NDArray[np.float64]
 
@@ -160,6 +165,22 @@ def _truth_at(gps: Array, times: Array, noise: AcfrNoise) -> tuple[Array, NDArra
     return positions, ok
 
 
+def _fix_rows(gps: Array, every: float, noise: AcfrNoise) -> NDArray[np.bool_]:
+    """Which GPS readings become fixes: per multiple of ``every`` seconds, the first reading at or after it whose
+    neighbours are at most ``truth_gap`` away in time and agree with it in speed (at most ``truth_speed``)."""
+    t, xy = gps[:, 0], gps[:, 1:]
+    span, step = np.diff(t), np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    smooth = (span <= noise.truth_gap) & (step <= noise.truth_speed * span + 1e-9)  # reading i to i + 1
+    good = np.r_[False, smooth] & np.r_[smooth, False]
+    chosen = np.zeros(len(t), dtype=bool)
+    candidates = np.flatnonzero(good)
+    for due in t[0] + every * np.arange(1, int((t[-1] - t[0]) / every) + 1):
+        k = np.searchsorted(t[candidates], due)
+        if k < len(candidates) and t[candidates[k]] < due + every:
+            chosen[candidates[k]] = True
+    return chosen
+
+
 def _start_from_gps(poses: Array, path: Array, truth: Array, covered: NDArray[np.bool_], distance: float) -> Array:
     """A start pose in the GPS frame: the first covered position, and the heading that turns the dead-reckoned
     displacement over the first ``distance`` metres onto the GPS one (zeros when GPS does not allow it)."""
@@ -193,7 +214,10 @@ def _sightings(rows: Array, vehicle: AcfrVehicle, noise: AcfrNoise) -> tuple[Arr
 
 
 def read_acfr(
-    folder: str | Path, noise: AcfrNoise | None = None, vehicle: AcfrVehicle | None = None
+    folder: str | Path,
+    noise: AcfrNoise | None = None,
+    vehicle: AcfrVehicle | None = None,
+    fixes: tuple[float | None, float] = (None, 3.0),
 ) -> Iterator[Event]:
     """Stream the Victoria Park log as events (sightings without ids, GPS as position-only truth).
 
@@ -201,6 +225,7 @@ def read_acfr(
         folder: The folder with ``inputs.dat``, ``measurements.dat`` and ``gps.dat``.
         noise: Noise model and clutter limits.
         vehicle: Car geometry.
+        fixes: (seconds between GPS readings turned into ``position`` fixes, None: none; their sigma, metres).
 
     Yields:
         Stream-v1 events.
@@ -213,6 +238,9 @@ def read_acfr(
     inputs = _table(root / "inputs.dat", ("t", "speed", "steering"))
     measurements = _table(root / "measurements.dat", ("t", "range", "bearing", "diameter"))
     gps = _table(root / "gps.dat", ("t", "x", "y"))
+    every, gps_sigma = fixes
+    fixed = _fix_rows(gps, every, cfg) if every else np.zeros(len(gps), dtype=bool)
+    gps, fix_rows = gps[~fixed], gps[fixed]
     r, b = measurements[:, 1], measurements[:, 2]
     keep = (r >= cfg.min_range) & (r <= cfg.max_range) & (b >= cfg.min_bearing) & (b <= cfg.max_bearing)
     kept = measurements[keep]
@@ -248,6 +276,7 @@ def read_acfr(
             "detections_kept": int(keep.sum()),
             "dropped_by_limits": int((~keep).sum()),
             "truth": "GPS position only, linearly interpolated at pose times; align rigidly",
+            **({"gps_fixes": int(fixed.sum()), "gps_fix_every": every, "gps_sigma": gps_sigma} if every else {}),
             "start": "GPS position at the first pose, heading from GPS and dead reckoning over the first "
             f"{cfg.start_distance:g} m (the start pose is held fixed)",
             "vehicle": asdict(car),
@@ -257,7 +286,11 @@ def read_acfr(
     yield Start(t=start, pose=tuple(map(float, start_pose)))
     ends: NDArray[np.float64] = np.r_[times, np.inf]
     bounds = np.searchsorted(kept[:, 0], ends, side="left")
+    fix_rows = fix_rows[(fix_rows[:, 0] > start) & (fix_rows[:, 0] <= end)]
+    fix_at = np.searchsorted(times, fix_rows[:, 0], side="left")  # the pose at or after each fix
     for k, t in enumerate(times):
+        for row in fix_rows[(fix_at == k) & (fix_rows[:, 0] < t)]:  # between two poses: before the odometry
+            yield Position(t=float(row[0]), xy=(float(row[1]), float(row[2])), sigma=(gps_sigma, gps_sigma))
         if k > 0:
             v = variances[k - 1]
             yield Odometry(
@@ -278,3 +311,5 @@ def read_acfr(
                 bearing=float(z[i, 1]),
                 cov=((float(c[0, 0]), float(c[0, 1])), (float(c[1, 0]), float(c[1, 1]))),
             )
+        for row in fix_rows[(fix_at == k) & (fix_rows[:, 0] == t)]:  # at the pose's own time
+            yield Position(t=float(row[0]), xy=(float(row[1]), float(row[2])), sigma=(gps_sigma, gps_sigma))
