@@ -14,7 +14,7 @@ The heading residual is wrapped (:func:`~online_slam.geometry.angles.wrap`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -70,11 +70,12 @@ def fix_factors(fixes: Sequence[Position | Heading]) -> tuple[Array, Array, Arra
     f = len(fixes)
     mean, offset, W = np.zeros((f, 3)), np.zeros((f, 2)), np.zeros((f, 3, 3))
     for k, fix in enumerate(fixes):
-        if hasattr(fix, "theta"):  # a Heading
-            mean[k, 2] = fix.theta
-            W[k, 2, 2] = 1.0 / fix.sigma
+        if hasattr(fix, "theta"):  # a Heading (the types only are imported here)
+            heading = cast("Heading", fix)
+            mean[k, 2] = heading.theta
+            W[k, 2, 2] = 1.0 / heading.sigma
         else:
-            assert not isinstance(fix.sigma, float)
+            assert not hasattr(fix, "theta")  # a Position
             mean[k, :2] = fix.xy
             W[k, :2, :2] = np.linalg.inv(np.linalg.cholesky(fix.covariance))
             if fix.offset is not None:

@@ -23,7 +23,7 @@ class AcfrOptions:
                                          unset="none: GPS is truth only")  # fmt: skip
     """Seconds between GPS readings given to the estimators as ``position`` fixes; None: none (GPS is truth only)."""
     gps_sigma: float = option(3.0, "ACFR: standard deviation of a GPS position fix, metres", kind=float, metavar="M",
-                              positive=True)  # fmt: skip
+                              unset="3 m", positive=True)  # fmt: skip
     """Standard deviation of each axis of a GPS fix, metres."""
 
 

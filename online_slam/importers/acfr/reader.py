@@ -181,6 +181,19 @@ def _fix_rows(gps: Array, every: float, noise: AcfrNoise) -> NDArray[np.bool_]:
     return chosen
 
 
+def _variances(path: Array, turn: Array, cfg: AcfrNoise) -> Array:
+    """Odometry variances ``[x, y, theta]`` of each increment (N - 1, 3), from the distance driven and turned."""
+    ds, da = np.diff(path), np.diff(turn)
+    x, y = cfg.x_per_m * ds + cfg.floor, cfg.y_per_m * ds + cfg.floor
+    return np.stack([x, y, cfg.theta_per_m * ds + cfg.theta_per_rad * da + cfg.floor], -1)
+
+
+def _positions(rows: Array, sigma: float) -> Iterator[Position]:
+    """GPS readings ``[t, x, y]`` (k, 3) as position fixes of the rear axle centre."""
+    for row in rows:
+        yield Position(t=float(row[0]), xy=(float(row[1]), float(row[2])), sigma=(sigma, sigma))
+
+
 def _start_from_gps(poses: Array, path: Array, truth: Array, covered: NDArray[np.bool_], distance: float) -> Array:
     """A start pose in the GPS frame: the first covered position, and the heading that turns the dead-reckoned
     displacement over the first ``distance`` metres onto the GPS one (zeros when GPS does not allow it)."""
@@ -254,15 +267,7 @@ def read_acfr(
     times = times[times <= end]
     poses, path, turn = _integrate(inputs, times, car)
     increments = between(poses[:-1], poses[1:])
-    ds, da = np.diff(path), np.diff(turn)
-    variances = np.stack(
-        [
-            cfg.x_per_m * ds + cfg.floor,
-            cfg.y_per_m * ds + cfg.floor,
-            cfg.theta_per_m * ds + cfg.theta_per_rad * da + cfg.floor,
-        ],
-        -1,
-    )
+    variances = _variances(path, turn, cfg)
     z, z_cov = _sightings(kept[:, 1:3], car, cfg)
     truth, covered = _truth_at(gps, times, cfg)
     start_pose = _start_from_gps(poses, path, truth, covered, cfg.start_distance)
@@ -289,8 +294,7 @@ def read_acfr(
     fix_rows = fix_rows[(fix_rows[:, 0] > start) & (fix_rows[:, 0] <= end)]
     fix_at = np.searchsorted(times, fix_rows[:, 0], side="left")  # the pose at or after each fix
     for k, t in enumerate(times):
-        for row in fix_rows[(fix_at == k) & (fix_rows[:, 0] < t)]:  # between two poses: before the odometry
-            yield Position(t=float(row[0]), xy=(float(row[1]), float(row[2])), sigma=(gps_sigma, gps_sigma))
+        yield from _positions(fix_rows[(fix_at == k) & (fix_rows[:, 0] < t)], gps_sigma)  # before the odometry
         if k > 0:
             v = variances[k - 1]
             yield Odometry(
@@ -311,5 +315,4 @@ def read_acfr(
                 bearing=float(z[i, 1]),
                 cov=((float(c[0, 0]), float(c[0, 1])), (float(c[1, 0]), float(c[1, 1]))),
             )
-        for row in fix_rows[(fix_at == k) & (fix_rows[:, 0] == t)]:  # at the pose's own time
-            yield Position(t=float(row[0]), xy=(float(row[1]), float(row[2])), sigma=(gps_sigma, gps_sigma))
+        yield from _positions(fix_rows[(fix_at == k) & (fix_rows[:, 0] == t)], gps_sigma)  # at the pose's time

@@ -446,11 +446,11 @@ class RerunSink:
         positions = [f for f in step.fixes if isinstance(f, Position)]
         if positions:
             add("world/fixes/position", "points", step, [f.xy for f in positions])
-            for f in positions:
-                add("world/fixes/position_cov", "ellipse", step, (np.array(f.xy), f.covariance))
-        for f in step.fixes:
-            if isinstance(f, Heading) and pose is not None:
-                arrow = 2.0 * np.array([np.cos(f.theta), np.sin(f.theta)])
+            for p in positions:
+                add("world/fixes/position_cov", "ellipse", step, (np.array(p.xy), p.covariance))
+        for h in step.fixes:
+            if isinstance(h, Heading) and pose is not None:
+                arrow = 2.0 * np.array([np.cos(h.theta), np.sin(h.theta)])
                 add("world/fixes/heading", "arrow", step, (pose[:2], arrow))
 
     def _events(self, name: str, snap: Snapshot, step: Step) -> list[str]:
