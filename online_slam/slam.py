@@ -321,6 +321,27 @@ class Slam:
             return
         self._engine.push(scan)
 
+    def add_position(
+        self, t: float, xy: Any, sigma: Any = None, cov: Any = None, offset: Any = None, robot: RobotId | None = None
+    ) -> None:
+        """An absolute position fix (GPS): the robot-frame point ``offset`` is at ``xy`` in the map frame at ``t``;
+        it belongs to the pose (of ``robot``) at ``t`` (one is made there, as for a sighting between poses).
+
+        Args:
+            t: Time, seconds (never before the previous event).
+            xy: ``[x, y]`` of the fixed point in the map frame, metres.
+            sigma: ``[sx, sy]``, or None when ``cov`` is given. cov: Full 2x2 covariance, or None.
+            offset: ``[dx, dy]`` of the fixed point (an antenna) in the robot frame, or None: the robot's centre.
+            robot: The robot fixed (required once robots are named), or None.
+        """
+        record = {"type": "position", "t": t, "xy": xy, **({"offset": offset} if offset is not None else {})}
+        self._push("add_position", record, sigma, cov, robot)
+
+    def add_heading(self, t: float, theta: float, sigma: float, robot: RobotId | None = None) -> None:
+        """An absolute heading fix (a compass) of the pose (of ``robot``) at ``t``: ``theta`` in radians, within
+        [-2 pi, 2 pi], with standard deviation ``sigma`` (radians)."""
+        self._push("add_heading", {"type": "heading", "t": t, "theta": theta, "sigma": sigma}, None, None, robot)
+
     def add(self, event: Event | Mapping[str, Any]) -> None:
         """Add one stream-v1 event: an event object (e.g. from :func:`~online_slam.sources.stream.read_stream`)
         or its record, a ``dict`` as on a stream line (numpy arrays allowed for lists).

@@ -240,7 +240,7 @@ def test_acfr_gps_fixes_leave_the_truth(tmp_path: Path) -> None:
     plain = list(read_acfr(tmp_path))
     fixed = list(read_acfr(tmp_path, fixes=(5.0, 2.0)))
     fixes = [e for e in fixed if isinstance(e, Position)]
-    assert len(fixes) == 5 and all(f.sigma == (2.0, 2.0) for f in fixes)
+    assert len(fixes) == 5 and all(f.sigma == (2.0, 2.0) and f.offset == (4.0, 0.6) for f in fixes)
     assert not any(isinstance(e, Position) for e in plain)
     times = [e.t for e in fixed if hasattr(e, "t")]
     assert times == sorted(times)
@@ -274,3 +274,84 @@ def test_a_recording_draws_fixes_and_reads_back(tmp_path: Path) -> None:
         entities = set(recording.entity_paths())
     assert {"/world/fixes/position", "/world/fixes/position_cov", "/world/fixes/heading"} <= entities
     assert results.error is None
+
+
+def test_truth_of_an_antenna_is_scored_at_that_point(rng: np.random.Generator) -> None:
+    from online_slam.estimators.protocol import Estimate
+    from online_slam.evaluation.scoring import evaluate as score
+    from online_slam.evaluation.scoring import position_errors
+    from online_slam.frontend.pose import GroundTruth
+
+    poses = np.c_[np.cumsum(rng.normal(0, 1, (50, 2)), axis=0), rng.uniform(-np.pi, np.pi, 50)]
+    c, s = np.cos(0.4), np.sin(0.4)
+    antenna = fixed_point(poses, (4.0, 0.6)) @ np.array([[c, s], [-s, c]]) + (10.0, -3.0)  # another frame
+    known = {i: np.r_[antenna[i], np.nan] for i in range(50)}
+    estimate = Estimate("x", poses, (), np.zeros((0, 2)))
+    offsets = {i: np.array([4.0, 0.6]) for i in range(50)}
+    assert score(estimate, GroundTruth(poses=known, offsets=offsets)).rmse_m < 1e-9
+    assert score(estimate, GroundTruth(poses=known)).rmse_m > 1.0  # the axle is not where the antenna is
+    rows = np.array([known[i] for i in range(50)])
+    assert np.nanmax(position_errors(poses, rows, "anchor", offsets)) < 1e-9
+
+
+def test_truth_offsets_round_trip_and_go_with_positions_only(tmp_path: Path) -> None:
+    events = [Start(0.0, (0.0, 0.0, 0.0)), Truth(0.0, (1.0, 2.0, float("nan")), offset=(4.0, 0.6))]
+    write_stream(tmp_path / "s.jsonl", events)
+    again = list(read_stream(tmp_path / "s.jsonl"))
+    assert isinstance(again[1], Truth) and again[1].offset == (4.0, 0.6)
+    fe = FrontEnd()
+    list(fe.steps(events + [Odometry(1.0, (1.0, 0.0, 0.0), sigma=(0.1, 0.1, 0.1))]))
+    np.testing.assert_allclose(fe.truth.offsets[0], (4.0, 0.6))
+    bad = {"type": "truth", "t": 1.0, "pose": [0.0, 0.0, 0.0], "offset": [1.0, 0.0]}
+    with pytest.raises(InputError, match="offset"):
+        list(validate_events([{"type": "start", "t": 0.0, "pose": [0.0, 0.0, 0.0]}, bad], name="s.jsonl"))
+
+
+def test_slam_takes_position_and_heading_fixes() -> None:
+    from online_slam import Slam
+
+    slam = Slam("ekf")
+    slam.add_odometry(1.0, delta=[1.0, 0.0, 0.0], sigma=[0.3, 0.3, 0.1])
+    slam.add_position(1.0, xy=[2.3, 0.5], sigma=[0.02, 0.02], offset=[0.3, 0.0])  # the antenna 0.3 m ahead
+    slam.add_heading(1.0, theta=0.2, sigma=0.01)
+    slam.add_odometry(2.0, delta=[1.0, 0.0, 0.0], sigma=[0.05, 0.05, 0.01])
+    estimate = slam.estimate()
+    assert estimate.snapshot.info["fixes_used"] == 2 and estimate.snapshot.info["fixes_rejected"] == 0
+    np.testing.assert_allclose(
+        estimate.trajectory[1], (2.0 - 0.3 * (np.cos(0.2) - 1), 0.5 - 0.3 * np.sin(0.2), 0.2), atol=0.1
+    )
+    before = slam.poses
+    with pytest.raises(InputError, match="Slam.add_position.*sigma"):
+        slam.add_position(2.5, xy=[1.0, 1.0])
+    with pytest.raises(InputError, match="Slam.add_heading.*theta"):
+        slam.add_heading(2.5, theta=90.0, sigma=0.1)  # degrees
+    assert slam.poses == before
+
+
+@pytest.mark.parametrize("jump", [np.array([30.0, -20.0, 0.0]), np.array([0.0, 0.0, 2.5])])
+def test_the_ekf_gates_a_fix_that_jumps(jump: np.ndarray) -> None:
+    events = list(fixed_world(every=10, sigma=0.3, heading=0.05))
+    fixes = [i for i, e in enumerate(events) if isinstance(e, (Position, Heading))]
+    k = fixes[len(fixes) // 2] if jump[2] == 0 else fixes[len(fixes) // 2 + 1]
+    bad = events[k]
+    if isinstance(bad, Position):
+        events[k] = Position(bad.t, tuple(map(float, np.array(bad.xy) + jump[:2])), bad.sigma, offset=bad.offset)
+    else:
+        assert isinstance(bad, Heading)
+        events[k] = Heading(bad.t, float(wrap(bad.theta + jump[2])), bad.sigma)
+    from online_slam.estimators import EkfConfig
+
+    def final(events: Iterable[Event], gate: float = 0.9999) -> tuple[np.ndarray, dict]:
+        fe, ekf = FrontEnd(), EkfSlam(EkfConfig(gate_probability=gate))
+        for step in fe.steps(events):
+            ekf.step(step)
+        estimate = ekf.finish()
+        return estimate.poses, dict(estimate.info)
+
+    poses, info = final(events)
+    assert info["fixes_rejected"] == 1 and info["fixes_used"] == len(fixes) - 1
+    clean, clean_info = final(fixed_world(every=10, sigma=0.3, heading=0.05))
+    assert clean_info["fixes_rejected"] == 0 and clean_info["fixes_used"] == len(fixes)
+    assert np.abs(poses[:, :2] - clean[:, :2]).max() < 0.5  # the jump did not drag it
+    ungated, ungated_info = final(events, gate=1.0)  # without the gate it does
+    assert ungated_info["fixes_rejected"] == 0 and np.abs(ungated[:, :2] - clean[:, :2]).max() > 1.0

@@ -548,6 +548,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, ExtendedKalmanFilter):
                 "observed": tuple(self.state.step_ids),
                 "gated": tuple(self.state.step_gated),
                 "new_landmarks": tuple(self.state.step_new),
+                **self._fix_info(),
             },
         )
 
@@ -574,7 +575,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, ExtendedKalmanFilter):
             {
                 "gated_observations": self.state.gated_total,
                 "landmarks_reanchored": self.state.reanchored,
-                **({"fixes_used": len(self.state.fix_nis)} if self.state.fix_nis else {}),
+                **self._fix_info(),
                 "state_size": self.dim_x,
                 "linearization": self.config.linearization,
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),

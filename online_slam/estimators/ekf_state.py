@@ -96,7 +96,9 @@ class EkfState:
     fixes_used: int = 0
     """Absolute fixes of the newest step used so far."""
     fix_nis: list[float] = field(default_factory=list)
-    """NIS of each fix update (whitened: chi-square with as many dof as the fix measures)."""
+    """NIS of each fix used (whitened: chi-square with as many dof as the fix measures)."""
+    fixes_rejected: int = 0
+    """Fixes refused by the gate (their NIS beyond the chi-square quantile ``gate_probability``)."""
     index: dict[LandmarkId, int] = field(init=False)
     """State index of each landmark id."""
 

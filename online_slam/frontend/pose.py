@@ -77,6 +77,9 @@ class GroundTruth:
 
     poses: dict[int, Array] = field(default_factory=dict)
     """True pose ``[x, y, theta]`` of a step, where the stream has one at the step's time."""
+    offsets: dict[int, Array] = field(default_factory=dict)
+    """Position-only truth of a robot-frame point ``[dx, dy]`` (a GPS antenna), by step: scoring compares that
+    point of the estimated pose (:func:`online_slam.evaluation.scoring.scored_poses`)."""
     landmarks: dict[LandmarkId, Array] = field(default_factory=dict)
     """True landmark positions ``[x, y]``."""
     outliers: dict[int, str] = field(default_factory=dict)

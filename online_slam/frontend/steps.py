@@ -276,6 +276,8 @@ class FrontEnd:
         if isinstance(event, Truth):
             if abs(event.t - pending.t) <= TIME_TOLERANCE:
                 self.truth.poses[pending.index] = np.array(event.pose)
+                if event.offset is not None:
+                    self.truth.offsets[pending.index] = np.array(event.offset, dtype=float)
         elif isinstance(event, (Position, Heading)):
             pending.fixes.append(event)
         elif isinstance(event, Observation) and event.robot_seen is not None:
@@ -494,6 +496,7 @@ class FrontEnd:
         pending.merged += 1
         # The pose moved on in time: a truth recorded for its earlier time no longer applies.
         self.truth.poses.pop(pending.index, None)
+        self.truth.offsets.pop(pending.index, None)
         return True
 
 

@@ -66,7 +66,7 @@ FIELDS: dict[str, set[str]] = {
         "sensor",
     }
     | ROBOT_FIELDS["observation"],
-    "truth": {"type", "t", "pose", "position"} | ROBOT_FIELDS["truth"],
+    "truth": {"type", "t", "pose", "position", "offset"} | ROBOT_FIELDS["truth"],
     "landmark_truth": {"type", "landmark", "position"},
     "position": {"type", "t", "xy", "sigma", "cov", "offset"} | ROBOT_FIELDS["position"],
     "heading": {"type", "t", "theta", "sigma"} | ROBOT_FIELDS["heading"],
@@ -421,7 +421,10 @@ class EventValidator(ScanRules, RobotRules):
         robot = self.robot(record, line)
         if "pose" not in record and "position" in record:  # position-only truth (e.g. GPS): heading unknown
             x, y = self.vector(record, "position", 2, line)
-            return Truth(t=t, pose=(x, y, math.nan), robot=robot)
+            offset = self.vector(record, "offset", 2, line) if "offset" in record else None
+            return Truth(t=t, pose=(x, y, math.nan), robot=robot, offset=offset)
+        if "offset" in record:
+            raise self.fail(line, "offset", "an offset goes with position-only truth (position), not with a pose")
         return Truth(t=t, pose=self.vector(record, "pose", 3, line), robot=robot)
 
     def _position(self, record: dict[str, Any], line: int) -> Position:

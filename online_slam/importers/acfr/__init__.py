@@ -12,6 +12,9 @@ from online_slam.sources.events import Event
 
 FILES = ("inputs.dat", "measurements.dat", "gps.dat")
 """The log's files."""
+GPS_ANTENNA = (4.0, 0.6)
+"""The GPS antenna ``[forward, left]`` of the rear axle centre, metres, as measured on the log: (3.88, 0.67) on its
+first half, (4.12, 0.53) on its second (:mod:`.reader`, docs/datasets.md)."""
 
 
 @dataclass(frozen=True)
@@ -25,6 +28,14 @@ class AcfrOptions:
     gps_sigma: float = option(3.0, "ACFR: standard deviation of a GPS position fix, metres", kind=float, metavar="M",
                               unset="3 m", positive=True)  # fmt: skip
     """Standard deviation of each axis of a GPS fix, metres."""
+    gps_antenna_forward: float = option(GPS_ANTENNA[0], "ACFR: GPS antenna ahead of the rear axle centre, metres "
+                                        "(fixes and truth are of it; measured on the log)", kind=float, metavar="M",
+                                        unset=f"{GPS_ANTENNA[0]:g} m")  # fmt: skip
+    """GPS antenna ahead of the rear axle centre, metres (measured: 3.88 on the log's first half, 4.12 on its
+    second)."""
+    gps_antenna_left: float = option(GPS_ANTENNA[1], "ACFR: GPS antenna left of the rear axle centre, metres",
+                                     kind=float, metavar="M", unset=f"{GPS_ANTENNA[1]:g} m")  # fmt: skip
+    """GPS antenna left of the rear axle centre, metres (measured: 0.67 on the first half, 0.53 on the second)."""
 
 
 class Acfr:
@@ -46,7 +57,8 @@ class Acfr:
         """The log's events."""
         from online_slam.importers.acfr.reader import read_acfr
 
-        return read_acfr(path, fixes=(options.gps_fix_every, options.gps_sigma))
+        antenna = (options.gps_antenna_forward, options.gps_antenna_left)
+        return read_acfr(path, fixes=(options.gps_fix_every, options.gps_sigma), antenna=antenna)
 
 
 IMPORTER = Acfr()
