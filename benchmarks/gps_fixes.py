@@ -11,6 +11,7 @@ import argparse
 import json
 from collections.abc import Iterator
 
+from online_slam.importers.acfr import AcfrOptions
 from online_slam.importers.acfr.reader import read_acfr
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.events import Event, Position
@@ -30,7 +31,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=DATA, help="the raw Victoria Park folder")
     parser.add_argument("--every", type=float, default=30.0, help="seconds between GPS fixes")
-    parser.add_argument("--sigma", type=float, default=3.0, help="GPS fix sigma, metres")
+    parser.add_argument("--sigma", type=float, default=AcfrOptions().gps_sigma, help="GPS fix sigma, metres")
     parser.add_argument("--estimators", default="ekf,smoother", help="estimators to run")
     args = parser.parse_args()
     config = ReplayConfig(estimators=tuple(args.estimators.split(",")))
@@ -41,6 +42,10 @@ def main() -> None:
         online = {name: row.online_rmse_m for name, row in results.rows().items()}
         print(label, "online", json.dumps(online), flush=True)
         print(label, "final", json.dumps(figures[label]), flush=True)
+        used = {
+            name: {k: v for k, v in e.info.items() if k.startswith("fixes_")} for name, e in results.estimates.items()
+        }
+        print(label, "fixes", json.dumps(used), flush=True)
     for name, base in figures["without fixes"].items():
         fixed = figures["with fixes"][name]
         if base and fixed is not None:

@@ -25,9 +25,10 @@ class AcfrOptions:
                                          "rest stays truth, for scoring)", kind=float, metavar="S", positive=True,
                                          unset="none: GPS is truth only")  # fmt: skip
     """Seconds between GPS readings given to the estimators as ``position`` fixes; None: none (GPS is truth only)."""
-    gps_sigma: float = option(3.0, "ACFR: standard deviation of a GPS position fix, metres", kind=float, metavar="M",
-                              unset="3 m", positive=True)  # fmt: skip
-    """Standard deviation of each axis of a GPS fix, metres."""
+    gps_sigma: float = option(0.5, "ACFR: standard deviation of a GPS position fix, metres", kind=float, metavar="M",
+                              unset="0.5 m", positive=True)  # fmt: skip
+    """Standard deviation of each axis of a GPS fix, metres: about the GPS's own scatter (0.56 m RMS about dead
+    reckoning fitted over 10 s windows), and the best of 0.5, 1 and 3 m on the log's first half (docs/datasets.md)."""
     gps_antenna_forward: float = option(GPS_ANTENNA[0], "ACFR: GPS antenna ahead of the rear axle centre, metres "
                                         "(fixes and truth are of it; measured on the log)", kind=float, metavar="M",
                                         unset=f"{GPS_ANTENNA[0]:g} m")  # fmt: skip

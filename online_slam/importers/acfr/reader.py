@@ -247,7 +247,7 @@ def read_acfr(
     folder: str | Path,
     noise: AcfrNoise | None = None,
     vehicle: AcfrVehicle | None = None,
-    fixes: tuple[float | None, float] = (None, 3.0),
+    fixes: tuple[float | None, float] = (None, 0.5),
     antenna: tuple[float, float] = GPS_ANTENNA,
 ) -> Iterator[Event]:
     """Stream the Victoria Park log as events (sightings without ids, GPS as position-only truth).
