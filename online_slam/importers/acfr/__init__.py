@@ -14,7 +14,7 @@ FILES = ("inputs.dat", "measurements.dat", "gps.dat")
 """The log's files."""
 GPS_ANTENNA = (4.0, 0.6)
 """The GPS antenna ``[forward, left]`` of the rear axle centre, metres, as measured on the log: (3.88, 0.67) on its
-first half, (4.12, 0.53) on its second (:mod:`.reader`, docs/datasets.md)."""
+first half, (4.11, 0.54) on its second (:mod:`.reader`, docs/datasets.md)."""
 
 
 @dataclass(frozen=True)
@@ -32,11 +32,11 @@ class AcfrOptions:
     gps_antenna_forward: float = option(GPS_ANTENNA[0], "ACFR: GPS antenna ahead of the rear axle centre, metres "
                                         "(fixes and truth are of it; measured on the log)", kind=float, metavar="M",
                                         unset=f"{GPS_ANTENNA[0]:g} m")  # fmt: skip
-    """GPS antenna ahead of the rear axle centre, metres (measured: 3.88 on the log's first half, 4.12 on its
+    """GPS antenna ahead of the rear axle centre, metres (measured: 3.88 on the log's first half, 4.11 on its
     second)."""
     gps_antenna_left: float = option(GPS_ANTENNA[1], "ACFR: GPS antenna left of the rear axle centre, metres",
                                      kind=float, metavar="M", unset=f"{GPS_ANTENNA[1]:g} m")  # fmt: skip
-    """GPS antenna left of the rear axle centre, metres (measured: 0.67 on the first half, 0.53 on the second)."""
+    """GPS antenna left of the rear axle centre, metres (measured: 0.67 on the first half, 0.54 on the second)."""
 
 
 class Acfr:

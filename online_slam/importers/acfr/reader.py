@@ -33,8 +33,9 @@ carry no landmark ids, so the stream's sightings have none (the estimators assoc
   estimated pose), and the start pose puts the antenna, not the axle, on the first GPS position. The files state
   no antenna position; it was measured on the log (docs/datasets.md): dead reckoning fitted rigidly to GPS over
   20 s windows, with one antenna offset for all windows, gives (3.88, 0.67) m on the first half of the log and
-  (4.12, 0.53) m on the second (median residual 0.40 -> 0.19 m and 0.28 -> 0.16 m). The GPS stamps need no
-  shift: the delay that best matches GPS speed to wheel speed is 0.0 s on both halves.
+  (4.11, 0.54) m on the second (median residual 0.40 -> 0.19 m and 0.28 -> 0.16 m). No stamp needs a shift:
+  the delay that best matches GPS speed to wheel speed is 0.0 s on both halves, and so is the laser's
+  (``python -m benchmarks.gps_clock``).
 """
 
 from __future__ import annotations
