@@ -77,15 +77,15 @@ class GroundTruth:
 
     poses: dict[int, Array] = field(default_factory=dict)
     """True pose ``[x, y, theta]`` of a step, where the stream has one at the step's time."""
-    offsets: dict[int, Array] = field(default_factory=dict)
-    """Position-only truth of a robot-frame point ``[dx, dy]`` (a GPS antenna), by step: scoring compares that
-    point of the estimated pose (:func:`online_slam.evaluation.scoring.scored_poses`)."""
     landmarks: dict[LandmarkId, Array] = field(default_factory=dict)
     """True landmark positions ``[x, y]``."""
     outliers: dict[int, str] = field(default_factory=dict)
     """Sightings a simulator corrupted, by sighting number (0-based, in step order over the whole stream)."""
     sighting_landmarks: dict[int, LandmarkId] = field(default_factory=dict)
     """True landmark of a sighting whose stream gives it as hidden truth (``truth_landmark``), by sighting number."""
+    offsets: dict[int, Array] = field(default_factory=dict)
+    """Position-only truth of a robot-frame point ``[dx, dy]`` (a GPS antenna), by step: scoring compares that
+    point of the estimated pose (:func:`online_slam.evaluation.scoring.scored_poses`)."""
 
 
 @dataclass
