@@ -49,6 +49,8 @@ class EngineState:
     """Observations in complete steps so far."""
     given: int = -1
     """Observations of the pending step the estimators have (-1: not even its pose)."""
+    given_fixes: int = 0
+    """Absolute fixes of the pending step the estimators have."""
     seconds: dict[str, float] = field(default_factory=dict)
     """Wall time each estimator spent on the pending step so far, by name."""
     left: list[str] = field(default_factory=list)
@@ -151,7 +153,7 @@ class Engine:
     def _deliver(self, step: Step) -> None:
         """Give the estimators whatever of this (newest) step they have not seen."""
         k = len(step.landmarks)
-        if self.state.given >= 0 and k == self.state.given:
+        if self.state.given >= 0 and k == self.state.given and len(step.fixes) == self.state.given_fixes:
             return
         given, latest = self.state.given, self._latest
         for estimator in self.estimators:
@@ -162,7 +164,7 @@ class Engine:
             latest[estimator.name] = estimator.step(step) if given < 0 else estimator.extend(step, given)
             elapsed = time.perf_counter() - started
             self.state.seconds[estimator.name] = self.state.seconds.get(estimator.name, 0.0) + elapsed
-        self.state.given = k
+        self.state.given, self.state.given_fixes = k, len(step.fixes)
 
     def _another_robot(self) -> None:
         """A second robot begins: the estimators that take one robot at a time leave."""
@@ -182,14 +184,14 @@ class Engine:
         self.state.observations += len(step.landmarks)
         self.state.times.append(step.t)
         if not self.records:
-            self.state.given, self._latest = -1, {}
+            self.state.given, self.state.given_fixes, self._latest = -1, 0, {}
             return None
         for estimator in self.estimators:  # after a checkpoint was loaded mid-step, nothing new to deliver
             if estimator.name not in self._latest:
                 self._latest[estimator.name] = estimator.snapshot(step)
                 self.state.seconds.setdefault(estimator.name, 0.0)
         record = StepRecord(step, self._latest, self.state.seconds)
-        self.state.given, self._latest, self.state.seconds = -1, {}, {}
+        self.state.given, self.state.given_fixes, self._latest, self.state.seconds = -1, 0, {}, {}
         return record
 
     # -- checkpoints -------------------------------------------------------------------------------

@@ -14,6 +14,9 @@ modes model them with a ``CustomFactor`` computing our residual.
 A sighting of one robot by another (several robots) is GTSAM's ``BearingRangeFactorPose2`` between the two
 poses in both modes: bearing and range to the seen pose's position, as ours.
 
+Absolute fixes (``position`` and ``heading`` lines) are not modelled: a graph or a step with one is refused with an
+:class:`~online_slam.errors.OnlineSlamError` (no peer figure rather than one of another problem).
+
 GTSAM is the optional ``peers`` extra: the package imports this module only where a peer is asked for
 (``compare --peer isam2``); the cross-check tests and the benchmarks use it too.
 """
@@ -27,6 +30,8 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.errors import OnlineSlamError
+from online_slam.factors.fixes import fix_rows
 from online_slam.factors.graph import FactorGraph
 from online_slam.geometry.angles import wrap
 from online_slam.models.motion import odometry_residual_with_jacobians
@@ -48,6 +53,8 @@ except ImportError:  # pragma: no cover
 Array = NDArray[np.float64]
 FIXED_SIGMA = 1e-9
 """Standard deviation of the tight prior that stands in for a fixed pose in GTSAM."""
+NO_FIXES = "the GTSAM peer does not model absolute fixes (position, heading lines): compare without --peer"
+"""The refusal of a stream with absolute fixes."""
 
 
 def available() -> bool:
@@ -172,6 +179,8 @@ def to_gtsam(graph: FactorGraph, poses: Array, landmarks: Array, exact: bool = F
     """
     if gtsam is None:
         raise ImportError("gtsam is not installed: pip install '.[peers]'")
+    if fix_rows(graph).any():
+        raise OnlineSlamError(NO_FIXES)
     fg = gtsam.NonlinearFactorGraph()
     for i in graph.fixed_poses:
         fg.add(
@@ -308,6 +317,8 @@ def isam2_online(
     latest = np.zeros(3)
     online, times, covs = [], [], []
     for step in steps:
+        if step.fixes:
+            raise OnlineSlamError(NO_FIXES)
         started = time.perf_counter()
         graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
         i = step.index

@@ -20,7 +20,6 @@ estimator that does sets ``several_robots`` and gives each robot's newest pose b
 from __future__ import annotations
 
 import dataclasses
-import math
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -36,7 +35,7 @@ from online_slam.engine import Engine, EngineCheckpoint
 from online_slam.errors import ConfigError, InputError, LateInput, OnlineSlamError
 from online_slam.estimators.ekf import EkfSlam
 from online_slam.estimators.ekf_config import EkfConfig
-from online_slam.estimators.protocol import Estimator, SlamEstimator, Snapshot
+from online_slam.estimators.protocol import SlamEstimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.frontend.steps import TIME_TOLERANCE, FrontEndConfig, PendingStep, Step
 from online_slam.models.motion import Increment, predict_pose
@@ -46,6 +45,7 @@ from online_slam.slam_estimate import (
     RobotEstimate,
     SlamEstimate,
     _read_only,
+    empty_estimate,
 )
 from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
 from online_slam.sources.landmark_map import LandmarkMap, read_map, write_map
@@ -330,6 +330,27 @@ class Slam:
             return
         self._engine.push(scan)
 
+    def add_position(
+        self, t: float, xy: Any, sigma: Any = None, cov: Any = None, offset: Any = None, robot: RobotId | None = None
+    ) -> None:
+        """An absolute position fix (GPS): the robot-frame point ``offset`` is at ``xy`` in the map frame at ``t``;
+        it belongs to the pose (of ``robot``) at ``t`` (one is made there, as for a sighting between poses).
+
+        Args:
+            t: Time, seconds (never before the previous event).
+            xy: ``[x, y]`` of the fixed point in the map frame, metres.
+            sigma: ``[sx, sy]``, or None when ``cov`` is given. cov: Full 2x2 covariance, or None.
+            offset: ``[dx, dy]`` of the fixed point (an antenna) in the robot frame, or None: the robot's centre.
+            robot: The robot fixed (required once robots are named), or None.
+        """
+        record = {"type": "position", "t": t, "xy": xy, **({"offset": offset} if offset is not None else {})}
+        self._push("add_position", record, sigma, cov, robot)
+
+    def add_heading(self, t: float, theta: float, sigma: float, robot: RobotId | None = None) -> None:
+        """An absolute heading fix (a compass) of the pose (of ``robot``) at ``t``: ``theta`` in radians, within
+        [-2 pi, 2 pi], with standard deviation ``sigma`` (radians)."""
+        self._push("add_heading", {"type": "heading", "t": t, "theta": theta, "sigma": sigma}, None, None, robot)
+
     def add(self, event: Event | Mapping[str, Any]) -> None:
         """Add one stream-v1 event: an event object (e.g. from :func:`~online_slam.sources.stream.read_stream`)
         or its record, a ``dict`` as on a stream line (numpy arrays allowed for lists).
@@ -444,7 +465,7 @@ class Slam:
         else:
             found = engine.sync().get(name)
             if found is None:
-                return _empty_estimate(self._estimator, landmark_covs)
+                return empty_estimate(self._estimator.name, landmark_covs)
             snapshot = found
         if pending is not None:
             increments += self._held_increments(pending, increments[-1][1] if increments else snapshot.t)
@@ -551,14 +572,6 @@ def _bare_step(engine: Engine) -> Step:
     """The newest complete step's index and time (all a snapshot reads of it) without its data."""
     index, t = engine.state.steps - 1, engine.state.times[-1]
     return Step(index, t, None, None, (), np.zeros((0, 2)), np.zeros((0, 2, 2)))
-
-
-def _empty_estimate(estimator: Estimator, landmark_covs: bool) -> SlamEstimate:
-    """The estimate before any pose: index -1, NaN time and pose, nothing else."""
-    nothing = _read_only(np.zeros((0, 3)))
-    snapshot = Snapshot(estimator.name, -1, math.nan, np.full(3, math.nan), None, (), np.zeros((0, 2)))
-    covs = _read_only(np.zeros((0, 2, 2))) if landmark_covs else None
-    return SlamEstimate(snapshot, covs, (nothing, nothing))
 
 
 @dataclass(eq=False)

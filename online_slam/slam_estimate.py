@@ -3,6 +3,7 @@ each robot's part (arrays read-only, captured at query time)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -137,3 +138,11 @@ def _locked(array: Array) -> Array:
     """Make an array that only this estimate refers to (a snapshot's copy) read-only, without copying it."""
     array.flags.writeable = False
     return array
+
+
+def empty_estimate(estimator: str, landmark_covs: bool) -> SlamEstimate:
+    """The estimate before any pose: index -1, NaN time and pose, nothing else."""
+    nothing = _read_only(np.zeros((0, 3)))
+    snapshot = Snapshot(estimator, -1, math.nan, np.full(3, math.nan), None, (), np.zeros((0, 2)))
+    covs = _read_only(np.zeros((0, 2, 2))) if landmark_covs else None
+    return SlamEstimate(snapshot, covs, (nothing, nothing))

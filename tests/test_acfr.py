@@ -11,8 +11,10 @@ import pytest
 from conftest import SHARED_DATA, needs_data
 
 from online_slam.geometry.se2 import compose
+from online_slam.importers.acfr import GPS_ANTENNA
 from online_slam.importers.acfr.reader import AcfrNoise, AcfrVehicle, read_acfr
 from online_slam.importers.registry import detect as detect_format
+from online_slam.models.fix import fixed_point
 from online_slam.models.range_bearing import range_bearing
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources.events import Observation, Odometry, Start, Truth
@@ -48,7 +50,8 @@ def _simulate(folder: Path, seconds: float = 30.0) -> tuple[np.ndarray, np.ndarr
     np.savetxt(folder / "measurements.dat", np.array(rows), fmt="%.10f")
     gps_t = np.arange(0.0, seconds, 0.2)
     at = np.clip(np.searchsorted(t, gps_t), 0, len(t) - 1)
-    np.savetxt(folder / "gps.dat", np.c_[t[at], 10 + poses[at, 0], -5 + poses[at, 1]], fmt="%.10f")
+    antenna = fixed_point(poses[at], GPS_ANTENNA)  # GPS is of the antenna, ahead of the rear axle
+    np.savetxt(folder / "gps.dat", np.c_[t[at], 10 + antenna[:, 0], -5 + antenna[:, 1]], fmt="%.10f")
     return t, poses, trees, int(np.sum(seen_in >= 3))
 
 
@@ -83,11 +86,11 @@ def test_simulated_log_converts_exactly(tmp_path: Path) -> None:
         d = np.hypot(z[:, 0] - event.range, np.angle(np.exp(1j * (z[:, 1] - event.bearing))) * event.range)
         assert d.min() < 1e-6
         assert np.all(np.linalg.eigvalsh(np.array(event.cov)) > 0)
-    # GPS truth: position only, in its own frame (offset by (10, -5) here)
+    # GPS truth: position only, of the antenna, in its own frame (offset by (10, -5) here)
     truth = [e for e in events if isinstance(e, Truth)]
-    assert truth and all(math.isnan(e.pose[2]) for e in truth)
+    assert truth and all(math.isnan(e.pose[2]) and e.offset == GPS_ANTENNA for e in truth)
     for event in truth[::10]:
-        np.testing.assert_allclose(np.array(event.pose[:2]) - (10, -5), at[event.t][:2], atol=0.2)
+        np.testing.assert_allclose(np.array(event.pose[:2]) - (10, -5), fixed_point(at[event.t], GPS_ANTENNA), atol=0.2)
 
 
 def test_limits_drop_detections_and_stream_round_trips(tmp_path: Path) -> None:

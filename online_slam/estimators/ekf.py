@@ -56,6 +56,8 @@ from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
 from online_slam.estimators.ekf_config import EkfConfig
+from online_slam.estimators.ekf_fixes import AbsoluteFixes
+from online_slam.estimators.ekf_map import PriorMap
 from online_slam.estimators.ekf_robots import SeveralRobots, landmark_columns
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.estimators.kalman import apply_update, stacked_jacobian
@@ -78,7 +80,6 @@ from online_slam.models.observation import (
     wrap_bearings,
 )
 from online_slam.sources.events import LandmarkId
-from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
 
@@ -94,7 +95,7 @@ by a wrong id and then seen where it is reads 51,000, and letting it in moved th
 10% wrong ids, world 2, seed 0)."""
 
 
-class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
+class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
     """EKF-SLAM with a growing state; follows the estimator protocol (``step`` / ``finish``)."""
 
     name = "ekf"
@@ -238,24 +239,6 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         self.state.confirmed = np.append(self.state.confirmed, False)
         self.state.first = np.vstack([self.state.first, position[None]])
         self._grow(position, cross, 0.5 * (block + block.T))
-
-    def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
-        """Start from a map (before the first step): its landmarks enter the state as independent priors with their
-        covariances, confirmed. ``fixed``: with zero covariance instead, so that no update moves them (their rows
-        of the gain are exactly zero: they act as known points) and they are never re-anchored; the invariant
-        retraction, which turns the whole map with each heading correction, gives way to the standard update."""
-        if len(self.landmark_ids) or len(self.state.history):
-            raise OnlineSlamError("a map is loaded before the first step, into an empty filter")
-        m = len(landmark_map)
-        block = np.zeros((2 * m, 2 * m))
-        if not fixed:  # the 2x2 blocks on the diagonal
-            block.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :] = landmark_map.cov
-        self.landmark_ids.extend(landmark_map.ids)
-        self.state.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
-        self.state.streak, self.state.confirmed = np.zeros(m, dtype=np.int64), np.ones(m, dtype=bool)
-        self.state.first = landmark_map.xy.copy()
-        self.state.fixed = m if fixed else 0
-        self._grow(landmark_map.xy.reshape(-1), np.zeros((2 * m, self.dim_x)), block)
 
     def _placed(self, z: Array, model: int) -> tuple[Array, Array, Array]:
         """A landmark placed from sighting z (2,) at the robot's estimate: (position (2,), d/drobot (2, 3),
@@ -435,6 +418,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         """The newest step grew: update with its observations ``start:`` (no prediction)."""
         with self.single_threaded():
             self._observe(step, start)
+            self._fix(step, self.state.fixes_used)
             return self.snapshot(step)
 
     def _step(self, step: Step) -> Snapshot:
@@ -459,6 +443,8 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
         self.state.robot_steps[0], self.state.robot_times[0] = step.index, step.t
         self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
+        self.state.fixes_used = 0
+        self._fix(step)
         if step.robots_seen or self.state.waiting:
             self._sight_robots(step)
         return self.snapshot(step)
@@ -564,6 +550,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
                 "observed": tuple(self.state.step_ids),
                 "gated": tuple(self.state.step_gated),
                 "new_landmarks": tuple(self.state.step_new),
+                **self._fix_info(),
             },
         )
 
@@ -590,6 +577,7 @@ class EkfSlam(SeveralRobots, ExtendedKalmanFilter):
             {
                 "gated_observations": self.state.gated_total,
                 "landmarks_reanchored": self.state.reanchored,
+                **self._fix_info(),
                 "state_size": self.dim_x,
                 "linearization": self.config.linearization,
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),

@@ -95,6 +95,12 @@ class EkfState:
     """Robot sightings waiting for the seen robot's pose of their time."""
     robot_sightings: dict[str, int] = field(default_factory=lambda: {"used": 0, "gated": 0, "dropped": 0})
     """Robot sightings used, rejected by the gate, and dropped (a pose they link had gone, or never came)."""
+    fixes_used: int = 0
+    """Absolute fixes of the newest step used so far."""
+    fix_nis: list[float] = field(default_factory=list)
+    """NIS of each fix used (whitened: chi-square with as many dof as the fix measures)."""
+    fixes_rejected: int = 0
+    """Fixes refused by the gate (their NIS beyond the chi-square quantile ``gate_probability``)."""
     index: dict[LandmarkId, int] = field(init=False)
     """State index of each landmark id."""
 

@@ -15,14 +15,17 @@ from numpy.typing import NDArray
 
 from online_slam.checkpoint import Checkpointed
 from online_slam.estimators.protocol import Snapshot
+from online_slam.factors.fixes import with_fixes
 from online_slam.factors.graph import FactorGraph, sqrt_information
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
+from online_slam.models.fix import fix_factors
 from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.sources.events import LandmarkId, RobotId
 from online_slam.sources.landmark_map import FIXED_STD, LandmarkMap
 
 Array = NDArray[np.float64]
+Index = NDArray[np.int64]
 
 
 def _concat(chunks: list[np.ndarray], shape: tuple[int, ...], dtype: type) -> np.ndarray:
@@ -140,6 +143,9 @@ class ProblemLog(Checkpointed):
     """The map's positions, shape (map_size, 2)."""
     map_cov: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Their prior covariances, shape (map_size, 2, 2) (a fixed map's: :data:`FIXED_STD` squared)."""
+    fixes: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
+    """Absolute fixes of each pose that has some: (mean (f, 3), offset (f, 2), square-root information (f, 3, 3)),
+    as :func:`~online_slam.models.fix.fix_factors` gives them."""
     _landmark_index: dict[LandmarkId, int] = field(init=False)
     """Index of each landmark id in ``landmark_ids``."""
     _cached_obs: int = field(init=False)
@@ -251,9 +257,12 @@ class ProblemLog(Checkpointed):
         return pose
 
     def extend(self, step: Step, start: int) -> None:
-        """Record the newest step's observations ``start:`` (new landmarks placed from their first sight)."""
+        """Record the newest step's observations ``start:`` (new landmarks placed from their first sight) and all
+        its fixes."""
         if step.index != len(self.poses) - 1:
             raise ValueError(f"only the newest step can grow: {len(self.poses) - 1}, not {step.index}")
+        if step.fixes and self.keep_factors:
+            self.fixes[step.index] = fix_factors(step.fixes)
         ids_now = step.landmarks[start:]
         if not ids_now:
             return
@@ -291,7 +300,7 @@ class ProblemLog(Checkpointed):
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
         lists: dict[str, Any] = {name: list(v) for name, v in values.items() if isinstance(v, list)}
-        copy = replace(self, **lists, starts=dict(self.starts), seen=self.seen.frozen())
+        copy = replace(self, **lists, starts=dict(self.starts), seen=self.seen.frozen(), fixes=dict(self.fixes))
         copy._cached_obs, copy._cat_obs = self._cached_obs, self._cat_obs
         copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
         return copy
@@ -332,7 +341,7 @@ class ProblemLog(Checkpointed):
         )
         odo_from, odo_to = self._chains()
         robot_factors: dict[str, Any] = self.seen.factors()
-        return replace(
+        graph = replace(
             base,
             odo_from=odo_from,
             odo_to=odo_to,
@@ -346,6 +355,19 @@ class ProblemLog(Checkpointed):
             **robot_factors,
             **self.map_priors(ids if labels is not None else None),
         )
+        return with_fixes(graph, *self.fix_arrays())
+
+    def fix_arrays(self) -> tuple[Index, Array, Array, Array]:
+        """Every fix recorded, in pose order: (pose (f,), mean (f, 3), offset (f, 2), square-root information
+        (f, 3, 3))."""
+        poses = sorted(self.fixes)
+        parts = [self.fixes[g] for g in poses]
+        counts = [len(p[0]) for p in parts]
+        if not parts:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3, 3))
+        pose = np.repeat(np.array(poses, dtype=np.int64), counts)
+        mean, offset, W = (np.concatenate([p[k] for p in parts]) for k in range(3))
+        return pose, mean, offset, W
 
     def _priors(self) -> tuple[list[int], dict[str, Any]]:
         """The start poses held fixed, and the prior factors of the others (keyword arguments of the graph)."""

@@ -372,6 +372,8 @@ class Results:
     """Per-step records of the online estimators, for plots and consistency tests."""
     truth_poses: Array | None = field(default=None, repr=False)
     """True poses by step (NaN rows where the stream had none), shape (N, 3), or None without truth."""
+    truth_offsets: dict[int, Array] = field(default_factory=dict, repr=False)
+    """Steps whose position-only truth is of a robot-frame point (a GPS antenna): that point ``[dx, dy]``."""
     truth_landmarks: dict[Any, Array] = field(default_factory=dict, repr=False)
     """True landmark positions by id."""
     error: str | None = None

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 from online_slam.estimators.protocol import Estimate
 from online_slam.evaluation.metrics import apply_transform, endpoint_gap
 from online_slam.evaluation.results import EstimatorResult, Latency, OdometryResult, Series
-from online_slam.evaluation.scoring import Errors, nees_band, share_in_bounds
+from online_slam.evaluation.scoring import Errors, nees_band, scored_poses, share_in_bounds
 from online_slam.frontend.steps import GroundTruth
 from online_slam.sources.events import RobotId
 
@@ -49,7 +49,7 @@ def final_errors(estimate: Estimate, truth: GroundTruth, errors: Errors) -> Arra
     if errors.indices is None or errors.transform is None:
         return out
     idx = errors.indices
-    moved = apply_transform(errors.transform, estimate.poses[idx])
+    moved = apply_transform(errors.transform, scored_poses(estimate.poses, truth, idx))
     out[idx] = np.hypot(*(moved[:, :2] - np.array([truth.poses[i] for i in idx])[:, :2]).T)
     return out
 

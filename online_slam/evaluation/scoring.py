@@ -29,6 +29,7 @@ from online_slam.evaluation.metrics import (
 )
 from online_slam.evaluation.results import LandmarkCoverage, Latency, NeesBand, OutlierReport, Series
 from online_slam.frontend.steps import GroundTruth
+from online_slam.models.fix import fixed_point
 from online_slam.sources.events import LandmarkId
 
 Array = NDArray[np.float64]
@@ -72,17 +73,30 @@ def evaluate(estimate: Estimate, truth: GroundTruth, alignment: str = "anchor") 
     if len(indices) == 0:
         return Errors(None, None, gap)
     true_poses = np.array([truth.poses[i] for i in indices])
+    scored = scored_poses(estimate.poses, truth, indices)
     if (alignment == "se2" or np.isnan(true_poses[:, 2]).any()) and len(indices) >= 2:  # no heading: rigid fit
-        T = align_se2(estimate.poses[indices], true_poses)
+        T = align_se2(scored, true_poses)
     else:
-        T = anchor_transform(estimate.poses[indices[0]], true_poses[0])
-    rmse = position_rmse(apply_transform(T, estimate.poses[indices]), true_poses)
+        T = anchor_transform(scored[0], true_poses[0])
+    rmse = position_rmse(apply_transform(T, scored), true_poses)
     common = [(k, lid) for k, lid in enumerate(estimate.landmark_ids) if lid in truth.landmarks]
     lm_rmse = None
     if common:
         est = apply_transform(T, estimate.landmarks[[k for k, _ in common]])
         lm_rmse = landmark_rmse(est, np.array([truth.landmarks[lid] for _, lid in common]))
     return Errors(rmse, lm_rmse, gap, T, indices, landmark_coverage(estimate.landmark_ids, truth))
+
+
+def scored_poses(poses: Array, truth: GroundTruth, indices: NDArray[np.int64]) -> Array:
+    """The estimated poses ``poses[indices]`` as truth compares them: where a truth is of a robot-frame point (a
+    GPS antenna, :attr:`GroundTruth.offsets`), that point of the pose with the pose's heading; shape (k, 3)."""
+    out = np.array(poses[indices], dtype=float)
+    if truth.offsets:
+        at = np.array([i in truth.offsets for i in indices.tolist()], dtype=bool)
+        if at.any():
+            offsets = np.array([truth.offsets[i] for i in indices[at].tolist()])
+            out[at, :2] = fixed_point(out[at], offsets)
+    return out
 
 
 def landmark_coverage(ids: Sequence[LandmarkId], truth: GroundTruth) -> LandmarkCoverage | None:
@@ -141,7 +155,7 @@ def online_figures(
     if errors.indices is not None and errors.transform is not None:
         idx = errors.indices
         true_poses = np.array([truth.poses[i] for i in idx])
-        moved = apply_transform(errors.transform, poses[idx])
+        moved = apply_transform(errors.transform, scored_poses(poses, truth, idx))
         error_m[idx] = np.hypot(*(moved[:, :2] - true_poses[:, :2]).T)
         if all(covariances[i] is not None for i in idx):
             covs = transform_pose_covariance(errors.transform, np.array([covariances[i] for i in idx]))
@@ -163,13 +177,16 @@ def online_figures(
     return OnlineFigures(errors.rmse_m, nees_mean, latency, series)
 
 
-def position_errors(poses: Array, truth_poses: Array | None, alignment: str) -> Array:
+def position_errors(
+    poses: Array, truth_poses: Array | None, alignment: str, offsets: dict[int, Array] | None = None
+) -> Array:
     """Distance of each pose to its true position, after the alignment the table's RMSE uses (:func:`evaluate`).
 
     Args:
         poses: Estimated poses by step, in the estimator's frame, shape (N, 3).
         truth_poses: True poses by step, NaN rows where there is none (:func:`truth_array`), or None.
         alignment: ``anchor`` or ``se2``.
+        offsets: Steps whose truth is of a robot-frame point (:attr:`GroundTruth.offsets`).
 
     Returns:
         Shape (N,), NaN where a pose has no truth.
@@ -178,10 +195,11 @@ def position_errors(poses: Array, truth_poses: Array | None, alignment: str) -> 
     if truth_poses is None:
         return out
     known = {i: pose for i, pose in enumerate(truth_poses) if np.isfinite(pose[:2]).all()}
-    errors = evaluate(Estimate("", poses, (), np.zeros((0, 2))), GroundTruth(poses=known), alignment)
+    truth = GroundTruth(poses=known, offsets=dict(offsets or {}))
+    errors = evaluate(Estimate("", poses, (), np.zeros((0, 2))), truth, alignment)
     if errors.indices is not None and errors.transform is not None:
         idx = errors.indices
-        moved = apply_transform(errors.transform, poses[idx])
+        moved = apply_transform(errors.transform, scored_poses(poses, truth, idx))
         out[idx] = np.hypot(*(moved[:, :2] - truth_poses[idx, :2]).T)
     return out
 

@@ -2,7 +2,9 @@
 
 Three factor kinds, all whitened by the square-root information ``W`` (``W^T W = cov^-1``):
 
-- prior on a pose: ``W (p - mean)`` (angle wrapped);
+- prior on a pose: ``W (p - mean)`` (angle wrapped), or with ``prior_offset`` an absolute fix of a point of the
+  robot frame and the heading, ``W (fixed(p, offset) - mean)`` (:mod:`online_slam.models.fix`; its ``W`` may have
+  zero rows: a position fix, a heading fix);
 - odometry between poses a and b: ``W (between(a, b) - delta)`` (angle wrapped) — the article's model;
 - observation of landmark l from pose p: ``W (h(p, l) - z)``, with ``h`` the sighting's own model
   (:mod:`online_slam.models.observation`: range-bearing, bearing wrapped, or the landmark's position in the
@@ -24,27 +26,16 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from online_slam.factors.information import sqrt_information as sqrt_information
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
+from online_slam.models.fix import fix_residual_with_jacobians
 from online_slam.models.motion import odometry_residual_with_jacobians
 from online_slam.models.observation import RANGE_BEARING, predict, predict_with_jacobians, tags, wrap_bearings
 from online_slam.models.range_bearing import robot_sighting_residual_with_jacobians
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
-
-
-def sqrt_information(cov: ArrayLike) -> Array:
-    """Square-root information matrices ``W`` with ``W^T W = cov^-1``.
-
-    Args:
-        cov: Covariances, shape (..., n, n), symmetric positive definite.
-
-    Returns:
-        Lower-triangular ``W = chol(cov)^-1``, shape (..., n, n).
-    """
-    L = np.linalg.cholesky(np.asarray(cov, dtype=float))
-    return np.linalg.inv(L)
 
 
 def _index(values: ArrayLike) -> Index:
@@ -99,6 +90,8 @@ class FactorGraph:
     """Prior means, shape (Q, 2)."""
     lp_sqrt_info: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Prior square-root information, shape (Q, 2, 2)."""
+    prior_offset: Array = field(default_factory=lambda: np.zeros((0, 2)))
+    """The robot-frame point each prior fixes (absolute fixes), shape (P, 2); empty: every prior is on the pose."""
 
     @staticmethod
     def build(
@@ -267,18 +260,24 @@ def _whiten(W: Array, e: Array) -> Array:
 
 def _errors(
     graph: FactorGraph, poses: Array, landmarks: Array, at: tuple[Array, Array] | None = None
-) -> tuple[Array, Array, Array, Array, Array, Array, Array]:
+) -> tuple[Array, Array, Array, Array, Array, Array, Array, Array]:
     """Unwhitened errors of every factor (angles wrapped) and the Jacobians of odometry and observations.
 
     ``at``: the (poses, landmarks) the Jacobians are evaluated at (:meth:`JacobianPoint.apply`); the errors stay
     at the given values.
 
     Returns:
-        (e_prior (P, 3), e_odo (K, 3), d e_odo/da and /db (K, 3, 3), e_obs (L, 2), d e_obs/dpose (L, 2, 3),
-        d e_obs/dlandmark (L, 2, 2)).
+        (e_prior (P, 3), W d e_prior/dpose (P, 3, 3), e_odo (K, 3), d e_odo/da and /db (K, 3, 3), e_obs (L, 2),
+        d e_obs/dpose (L, 2, 3), d e_obs/dlandmark (L, 2, 2)).
     """
-    e_prior = poses[graph.prior_pose] - graph.prior_mean
-    e_prior[:, 2] = wrap(e_prior[:, 2])
+    if len(graph.prior_offset):
+        e_prior, J = fix_residual_with_jacobians(poses[graph.prior_pose], graph.prior_offset, graph.prior_mean)
+        if at is not None:
+            J = fix_residual_with_jacobians(at[0][graph.prior_pose], graph.prior_offset, graph.prior_mean)[1]
+        WJ_prior = graph.prior_sqrt_info @ J
+    else:
+        e_prior, WJ_prior = poses[graph.prior_pose] - graph.prior_mean, graph.prior_sqrt_info
+        e_prior[:, 2] = wrap(e_prior[:, 2])
     e_odo, J_a, J_b = odometry_residual_with_jacobians(poses[graph.odo_from], poses[graph.odo_to], graph.odo_delta)
     if at is None:
         z, J_p, J_l = predict_with_jacobians(poses[graph.obs_pose], landmarks[graph.obs_landmark], graph.obs_model)
@@ -288,7 +287,7 @@ def _errors(
         _, J_a, J_b = odometry_residual_with_jacobians(p[graph.odo_from], p[graph.odo_to], graph.odo_delta)
         _, J_p, J_l = predict_with_jacobians(p[graph.obs_pose], l[graph.obs_landmark], graph.obs_model)
     e_obs = wrap_bearings(z - graph.obs_z, graph.obs_model)
-    return e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
+    return e_prior, WJ_prior, e_odo, J_a, J_b, e_obs, J_p, J_l
 
 
 def _robot_rows(
@@ -325,7 +324,7 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     Returns:
         Residual vector, shape (n_residuals,), ordered priors, odometry, observations.
     """
-    e_prior, e_odo, _, _, e_obs, _, _ = _errors(graph, poses, landmarks)
+    e_prior, _, e_odo, _, _, e_obs, _, _ = _errors(graph, poses, landmarks)
     parts = [
         _whiten(graph.prior_sqrt_info, e_prior).reshape(-1),
         _whiten(graph.odo_sqrt_info, e_odo).reshape(-1),
@@ -391,6 +390,7 @@ def subgraph(
         prior_pose=graph.prior_pose[prior],
         prior_mean=graph.prior_mean[prior],
         prior_sqrt_info=graph.prior_sqrt_info[prior],
+        prior_offset=graph.prior_offset[prior] if len(graph.prior_offset) else graph.prior_offset,
         odo_from=graph.odo_from[odo],
         odo_to=graph.odo_to[odo],
         odo_delta=graph.odo_delta[odo],
@@ -465,7 +465,7 @@ def linearize(
         (r, J): residuals, shape (n_residuals,), and the Jacobian, sparse (n_residuals, n_columns).
     """
     point = None if at is None else at.apply(poses, landmarks)
-    e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, point)
+    e_prior, WJ_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, point)
     W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
     if loss is not None and len(e_obs):
         s = np.sum(_whiten(W_obs, e_obs) ** 2, axis=1)
@@ -476,7 +476,7 @@ def linearize(
         _whiten(W_obs, e_obs).reshape(-1),
     ]
     data_parts = [
-        graph.prior_sqrt_info.reshape(-1),
+        WJ_prior.reshape(-1),
         (W_odo @ J_a).reshape(-1),
         (W_odo @ J_b).reshape(-1),
         (W_obs @ J_p).reshape(-1),
@@ -555,7 +555,7 @@ class DenseAssembler:
         """
         graph, n = self.graph, self.n
         point = None if at is None else at.apply(poses, landmarks)
-        e_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, point)
+        e_prior, WJ_prior, e_odo, J_a, J_b, e_obs, J_p, J_l = _errors(graph, poses, landmarks, point)
         W_odo, W_obs = graph.odo_sqrt_info, graph.obs_sqrt_info
         r_prior, r_odo, r_obs = _whiten(graph.prior_sqrt_info, e_prior), _whiten(W_odo, e_odo), _whiten(W_obs, e_obs)
         total = 0.5 * float(np.sum(r_prior**2) + np.sum(r_odo**2))
@@ -567,7 +567,7 @@ class DenseAssembler:
         else:  # least squares (or a loss that is exactly least squares at every residual here)
             total += 0.5 * float(np.sum(s))
         factors = {
-            "prior": (r_prior, graph.prior_sqrt_info),
+            "prior": (r_prior, WJ_prior),
             "odometry": (r_odo, W_odo @ np.concatenate([J_a, J_b], axis=2)),
             "observation": (r_obs, W_obs @ np.concatenate([J_p, J_l], axis=2)),
         }

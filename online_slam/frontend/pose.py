@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.models.observation import SIGHTING
-from online_slam.sources.events import LandmarkId, RobotId
+from online_slam.sources.events import Heading, LandmarkId, Position, RobotId
 
 Array = NDArray[np.float64]
 
@@ -63,6 +63,8 @@ class Step:
     sensors: tuple[str | None, ...] = ()
     """The sensor of each observation (its line's ``sensor``; None: the robot's centre), length k, when the stream
     declares sensors; empty when it declares none (every sighting is then the centre's)."""
+    fixes: tuple[Position | Heading, ...] = ()
+    """Absolute fixes of this pose (``position`` and ``heading`` lines at its time), in stream order."""
 
     def __post_init__(self) -> None:
         if self.z_model is None:
@@ -81,6 +83,9 @@ class GroundTruth:
     """Sightings a simulator corrupted, by sighting number (0-based, in step order over the whole stream)."""
     sighting_landmarks: dict[int, LandmarkId] = field(default_factory=dict)
     """True landmark of a sighting whose stream gives it as hidden truth (``truth_landmark``), by sighting number."""
+    offsets: dict[int, Array] = field(default_factory=dict)
+    """Position-only truth of a robot-frame point ``[dx, dy]`` (a GPS antenna), by step: scoring compares that
+    point of the estimated pose (:func:`online_slam.evaluation.scoring.scored_poses`)."""
 
 
 @dataclass
@@ -108,9 +113,10 @@ class PendingStep:
     robots_seen: list[RobotId] = field(default_factory=list)
     z_robots: list[tuple[float, float]] = field(default_factory=list)
     z_robots_cov: list[Array] = field(default_factory=list)
+    fixes: list[Position | Heading] = field(default_factory=list)
     closed: bool = False  # its robot's next pose has begun: no line can reach it any more
-    # freeze's cache: (observations, merges, robot sightings) and the step frozen then
-    _frozen: tuple[tuple[int, int, int], Step] | None = field(default=None, init=False, repr=False, compare=False)
+    # freeze's cache: (observations, merges, robot sightings, fixes) and the step frozen then
+    _frozen: tuple[tuple[int, int, int, int], Step] | None = field(default=None, init=False, repr=False, compare=False)
 
     def z_covariances(self) -> Array:
         """Observation covariances, shape (k, 2, 2): ``diag(sigma^2)`` (vectorized) or the full matrix given."""
@@ -130,7 +136,7 @@ class PendingStep:
 
     def freeze(self) -> Step:
         """The step as it stands (cached until an observation or a merge changes it)."""
-        key = (len(self.landmarks), self.merged, len(self.robots_seen))
+        key = (len(self.landmarks), self.merged, len(self.robots_seen), len(self.fixes))
         if self._frozen is not None and self._frozen[0] == key:
             return self._frozen[1]
         step = self._freeze()
@@ -153,6 +159,7 @@ class PendingStep:
             **self._robot_fields(),
             z_model=self._models(),
             sensors=tuple(self.z_sensor),
+            fixes=tuple(self.fixes),
         )
 
     def _models(self) -> NDArray[Any]:

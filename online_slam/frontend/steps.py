@@ -5,7 +5,9 @@ time t: the newest pose when t is its time (lines of one time in any order), els
 splitting the odometry increment that spans t (see :class:`FrontEnd`). A step is complete when the next pose
 begins, or at the end of the stream; until then it is pending (the engine may show it to the estimators early,
 so that queries see every sighting at once).
-Truth events never reach a step: they are collected in :class:`GroundTruth` for evaluation only.
+A ``position`` or ``heading`` fix belongs to its pose as a sighting does (a pose of its own between odometry ticks)
+and reaches the estimators in ``Step.fixes``. Truth events never reach a step: they are collected in
+:class:`GroundTruth` for evaluation only.
 
 With several robots (``robot`` on its lines) a step is one robot's pose: poses are indexed in the order they
 begin (one index sequence over all robots, so in time order), a line belongs to its robot's newest pose, and a
@@ -37,10 +39,12 @@ from online_slam.models.observation import POSITION, RANGE_BEARING
 from online_slam.sources.events import (
     Event,
     Header,
+    Heading,
     LandmarkId,
     LandmarkTruth,
     Observation,
     Odometry,
+    Position,
     RobotId,
     Scan,
     Start,
@@ -107,10 +111,12 @@ class FrontEndConfig:
             raise ValueError("max_latency must be a finite number of seconds >= 0")
 
 
-Held = Odometry | Observation | Scan | Truth | Start
+Held = Odometry | Observation | Scan | Truth | Start | Position | Heading
 """A timed line the front-end may hold back: in the reorder buffer, or ahead of its robot's newest pose."""
-Ahead = Observation | Scan | Truth
+Ahead = Observation | Scan | Truth | Position | Heading
 """A line stamped after its robot's newest pose: it waits for the odometry that spans its time."""
+TIMED = (Odometry, Observation, Scan, Truth, Start, Position, Heading)
+"""The types of :data:`Held` lines."""
 
 STDIN_LATENCY = 0.5
 """Seconds a line of a live source (standard input, TCP) may arrive late (``--max-latency`` not given): a camera
@@ -208,7 +214,7 @@ class FrontEnd:
         if config.sensor_bias:
             event = unbiased_event(event, config.sensor_bias)
         first = isinstance(event, Start) and not self.held and self.pending is None  # the start: nothing to wait for
-        if config.max_latency and isinstance(event, (Odometry, Observation, Scan, Truth, Start)) and not first:
+        if config.max_latency and isinstance(event, TIMED) and not first:
             self.newest_t = max(self.newest_t, event.t)
             heapq.heappush(self.held, (event.t, self.arrivals, event))
             self.arrivals += 1
@@ -242,12 +248,13 @@ class FrontEnd:
         if isinstance(event, Odometry):
             self._count("odometry")
             self._odometry(event)
-        elif isinstance(event, (Observation, Scan, Truth)):
+        elif isinstance(event, (Observation, Scan, Truth, Position, Heading)):
             if isinstance(event, Scan):
                 self._count("observation", len(event.landmarks))
+            elif isinstance(event, Observation):
+                self._count("robot_observation" if event.robot_seen is not None else "observation")
             else:
-                self._count("truth" if isinstance(event, Truth) else
-                            "robot_observation" if event.robot_seen is not None else "observation")  # fmt: skip
+                self._count(event.to_record()["type"])
             pose = self._newest(_robot_of(event), event.t)
             if event.t > pose.t + TIME_TOLERANCE:
                 self.ahead.append(event)
@@ -269,6 +276,10 @@ class FrontEnd:
         if isinstance(event, Truth):
             if abs(event.t - pending.t) <= TIME_TOLERANCE:
                 self.truth.poses[pending.index] = np.array(event.pose)
+                if event.offset is not None:
+                    self.truth.offsets[pending.index] = np.array(event.offset, dtype=float)
+        elif isinstance(event, (Position, Heading)):
+            pending.fixes.append(event)
         elif isinstance(event, Observation) and event.robot_seen is not None:
             pending.robots_seen.append(event.robot_seen)
             # Cast: a sighting of a robot gives range and bearing (the validator refuses xy).
@@ -463,6 +474,7 @@ class FrontEnd:
             and pending.odometry_cov is not None  # never None with odometry
             and not pending.landmarks
             and not pending.robots_seen
+            and not pending.fixes
             and not pending.sealed
         )
 
@@ -484,6 +496,7 @@ class FrontEnd:
         pending.merged += 1
         # The pose moved on in time: a truth recorded for its earlier time no longer applies.
         self.truth.poses.pop(pending.index, None)
+        self.truth.offsets.pop(pending.index, None)
         return True
 
 

@@ -71,6 +71,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         alignment=config.alignment,
         series=series,
         truth_poses=truth_array(truth, steps),
+        truth_offsets=dict(truth.offsets),
         truth_landmarks=dict(truth.landmarks),
         error=run.error,
         input=InputReport(

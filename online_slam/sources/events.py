@@ -251,11 +251,21 @@ class Truth:
     """True ``[x, y, theta]``; theta is NaN for position-only truth (a ``position: [x, y]`` line, e.g. GPS)."""
     robot: RobotId | None = None
     """The robot whose pose this is, or None in a stream of one unnamed robot."""
+    offset: Vector | None = None
+    """Position-only truth: ``[dx, dy]`` of the robot-frame point it is the position of (a GPS antenna), or None:
+    the robot's centre. Scoring compares that point of the estimated pose with it."""
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""
         if self.pose[2] != self.pose[2]:  # NaN heading: position only
-            return {"type": "truth", "t": self.t, "position": list(self.pose[:2]), **_robot_record(self.robot)}
+            offset = {"offset": list(self.offset)} if self.offset is not None else {}
+            return {
+                "type": "truth",
+                "t": self.t,
+                "position": list(self.pose[:2]),
+                **offset,
+                **_robot_record(self.robot),
+            }
         return {"type": "truth", "t": self.t, "pose": list(self.pose), **_robot_record(self.robot)}
 
 
@@ -358,5 +368,5 @@ class Scan:
         raise TypeError("a scan is not a stream-v1 line; write its sightings as observation lines")
 
 
-Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth | End
+Event = Header | Start | Odometry | Observation | Truth | LandmarkTruth | Position | Heading | End
 """Any event of stream format v1."""

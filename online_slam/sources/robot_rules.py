@@ -23,6 +23,8 @@ ROBOT_FIELDS: dict[str, set[str]] = {
     "odometry": {"robot"},
     "observation": {"robot", "robot_seen"},
     "truth": {"robot"},
+    "position": {"robot"},
+    "heading": {"robot"},
 }
 """The robot fields each event type allows besides its own."""
 

@@ -23,10 +23,12 @@ from online_slam.sources.events import (
     End,
     Event,
     Header,
+    Heading,
     LandmarkId,
     LandmarkTruth,
     Observation,
     Odometry,
+    Position,
     RobotId,
     Start,
     Truth,
@@ -65,9 +67,11 @@ FIELDS: dict[str, set[str]] = {
         "sensor",
     }
     | ROBOT_FIELDS["observation"],
-    "truth": {"type", "t", "pose", "position"} | ROBOT_FIELDS["truth"],
+    "truth": {"type", "t", "pose", "position", "offset"} | ROBOT_FIELDS["truth"],
     "landmark_truth": {"type", "landmark", "position"},
     "end": {"type"},
+    "position": {"type", "t", "xy", "sigma", "cov", "offset"} | ROBOT_FIELDS["position"],
+    "heading": {"type", "t", "theta", "sigma"} | ROBOT_FIELDS["heading"],
 }
 """Allowed fields of each event type."""
 
@@ -419,8 +423,29 @@ class EventValidator(ScanRules, RobotRules):
         robot = self.robot(record, line)
         if "pose" not in record and "position" in record:  # position-only truth (e.g. GPS): heading unknown
             x, y = self.vector(record, "position", 2, line)
-            return Truth(t=t, pose=(x, y, math.nan), robot=robot)
+            offset = self.vector(record, "offset", 2, line) if "offset" in record else None
+            return Truth(t=t, pose=(x, y, math.nan), robot=robot, offset=offset)
+        if "offset" in record:
+            raise self.fail(line, "offset", "an offset goes with position-only truth (position), not with a pose")
         return Truth(t=t, pose=self.vector(record, "pose", 3, line), robot=robot)
+
+    def _position(self, record: dict[str, Any], line: int) -> Position:
+        t = self.time(record, line)
+        robot = self.robot(record, line)
+        xy = self.vector(record, "xy", 2, line)
+        sigma, cov = self.noise(record, 2, line)
+        offset = self.vector(record, "offset", 2, line) if "offset" in record else None
+        return Position(t=t, xy=xy, sigma=sigma, cov=cov, offset=offset, robot=robot)
+
+    def _heading(self, record: dict[str, Any], line: int) -> Heading:
+        t = self.time(record, line)
+        robot = self.robot(record, line)
+        theta = self.radians(self.number(record, "theta", line), "theta", line)
+        sigma = self.number(record, "sigma", line)
+        low, high = SIGMA_RANGE
+        if not low <= sigma <= high:
+            raise self.fail(line, "sigma", f"expected a standard deviation > 0 within [{low:g}, {high:g}], got {sigma}")
+        return Heading(t=t, theta=theta, sigma=sigma, robot=robot)
 
     def _landmark_truth(self, record: dict[str, Any], line: int) -> LandmarkTruth:
         landmark = self.landmark(record, line)

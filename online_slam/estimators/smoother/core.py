@@ -145,6 +145,7 @@ class SlidingWindowSmoother(SeveralRobots):
             w.add_pose(step)
             step, _ = self._resolve(step, 0)
             w.add_sightings(step, 0)
+            w.add_fixes(step)
             self.relinearization.log.add(step)
             if w.sightings_waiting or len(self.relinearization.log.seen.pose) > w.sightings_read:
                 self._link_robot_sightings()
@@ -170,6 +171,7 @@ class SlidingWindowSmoother(SeveralRobots):
         with self._blas.limit(limits=1, user_api="blas"):
             step, start = self._resolve(step, start)
             self.window.add_sightings(step, start)
+            self.window.add_fixes(step)
             self.relinearization.log.extend(step, start)
             self._add_retro()
             if self.window.since_solve == 0:  # this step solved: its new sightings are used at once
@@ -449,6 +451,7 @@ class SlidingWindowSmoother(SeveralRobots):
             (n1, w.poses[n1]),
             self.config.robust.loss,
             self.config.linearization,
+            fixes=w.fixes.get(o),
         )
         come = self.prior.landmarks[(self.prior.landmarks < w.map_size) & ~np.isin(self.prior.landmarks, held)]
         if len(come):  # a map's landmarks the prior holds from now on: it carries their priors

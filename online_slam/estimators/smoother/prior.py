@@ -31,6 +31,7 @@ from online_slam.estimators.smoother.relinearize import prior_covariance, prior_
 from online_slam.factors.graph import FactorGraph, robot_sighting_residual_with_jacobians, sqrt_information
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
+from online_slam.models.fix import fix_residual_with_jacobians
 from online_slam.models.motion import odometry_residual_with_jacobians
 from online_slam.models.observation import (
     POSITION,
@@ -254,6 +255,7 @@ def marginalize(
     loss: RobustLoss | None,
     linearization: str = "standard",
     robots: RobotFold | None = None,
+    fixes: tuple[Array, Array, Array] | None = None,
 ) -> Prior:
     """Fold the prior pose o's factors into the prior ``[landmarks..., others..., o]``, then eliminate o.
 
@@ -276,6 +278,8 @@ def marginalize(
             ``invariant``: the same, its covariance carried there (:func:`carry`; one pose held, else exactly
             re-centred); ``fej``: linearize at the prior's first estimates.
         robots: o's robot sightings of (or by) the other poses the prior holds, or None.
+        fixes: o's absolute fixes (mean (f, 3), offset (f, 2), square-root information (f, 3, 3)), or None: they
+            update o like the sightings (and leave the window with o, so they are counted once).
     """
     x_lin, mu, Sigma = prior.x_lin, prior.mu, prior.Sigma
     n = len(mu)
@@ -296,6 +300,8 @@ def marginalize(
         mu, held, appended = _fold_sightings(Sigma, x_lin, mu, held, sightings, landmarks, loss)
     if robots is not None:
         mu = _fold_robots(Sigma, x_lin, mu, robots, loss)
+    if fixes is not None:
+        mu = _fold_fixes(Sigma, x_lin, mu, fixes)
     delta, W = odometry
     index, value = next_pose
     e, J_a, J_b = odometry_residual_with_jacobians(lin_o, value, delta)
@@ -327,6 +333,23 @@ def _fold_robots(Sigma: Array, x_lin: Array, mu: Array, robots: RobotFold, loss:
     S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
     with contextlib.suppress(np.linalg.LinAlgError):
         dmu, _, _ = apply_update(Sigma, PHt, S, -(r0.reshape(-1) + J_s @ mu[cols]), exactly_symmetric=False)
+        mu = mu + dmu
+    return mu
+
+
+def _fold_fixes(Sigma: Array, x_lin: Array, mu: Array, fixes: tuple[Array, Array, Array]) -> Array:
+    """Update the prior with absolute fixes of its last pose (Sigma in place); the updated mean."""
+    mean, offset, W = fixes
+    n = len(mu)
+    cols = np.arange(n - 3, n)
+    e, J = fix_residual_with_jacobians(x_lin[n - 3 :], offset, mean)
+    J_s, r0 = (W @ J).reshape(-1, 3), np.einsum("kij,kj->ki", W, e).reshape(-1)
+    rows = np.any(J_s != 0.0, axis=1)  # a fix's zero rows measure nothing
+    J_s, r0 = J_s[rows], r0[rows]
+    PHt = Sigma[:, cols] @ J_s.T
+    S = J_s @ PHt[cols] + np.eye(len(J_s))  # whitened factors: unit noise
+    with contextlib.suppress(np.linalg.LinAlgError):
+        dmu, _, _ = apply_update(Sigma, PHt, S, -(r0 + J_s @ mu[cols]), exactly_symmetric=False)
         mu = mu + dmu
     return mu
 

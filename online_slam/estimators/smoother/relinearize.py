@@ -32,6 +32,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from online_slam.estimators.problem import ProblemLog, RobotSightings
+from online_slam.factors.fixes import fix_rows
 from online_slam.factors.graph import (
     FactorGraph,
     layout,
@@ -151,13 +152,15 @@ def refine_recent(
     odo = history.odo_to >= first
     local = np.full(history.n_landmarks, -1, dtype=np.int64)
     local[seen] = np.arange(len(seen))
+    prior = history.prior_pose >= first  # the fixes of the poses re-solved
     graph = FactorGraph(
         n_poses=history.n_poses,
         n_landmarks=len(seen),
         fixed_poses=np.arange(first, dtype=np.int64),
-        prior_pose=np.zeros(0, dtype=np.int64),
-        prior_mean=np.zeros((0, 3)),
-        prior_sqrt_info=np.zeros((0, 3, 3)),
+        prior_pose=history.prior_pose[prior],
+        prior_mean=history.prior_mean[prior],
+        prior_sqrt_info=history.prior_sqrt_info[prior],
+        prior_offset=history.prior_offset[prior] if len(history.prior_offset) else history.prior_offset,
         odo_from=history.odo_from[odo],
         odo_to=history.odo_to[odo],
         odo_delta=history.odo_delta[odo],
@@ -233,7 +236,8 @@ def several_history_graph(graph: FactorGraph, left: Index, kept: Index, folded: 
     gone[left] = True
     inside = gone.copy()
     inside[kept] = True
-    odo, obs, prior = gone[graph.odo_from], gone[graph.obs_pose], inside[graph.prior_pose]
+    odo, obs = gone[graph.odo_from], gone[graph.obs_pose]
+    prior = np.where(fix_rows(graph), gone[graph.prior_pose], inside[graph.prior_pose])  # kept poses' fixes: window
     fixed = np.union1d(np.flatnonzero(~inside), graph.fixed_poses[gone[graph.fixed_poses]])
     return _map_seen(subgraph(graph, graph.n_poses, fixed.astype(np.int64), prior, odo, obs, folded))
 

@@ -136,6 +136,7 @@ class SeveralRobots:
             self.config.robust.loss,
             self.config.linearization,
             fold,
+            w.fixes.get(o),
         )
         w.drop(o, n1)
         self.state.progress.marginalized += 1

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.smoother.config import WindowConfig
 from online_slam.estimators.smoother.prior import Prior, Sightings, reduced
+from online_slam.factors.fixes import with_fixes
 from online_slam.factors.graph import (
     FactorGraph,
     JacobianPoint,
@@ -32,6 +33,7 @@ from online_slam.factors.graph import (
 from online_slam.factors.robust import RobustLoss
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose_with_jacobians
+from online_slam.models.fix import fix_factors
 from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
 from online_slam.sources.events import LandmarkId, RobotId
@@ -98,6 +100,9 @@ class Window:
     """The map's positions, shape (map_size, 2)."""
     map_cov: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Their prior covariances, shape (map_size, 2, 2)."""
+    fixes: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
+    """Window poses' absolute fixes (mean (f, 3), offset (f, 2), square-root information (f, 3, 3):
+    :func:`~online_slam.models.fix.fix_factors`), keyed by pose."""
     index: dict[LandmarkId, int] = field(init=False)
     """Each landmark id's row in ``landmarks``."""
 
@@ -187,6 +192,12 @@ class Window:
         z, z_cov = step.z[start:], step.z_cov[start:]
         self._merge(i, (np.array(indices, dtype=np.int64), z, z_cov, sqrt_information(z_cov), step.z_model[start:]))
 
+    def add_fixes(self, step: Step) -> None:
+        """Factors for every fix of the newest pose (all of them again when the step grew)."""
+        if step.fixes and len(self.fixes.get(step.index, ((),))[0]) != len(step.fixes):
+            self.fixes[step.index] = fix_factors(step.fixes)
+            self.unsolved.add(step.index)
+
     def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array, model: int) -> bool:
         """Add a sighting ``z`` (2,) with covariance ``R`` (2, 2) and model tag ``model`` of a known landmark from
         an earlier window pose; False (nothing added) when the pose left the window or the landmark is unknown."""
@@ -210,6 +221,7 @@ class Window:
         self.history.append(self.poses.pop(o))
         self.odometry.pop(n1)
         self.observations.pop(o, None)
+        self.fixes.pop(o, None)
         self.indices.pop(0)
 
     def drop(self, pose: int, successor: int) -> None:
@@ -219,6 +231,7 @@ class Window:
         self.odometry.pop(successor)
         self.previous.pop(successor)
         self.observations.pop(pose, None)
+        self.fixes.pop(pose, None)
         self.indices.remove(pose)
         self.robot_of.pop(pose)
 
@@ -321,7 +334,20 @@ def window_graph(window: Window, active: Index) -> tuple[FactorGraph, dict[int, 
         obs_model=np.concatenate([o[5] for o in obs]) if obs else np.zeros(0, dtype=np.int8),
         **robot_arrays(window.robot_factors, local),
     )
-    return graph, local
+    return with_fixes(graph, *fix_arrays(window.fixes, local)), local
+
+
+def fix_arrays(
+    fixes: dict[int, tuple[Array, Array, Array]], local: dict[int, int]
+) -> tuple[Index, Array, Array, Array]:
+    """The fixes of the poses in ``local`` as (local pose (f,), mean (f, 3), offset (f, 2), square-root information
+    (f, 3, 3))."""
+    held = [g for g in fixes if g in local]
+    if not held:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 3, 3))
+    pose = np.concatenate([np.full(len(fixes[g][0]), local[g], dtype=np.int64) for g in held])
+    mean, offset, W = (np.concatenate([fixes[g][k] for g in held]) for k in range(3))
+    return pose, mean, offset, W
 
 
 def robot_arrays(factors: list[tuple[int, int, Array, Array, int]], local: dict[int, int]) -> dict[str, NDArray[Any]]:

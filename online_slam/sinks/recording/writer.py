@@ -56,7 +56,7 @@ from online_slam.reports.palette import COLORS
 from online_slam.sinks.geometry import ellipses
 from online_slam.sinks.recording.blueprint import blueprint
 from online_slam.sinks.recording.layout import TRUTH, Layout, robot_color, robot_part
-from online_slam.sources.events import RobotId
+from online_slam.sources.events import Heading, Position, RobotId
 from online_slam.wording import counted
 
 Array = NDArray[np.float64]
@@ -314,6 +314,10 @@ class RerunSink:
             rr.LineStrips2D.from_fields(colors=[COLORS["observations"]], radii=[0.005]),
             static=True,
         )
+        fix = [COLORS["truth"]]
+        log("world/fixes/position", rr.Points2D.from_fields(colors=fix, radii=[0.15]), static=True)
+        log("world/fixes/position_cov", rr.LineStrips2D.from_fields(colors=fix, radii=[0.01]), static=True)
+        log("world/fixes/heading", rr.Arrows2D.from_fields(colors=fix, radii=[0.03]), static=True)
 
     def _track_style(self, root: str, color: tuple[int, int, int], label: str | None) -> None:
         """Colour and sizes of a pose arrow (labelled unless ``label`` is None), its path and its covariance."""
@@ -423,6 +427,8 @@ class RerunSink:
                 step,
                 [] if pose is None else _rays(pose, step.z_robots, model),
             )
+        if step.fixes:
+            self._fixes(step, pose)
         if events:
             add("events", "text", step, [f"step {step.index}: {text}" for text in events])
         self._last_step = step
@@ -432,6 +438,20 @@ class RerunSink:
         if live or self._buffered >= self.config.flush_every:
             self.columns.flush()
             self._last_flush, self._buffered = now, 0
+
+    def _fixes(self, step: Step, pose: Array | None) -> None:
+        """A step's absolute fixes: each position with its 2-sigma ellipse, each heading as a 2 m arrow from the
+        pose drawn (none without a pose)."""
+        add = self.columns.add
+        positions = [f for f in step.fixes if isinstance(f, Position)]
+        if positions:
+            add("world/fixes/position", "points", step, [f.xy for f in positions])
+            for p in positions:
+                add("world/fixes/position_cov", "ellipse", step, (np.array(p.xy), p.covariance))
+        for h in step.fixes:
+            if isinstance(h, Heading) and pose is not None:
+                arrow = 2.0 * np.array([np.cos(h.theta), np.sin(h.theta)])
+                add("world/fixes/heading", "arrow", step, (pose[:2], arrow))
 
     def _events(self, name: str, snap: Snapshot, step: Step) -> list[str]:
         """Per-step figures and events from the snapshot's info (NIS and gating for a filter, solves and

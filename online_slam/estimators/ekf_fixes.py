@@ -1,0 +1,72 @@
+"""The EKF's absolute fixes (a mixin of :class:`~online_slam.estimators.ekf.EkfSlam`).
+
+A fix measures the active robot's pose only: ``h(x) = [x + R(theta) offset, theta]`` whitened by its square-root
+information (:mod:`online_slam.models.fix`), the rows it does not measure dropped. So the update is a Kalman
+update of unit noise on the pose columns, ``S = H P_rr H^T + I``, its heading residual wrapped by the one wrap
+function. A step that grows (``extend``) updates with its new fixes only: each enters once.
+
+Each fix is gated first, as sightings are: its own NIS (against the state before the step's fixes) beyond the
+chi-square quantile ``gate_probability`` of its degrees of freedom (2 for a position, 1 for a heading) refuses it,
+and it is counted (``fixes_rejected``), so one GPS jump does not drag the estimate off; the rest update jointly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import chi2
+
+from online_slam.estimators.ekf_config import EkfConfig
+from online_slam.estimators.ekf_state import EkfState
+from online_slam.frontend.steps import Step
+from online_slam.models.fix import fix_factors, fix_residual_with_jacobians
+
+Array = NDArray[np.float64]
+
+
+class AbsoluteFixes:
+    """Updates with a step's ``position`` and ``heading`` fixes."""
+
+    state: EkfState
+    config: EkfConfig
+    x: Array
+    P: Array
+    _apply: Callable[[Array, Array, Array], None]
+    """The filter's update (``x += K y``, ``P -= K S K^T``)."""
+
+    def _fix(self, step: Step, start: int = 0) -> None:
+        """Update with the step's fixes ``start:`` (those not used yet)."""
+        new = step.fixes[start:]
+        if not new:
+            return
+        mean, offset, W = fix_factors(new)
+        e, J = fix_residual_with_jacobians(self.x[:3, 0], offset, mean)
+        H, y = (W @ J).reshape(-1, 3), -np.einsum("kij,kj->ki", W, e).reshape(-1)
+        rows = np.any(H != 0.0, axis=1)  # what a fix does not measure: zero rows
+        owner = np.repeat(np.arange(len(new)), 3)[rows]
+        H, y = H[rows], y[rows]
+        S = H @ self.P[:3, :3] @ H.T + np.eye(len(H))
+        keep = np.zeros(len(H), dtype=bool)
+        for k in range(len(new)):  # each fix's own NIS, gated at its dof
+            at = owner == k
+            nis = float(y[at] @ np.linalg.solve(S[np.ix_(at, at)], y[at]))
+            passed = self.config.gate_probability >= 1.0 or nis <= float(
+                chi2.ppf(self.config.gate_probability, at.sum())
+            )
+            keep[at] = passed
+            if passed:
+                self.state.fix_nis.append(nis)
+            else:
+                self.state.fixes_rejected += 1
+        self.state.fixes_used = len(step.fixes)
+        if keep.any():
+            H, y = H[keep], y[keep]
+            PHt = self.P[:, :3] @ H.T
+            self._apply(PHt, H @ PHt[:3] + np.eye(len(H)), y)
+
+    def _fix_info(self) -> dict[str, int]:
+        """Fixes used and refused so far (nothing when none came)."""
+        used, rejected = len(self.state.fix_nis), self.state.fixes_rejected
+        return {"fixes_used": used, "fixes_rejected": rejected} if used or rejected else {}

@@ -1,0 +1,41 @@
+"""The EKF started from a map (a mixin of :class:`~online_slam.estimators.ekf.EkfSlam`): ``--map``, ``--map-fixed``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.errors import OnlineSlamError
+from online_slam.estimators.ekf_state import EkfState
+from online_slam.sources.landmark_map import LandmarkMap
+
+Array = NDArray[np.float64]
+
+
+class PriorMap:
+    """Loads a map's landmarks into the state before the first step."""
+
+    state: EkfState
+    dim_x: int
+    _grow: Callable[[Array, Array, Array], None]
+    """Appends rows to the state: values, their cross-covariance with the state, their own covariance block."""
+
+    def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
+        """Start from a map (before the first step): its landmarks enter the state as independent priors with their
+        covariances, confirmed. ``fixed``: with zero covariance instead, so that no update moves them (their rows
+        of the gain are exactly zero: they act as known points) and they are never re-anchored; the invariant
+        retraction, which turns the whole map with each heading correction, gives way to the standard update."""
+        if len(self.state.landmark_ids) or len(self.state.history):
+            raise OnlineSlamError("a map is loaded before the first step, into an empty filter")
+        m = len(landmark_map)
+        block = np.zeros((2 * m, 2 * m))
+        if not fixed:  # the 2x2 blocks on the diagonal
+            block.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :] = landmark_map.cov
+        self.state.landmark_ids.extend(landmark_map.ids)
+        self.state.index = {lid: j for j, lid in enumerate(self.state.landmark_ids)}
+        self.state.streak, self.state.confirmed = np.zeros(m, dtype=np.int64), np.ones(m, dtype=bool)
+        self.state.first = landmark_map.xy.copy()
+        self.state.fixed = m if fixed else 0
+        self._grow(landmark_map.xy.reshape(-1), np.zeros((2 * m, self.dim_x)), block)

@@ -1,0 +1,83 @@
+"""Absolute fixes of a pose: a point of the robot frame at a map position (GPS), or the heading (a compass).
+
+Both are one residual on a single pose, ``e = fixed(pose, offset) - mean`` with
+
+    fixed(pose, offset) = [x + R(theta) offset, theta]     (shape 3: the fixed point, then the heading)
+
+whitened by a square-root information ``W`` (3 x 3) whose rows pick what the fix measures: a position fix has
+its 2 x 2 ``W`` in the top-left block and a zero last row, a heading fix only ``W[2, 2] = 1 / sigma``. With a zero
+offset and a full ``W`` it is the prior on a pose that starts carry, so a fix is a prior row of the factor graph
+(:class:`~online_slam.factors.graph.FactorGraph`'s ``prior_offset``) and every estimator takes it as such.
+The heading residual is wrapped (:func:`~online_slam.geometry.angles.wrap`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, cast
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from online_slam.geometry.angles import wrap
+
+if TYPE_CHECKING:  # events import the models: only their types here
+    from online_slam.sources.events import Heading, Position
+
+Array = NDArray[np.float64]
+
+
+def fix_residual_with_jacobians(pose: ArrayLike, offset: ArrayLike, mean: ArrayLike) -> tuple[Array, Array]:
+    """Unwhitened fix residuals and their Jacobians.
+
+    Args:
+        pose: Poses ``[x, y, theta]``, shape (..., 3).
+        offset: Fixed points ``[dx, dy]`` in the robot frame, shape (..., 2).
+        mean: Fixed values ``[x, y, theta]`` in the map frame, shape (..., 3).
+
+    Returns:
+        (e = fixed(pose, offset) - mean with the heading wrapped (..., 3), de/dpose (..., 3, 3)).
+    """
+    pose, offset, mean = (np.asarray(a, dtype=float) for a in (pose, offset, mean))
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    ox = c * offset[..., 0] - s * offset[..., 1]  # the offset in the map frame
+    oy = s * offset[..., 0] + c * offset[..., 1]
+    shape = np.broadcast_shapes(pose.shape[:-1], offset.shape[:-1], mean.shape[:-1])
+    e = np.empty((*shape, 3))
+    e[..., 0] = pose[..., 0] + ox - mean[..., 0]
+    e[..., 1] = pose[..., 1] + oy - mean[..., 1]
+    e[..., 2] = wrap(pose[..., 2] - mean[..., 2])
+    J = np.zeros((*shape, 3, 3))
+    J[..., 0, 0] = J[..., 1, 1] = J[..., 2, 2] = 1.0
+    J[..., 0, 2] = -oy
+    J[..., 1, 2] = ox
+    return e, J
+
+
+def fixed_point(pose: ArrayLike, offset: ArrayLike) -> Array:
+    """The map position of the robot-frame point ``offset`` at ``pose``, shape (..., 2)."""
+    pose = np.asarray(pose, dtype=float)
+    zero = np.zeros(pose.shape[:-1] + (3,))
+    return fix_residual_with_jacobians(pose, offset, zero)[0][..., :2]
+
+
+def fix_factors(fixes: Sequence[Position | Heading]) -> tuple[Array, Array, Array]:
+    """The factor rows of fix events: (mean (f, 3), offset (f, 2), square-root information (f, 3, 3)).
+
+    A position fix's ``W`` is ``chol(cov)^-1`` in its top-left block (its heading row zero); a heading fix's is
+    ``1 / sigma`` at ``[2, 2]`` (its position rows zero).
+    """
+    f = len(fixes)
+    mean, offset, W = np.zeros((f, 3)), np.zeros((f, 2)), np.zeros((f, 3, 3))
+    for k, fix in enumerate(fixes):
+        if hasattr(fix, "theta"):  # a Heading (the types only are imported here)
+            heading = cast("Heading", fix)
+            mean[k, 2] = heading.theta
+            W[k, 2, 2] = 1.0 / heading.sigma
+        else:
+            assert not hasattr(fix, "theta")  # a Position
+            mean[k, :2] = fix.xy
+            W[k, :2, :2] = np.linalg.inv(np.linalg.cholesky(fix.covariance))
+            if fix.offset is not None:
+                offset[k] = fix.offset
+    return mean, offset, W
