@@ -202,7 +202,7 @@ def run_task(task: GridTask, cauchy: float = 3.0) -> dict[str, float]:
 def run_robustness_grid(
     worlds: tuple[str, ...] = tuple(WORLDS),
     corruptions: tuple[str, ...] = tuple(CORRUPTIONS),
-    world_seeds: tuple[int, ...] = (1, 2, 3),
+    world_seeds: tuple[int, ...] = tuple(range(1, 11)),
     corruption_seeds: tuple[int, ...] = (0, 1, 2, 3, 4),
     poses: int | None = None,
     peer: bool = True,
@@ -299,7 +299,7 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description="Robustness over worlds x seeds x contaminations.")
     parser.add_argument("--worlds", nargs="+", default=list(WORLDS), choices=list(WORLDS))
     parser.add_argument("--corruptions", nargs="+", default=list(CORRUPTIONS), choices=list(CORRUPTIONS))
-    parser.add_argument("--world-seeds", nargs="+", type=int, default=[1, 2, 3])
+    parser.add_argument("--world-seeds", nargs="+", type=int, default=list(range(1, 11)))
     parser.add_argument("--corruption-seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     parser.add_argument("--poses", type=int, default=None, help="shorten every world (smoke run)")
     parser.add_argument("--no-peer", action="store_true", help="leave out iSAM2 + Cauchy (it is the slowest part)")
