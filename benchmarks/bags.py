@@ -15,9 +15,10 @@ of :data:`VP_OPTIONS` to give the acfr importer's events:
   the detection printed to 5 decimals (``--scan-decimals 5``). Ranges and angles are float32 in a LaserScan; the
   scan's ``angle_min`` (within 1e-7 rad of 0) is chosen so that its float32 beam angles round to the log's
   bearings. The writer checks that the detector gives back every detection;
-- ``/tf_static``: the laser's mounting, and the GPS antenna at the rear axle's centre (where the log's GPS is
-  compared with the pose);
-- ``/gps`` (``sensor_msgs/msg/NavSatFix``): the log's GPS x, y as east, north about :data:`VP_ORIGIN`.
+- ``/tf_static``: the laser's mounting, and the GPS antenna's (frame ``gps`` at the acfr importer's
+  :data:`~online_slam.importers.acfr.GPS_ANTENNA`, ahead of and left of the rear axle's centre);
+- ``/gps`` (``sensor_msgs/msg/NavSatFix``, frame ``gps``): the log's GPS x, y as east, north about
+  :data:`VP_ORIGIN`.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from online_slam.importers.acfr import GPS_ANTENNA
 from online_slam.importers.bag.reader import from_local_plane
 from online_slam.importers.laser import Detector, detect
 from online_slam.sources.events import Event, Observation, Odometry, Start, Truth
@@ -153,7 +155,7 @@ def write_victoria_park(raw: str | Path, out: str | Path, ros1: bool, until: flo
     records: list[tuple[float, int, str, Any]] = []
     with open_bag(out, ros1) as bag:
         bag.mount(0.0, "base_link", "laser", (3.78, 0.50, -math.pi / 2))
-        bag.mount(0.0, "base_link", "gps", (0.0, 0.0, 0.0))  # where the log's GPS is taken to be (its truth)
+        bag.mount(0.0, "base_link", "gps", (*GPS_ANTENNA, 0.0))  # the antenna the log's GPS is the position of
         for t, speed, steer in inputs:
             twist = bag.msg("geometry_msgs/msg/Twist", linear=bag.vector(speed), angular=bag.vector(z=steer))
             stamped = bag.msg("geometry_msgs/msg/TwistStamped", header=bag.header(t, "base_link"), twist=twist)

@@ -18,6 +18,7 @@ from online_slam.cli.main import main
 from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.importers import registry
+from online_slam.importers.acfr import GPS_ANTENNA
 from online_slam.importers.acfr.reader import read_acfr
 from online_slam.importers.bag import BagOptions
 from online_slam.importers.bag.reader import from_local_plane, local_plane, read_bag
@@ -34,15 +35,15 @@ SIGMA = (0.06, 0.013962634015954637)  # the square world's sighting noise
 
 @pytest.mark.parametrize("bag", BAGS, ids=["mcap", "ros1"])
 def test_the_victoria_park_bag_gives_the_raw_importers_events(bag: Path) -> None:
-    # The shipped bags carry no GPS antenna frame in /tf_static: the raw importer's events with the antenna at the
-    # rear axle's centre (its default since the antenna was measured puts it 4 m ahead).
-    raw = [e for e in read_acfr(RAW, antenna=(0.0, 0.0)) if not isinstance(e, Header)]
+    # The bags mount the GPS antenna (frame gps) in /tf_static where the raw importer's default puts it
+    raw = [e for e in read_acfr(RAW) if not isinstance(e, Header)]
     read = [e for e in read_bag(bag, BagOptions(**VP_OPTIONS)) if not isinstance(e, Header)]
     assert [type(e) for e in read] == [type(e) for e in raw]
     assert sum(isinstance(e, Observation) for e in raw) > 1000
     others = [(a, b) for a, b in zip(raw, read) if not isinstance(a, Truth)]
     assert_close([a for a, _ in others], [b for _, b in others], rtol=1e-9)
     truth = np.array([(a.t, *a.pose[:2], b.t, *b.pose[:2]) for a, b in zip(raw, read) if isinstance(a, Truth)])
+    assert {(a.offset, b.offset) for a, b in zip(raw, read) if isinstance(a, Truth)} == {(GPS_ANTENNA, GPS_ANTENNA)}
     assert len(truth) > 100 and np.array_equal(truth[:, 0], truth[:, 3])
     # NavSatFix holds degrees in float64: one unit in the last place of 151 deg east is 2.6e-9 m
     assert np.max(np.abs(truth[:, 1:3] - truth[:, 4:6])) < 1e-8
@@ -103,6 +104,8 @@ def test_bags_are_detected(tmp_path: Path) -> None:
         ({"odom": "/wheels", "odom_sigma": (0.1, 0.1, 0.01), "fix": "/gps"}, "topic /gps: fixes without"),
         ({"odom": "/wheels", "odom_sigma": (0.1, 0.1, 0.01), "scan": "/scan", "range_sigma": 0.1,
           "bearing_sigma": 0.01, "base_frame": "car"}, "frame 'laser' has no /tf_static mounting on 'car'"),
+        ({"odom": "/wheels", "odom_sigma": (0.1, 0.1, 0.01), "truth": "/gps", "base_frame": "car"},
+         "frame 'gps' has no /tf_static mounting on 'car'"),
     ],
 )  # fmt: skip
 def test_bad_topics_and_options_are_one_line(options: dict, words: str) -> None:
@@ -117,7 +120,7 @@ def test_fixes_are_position_records_in_the_local_plane() -> None:
     gps = np.loadtxt(RAW / "gps.dat")
     assert len(fixes) == len(gps)
     assert np.allclose([f.xy for f in fixes], gps[:, 1:3], atol=1e-8) and fixes[0].sigma == (3.0, 3.0)
-    assert fixes[0].offset == (0.0, 0.0)  # the gps frame's mounting
+    assert {f.offset for f in fixes} == {GPS_ANTENNA}  # the gps frame's mounting
 
 
 def test_the_local_plane_is_metric_and_inverts() -> None:
@@ -187,3 +190,30 @@ def test_a_body_twist_integrates_and_odometry_without_covariance_takes_the_optio
     arc = 2 * math.sin(0.125) / 0.25 * 2.5  # chord of 2.5 m turning 0.25 rad
     assert np.allclose(steps[0].delta, [arc * math.cos(0.125), arc * math.sin(0.125), 0.25], atol=1e-12)
     assert np.allclose(steps[0].covariance, np.diag([0.01, 0.01, 0.0001]))
+
+
+def test_position_truth_is_of_its_frames_antenna_and_the_start_puts_it_there(tmp_path: Path) -> None:
+    from benchmarks.bags import open_bag
+
+    start, antenna = np.array([10.0, 20.0, math.pi / 2]), (2.0, 1.0)  # driving north at 1 m/s from (10, 20)
+    with open_bag(tmp_path / "gps.bag", ros1=True) as bag:
+        bag.mount(0.0, "base_link", "antenna", (*antenna, 0.3))
+        for k in range(41):
+            t = 0.25 * k
+            if k % 4 == 0:
+                twist = bag.msg("geometry_msgs/msg/Twist", linear=bag.vector(1.0), angular=bag.vector())
+                bag.write("/cmd", t, bag.msg("geometry_msgs/msg/TwistStamped", header=bag.header(t, ""), twist=twist))
+            point = bag.msg("geometry_msgs/msg/Point", x=start[0] - antenna[1], y=start[1] + t + antenna[0], z=0.0)
+            for topic, frame in (("/truth", "antenna"), ("/map", "map"), ("/mixed", "antenna" if k else "map")):
+                bag.write(topic, t, bag.msg("geometry_msgs/msg/PointStamped", header=bag.header(t, frame), point=point))
+    options = BagOptions(odom="/cmd", odom_sigma=(0.1, 0.1, 0.01), truth="/truth", fix="/map", fix_sigma=1.0,
+                         start_from_truth=3.0)  # fmt: skip
+    events = list(read_bag(tmp_path / "gps.bag", options))
+    assert np.allclose(next(e for e in events if isinstance(e, Start)).pose, start, atol=1e-12)
+    truth = [e for e in events if isinstance(e, Truth)]
+    assert len(truth) > 5 and {e.offset for e in truth} == {antenna}  # the frame's mounting, without its turn
+    assert {e.offset for e in events if isinstance(e, Position)} == {None}  # a map frame: no antenna
+    axle = list(read_bag(tmp_path / "gps.bag", replace(options, truth="/map")))
+    assert np.allclose(next(e for e in axle if isinstance(e, Start)).pose, [start[0] - 1, start[1] + 2, start[2]])
+    with pytest.raises(InputError, match="truth messages in frames 'antenna', 'map'"):
+        list(read_bag(tmp_path / "gps.bag", replace(options, truth="/mixed")))

@@ -56,7 +56,7 @@ class BagOptions:
     """Position fixes (``position`` records)."""
     truth: str | None = option(
         None, "GTSAM/iSAM text: the noise-free twin file; ROS bag: the truth topic (Odometry, PoseStamped, or "
-        "NavSatFix: position only)", metavar="PATH|TOPIC",
+        "NavSatFix or PointStamped: position only, of their frame's /tf_static mounting)", metavar="PATH|TOPIC",
     )  # fmt: skip
     """The truth topic, interpolated at pose times, for scoring only."""
     base_frame: str | None = option(None, "ROS bag: the robot's frame, the root of /tf_static's sensor mountings",
@@ -135,8 +135,8 @@ class BagOptions:
                                        unset="no limit")  # fmt: skip
     """Truth jumps (GPS) are not interpolated across."""
     start_from_truth: float | None = option(
-        None, "ROS bag: start at the truth's first pose (position-only truth: its first position, heading from the "
-        "first D metres driven)", kind=float, metavar="D", unset="the odometry's frame",
+        None, "ROS bag: start at the truth's first pose (position-only truth: the antenna at its first position, "
+        "heading from the first D metres driven)", kind=float, metavar="D", unset="the odometry's frame",
     )  # fmt: skip
     """Start in the truth's frame instead of the odometry's."""
 

@@ -30,7 +30,7 @@ TYPES = {
     "landmarks": (MARKERS,),
     "scan": (SCAN,),
     "fix": (NAVSAT, POINT),
-    "truth": (ODOMETRY, POSE, NAVSAT),
+    "truth": (ODOMETRY, POSE, NAVSAT, POINT),
 }
 """The message types each topic option reads."""
 TF_STATIC = "/tf_static"

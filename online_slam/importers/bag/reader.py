@@ -17,9 +17,14 @@
   (``--fix-origin``, else the first fix): ``east = N cos(lat0) dlon``, ``north = M dlat`` with WGS84's radii of
   curvature at lat0 (meridian M, prime vertical N); good to millimetres within kilometres of the origin. Its
   covariance's east-north block when the message knows it (``position_covariance_type`` > 0), else
-  ``--fix-sigma``. The antenna's offset is its frame's mounting.
+  ``--fix-sigma``.
+- **Antenna**: a NavSatFix's frame is a sensor's: its ``/tf_static`` mounting's (x, y) is the offset of the fixes
+  and truth it gives (the robot-frame point they are the position of), an error when ``/tf_static`` does not reach
+  it (as for sightings); the robot's own frame or none: no offset. A PointStamped's frame is that of its
+  coordinates: one mounted on the robot is an antenna (its offset), any other (a map frame) gives no offset.
 - **Truth** (``--truth``): interpolated linearly at pose times between messages at most ``--truth-gap`` apart that
-  do not jump (``--truth-speed``); NavSatFix gives position-only truth.
+  do not jump (``--truth-speed``); NavSatFix and PointStamped give position-only truth, one frame per topic, and
+  ``--start-from-truth`` then puts the antenna (not the robot's centre) on the first position.
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ from online_slam.importers.bag import BagOptions
 from online_slam.importers.bag.messages import NAVSAT, POINT, TWIST, Bag, Table, read_topics
 from online_slam.importers.laser import Detector, to_robot_frame
 from online_slam.importers.motion import ackermann, integrate, pose_times, start_from_positions, truth_at, variances
+from online_slam.models.fix import fixed_point
 from online_slam.sources.events import Event, Header, Observation, Odometry, Position, Start, Truth
 
 Array = NDArray[np.float64]
@@ -100,9 +106,10 @@ def _events(path: Path, bag: Bag, o: BagOptions) -> Iterator[Event]:
         times, poses, path_m, turn, cov = _odometry(path, odom, o)
     origin = _origin(bag.tables, o)
     truth, covered = _truth(bag.tables.get("truth"), times, o, origin)
+    antenna = _truth_offset(path, bag, base)
     start = poses[0]
     if o.start_from_truth is not None:
-        start = _start_from_truth(path, poses, path_m, truth, covered, o.start_from_truth)
+        start = _start_from_truth(path, poses, path_m, truth, covered, o.start_from_truth, antenna)
     first = times[0]
     before = sum(1 for t, _ in sightings if t < first)
     meta: dict[str, Any] = {"converted_from": path.name, "topics": {n: getattr(o, n) for n in
@@ -119,7 +126,8 @@ def _events(path: Path, bag: Bag, o: BagOptions) -> Iterator[Event]:
         timed.append((float(times[k]), 0, k, Odometry(t=float(times[k]), delta=tuple(map(float, increments[k - 1])),
                                                       cov=tuple(tuple(map(float, row)) for row in c))))  # fmt: skip
     for j in np.flatnonzero(covered).tolist():
-        timed.append((float(times[j]), 1, j, Truth(t=float(times[j]), pose=tuple(map(float, truth[j])))))
+        timed.append((float(times[j]), 1, j, Truth(t=float(times[j]), pose=tuple(map(float, truth[j])),
+                                                   offset=antenna)))  # fmt: skip
     for i, fix in enumerate(_fixes(path, bag, o, base, origin)):
         timed.append((fix.t, 2, i, cast("Event", fix)))  # Position joins Event with the fixes' estimators
     for i, (t, observation) in enumerate(sightings):
@@ -130,13 +138,18 @@ def _events(path: Path, bag: Bag, o: BagOptions) -> Iterator[Event]:
         yield event
 
 
-def _mount(path: Path, bag: Bag, frame: str, base: str, option: str) -> tuple[float, float, float] | None:
-    """A frame's pose in the robot frame through /tf_static (None: the robot's own frame)."""
+def _mount(
+    path: Path, bag: Bag, frame: str, base: str, option: str, strict: bool = True
+) -> tuple[float, float, float] | None:
+    """A frame's pose in the robot frame through /tf_static (None: the robot's own frame, or, not ``strict``, a
+    frame /tf_static does not mount on it)."""
     if frame in ("", base):
         return None
     pose, at, seen = np.zeros(3), frame, set()
     while at != base:
         if at not in bag.tf or at in seen:
+            if not strict:
+                return None
             raise InputError(str(path), 0, option, f"frame {frame!r} has no /tf_static mounting on {base!r}")
         seen.add(at)
         parent, x, y, theta = bag.tf[at]
@@ -270,9 +283,9 @@ def _truth(table: Table | None, times: Array, o: BagOptions, origin: Any) -> tup
         return np.zeros((len(times), 3)), np.zeros(len(times), dtype=bool)
     a = table.array
     gap, speed = o.truth_gap or 0.5, o.truth_speed or math.inf
-    if table.msgtype == NAVSAT:
-        fixes = np.column_stack([a[:, 0], local_plane(a[:, 1], a[:, 2], origin)])
-        xy, ok = truth_at(fixes, times, gap, speed)
+    if table.msgtype in (NAVSAT, POINT):
+        plane = local_plane(a[:, 1], a[:, 2], origin) if table.msgtype == NAVSAT else a[:, 1:3]
+        xy, ok = truth_at(np.column_stack([a[:, 0], plane]), times, gap, speed)
         return np.column_stack([xy, np.full(len(times), math.nan)]), ok
     fixes = np.column_stack([a[:, 0:3], np.unwrap(a[:, 3])])
     pose, ok = truth_at(fixes, times, gap, speed)
@@ -280,12 +293,14 @@ def _truth(table: Table | None, times: Array, o: BagOptions, origin: Any) -> tup
 
 
 def _start_from_truth(
-    path: Path, poses: Array, path_m: Array, truth: Array, covered: NDArray[np.bool_], distance: float
-) -> Array:
+    path: Path, poses: Array, path_m: Array, truth: Array, covered: NDArray[np.bool_], distance: float,
+    antenna: tuple[float, float] | None,
+) -> Array:  # fmt: skip
     if not covered.any():
         raise InputError(str(path), 0, "start_from_truth", "no truth at any pose")
-    if np.isnan(truth[covered][0, 2]):
-        return start_from_positions(poses, path_m, truth[:, :2], covered, distance)
+    if np.isnan(truth[covered][0, 2]):  # positions of the antenna: its dead-reckoned track onto them
+        track = poses if antenna is None else fixed_point(poses, antenna)
+        return start_from_positions(track, path_m, truth[:, :2], covered, distance)
     k = int(np.flatnonzero(covered)[0])
     return compose(truth[k], inverse(between(poses[0], poses[k])))
 
@@ -306,9 +321,26 @@ def _fixes(path: Path, bag: Bag, o: BagOptions, base: str, origin: Any) -> list[
         raise InputError(str(path), 0, "fix_sigma", f"topic {o.fix}: fixes without a covariance: give --fix-sigma S")
     out = []
     for k in range(len(a)):
-        frame = table.labels[k] if table.msgtype == NAVSAT else ""
-        mount = _mount(path, bag, frame, base, "fix")
-        offset = None if mount is None else (mount[0], mount[1])
+        offset = _offset(path, bag, table.msgtype, table.labels[k], base, "fix")
         noise: dict[str, Any] = {"cov": _tuples(given[k])} if known[k] else {"sigma": (o.fix_sigma, o.fix_sigma)}
         out.append(Position(t=float(a[k, 0]), xy=(float(xy[k, 0]), float(xy[k, 1])), offset=offset, **noise))
     return out
+
+
+def _offset(path: Path, bag: Bag, msgtype: str, frame: str, base: str, option: str) -> tuple[float, float] | None:
+    """The antenna a position message is of: its frame's mounting (x, y), or None (the robot's centre); a
+    NavSatFix's frame must be mounted, a PointStamped's may be a map frame (none)."""
+    mount = _mount(path, bag, frame, base, option, strict=msgtype == NAVSAT)
+    return None if mount is None else (mount[0], mount[1])
+
+
+def _truth_offset(path: Path, bag: Bag, base: str) -> tuple[float, float] | None:
+    """The antenna of position-only truth (one frame per topic: interpolating between two points means nothing)."""
+    table = bag.tables.get("truth")
+    if table is None or table.msgtype not in (NAVSAT, POINT) or not table.labels:
+        return None
+    frames = sorted(set(table.labels))
+    if len(frames) > 1:
+        raise InputError(str(path), 0, "truth", f"truth messages in frames {', '.join(map(repr, frames))}: one frame "
+                         "per topic")  # fmt: skip
+    return _offset(path, bag, table.msgtype, frames[0], base, "truth")
