@@ -150,6 +150,13 @@ def _positions(rows: Array, sigma: float, offset: tuple[float, float] | None) ->
         yield Position(t=float(row[0]), xy=(float(row[1]), float(row[2])), sigma=(sigma, sigma), offset=offset)
 
 
+def _variances(path: Array, turn: Array, cfg: AcfrNoise) -> Array:
+    """Odometry variances ``[x, y, theta]`` of each increment (N - 1, 3), from the distance driven and turned."""
+    ds, da = np.diff(path), np.diff(turn)
+    x, y = cfg.x_per_m * ds + cfg.floor, cfg.y_per_m * ds + cfg.floor
+    return np.stack([x, y, cfg.theta_per_m * ds + cfg.theta_per_rad * da + cfg.floor], -1)
+
+
 def read_acfr(
     folder: str | Path,
     noise: AcfrNoise | None = None,
@@ -190,15 +197,7 @@ def read_acfr(
     v, w = ackermann(inputs[:, 1], inputs[:, 2], car.wheelbase, car.encoder_offset)
     poses, path, turn = integrate(inputs[:, 0], v, w, times)
     increments = between(poses[:-1], poses[1:])
-    ds, da = np.diff(path), np.diff(turn)
-    variances = np.stack(
-        [
-            cfg.x_per_m * ds + cfg.floor,
-            cfg.y_per_m * ds + cfg.floor,
-            cfg.theta_per_m * ds + cfg.theta_per_rad * da + cfg.floor,
-        ],
-        -1,
-    )
+    variances = _variances(path, turn, cfg)
     mount = (car.laser_x, car.laser_y, -math.pi / 2)  # the file's bearing 0 is the laser's right
     z, z_cov = to_robot_frame(kept[:, 1:3], mount, (cfg.range_sigma, cfg.bearing_sigma))
     truth, covered = truth_at(gps, times, cfg.truth_gap, cfg.truth_speed)
