@@ -180,7 +180,7 @@ class Window:
         z, z_cov = step.z[start:], step.z_cov[start:]
         self._merge(i, (np.array(indices, dtype=np.int64), z, z_cov, sqrt_information(z_cov), step.z_model[start:]))
 
-    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array, model: int) -> bool:
+    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array, model: Any) -> bool:
         """Add a sighting ``z`` (2,) with covariance ``R`` (2, 2) and model tag ``model`` of a known landmark from
         an earlier window pose; False (nothing added) when the pose left the window or the landmark is unknown."""
         if pose not in self.poses or lid not in self.index:
