@@ -102,13 +102,14 @@ class LandmarkBook(Checkpointed):
     """Step of each one's last sighting, shape (T,)."""
     _pose_covs: Array = _rows(3, 3)
     """The pose's covariance when each was last seen, shape (T, 3, 3)."""
-    _sightings: dict[int, list[tuple[int, Array, Array, int]]] = field(default_factory=dict)
-    """Outside: the sightings ``(step, z, R, model tag)`` of each tentative landmark, by key."""
+    _sightings: dict[int, list[tuple[int, Array, Array, Any]]] = field(default_factory=dict)
+    """Outside: the sightings ``(step, z, R, model)`` of each tentative landmark, by key (the model a tag, or a
+    :data:`SIGHTING` with the sensor's mounting)."""
     _confirmed_keys: dict[int, LandmarkId] = field(default_factory=dict)
     """Outside: the id each confirmed tentative landmark was given, by key."""
     _labels: list[LandmarkId | None] = field(default_factory=list)
     """Per sighting: a landmark id, -(key + 1) for a book-tentative one, or None."""
-    retro: list[tuple[LandmarkId, int, Array, Array, int]] = field(default_factory=list)
+    retro: list[tuple[LandmarkId, int, Array, Array, Any]] = field(default_factory=list)
     """Outside: earlier sightings ``(id, step, z, R, model tag)`` of the landmarks the last :meth:`assign`
     confirmed."""
     dropped: int = 0
@@ -336,7 +337,7 @@ class LandmarkBook(Checkpointed):
                 key = int(self._keys[t])
                 labels[i] = -(key + 1)
                 if self._counts[t] < self.config.confirm:
-                    self._sightings[key].append((step_index, z[i].copy(), R[i].copy(), int(model[i])))
+                    self._sightings[key].append((step_index, z[i].copy(), R[i].copy(), model[i].copy()))
                     continue
                 confirmed.append(t)
                 lid = out[i] = labels[i] = self._new_id()
@@ -349,7 +350,7 @@ class LandmarkBook(Checkpointed):
                 out[i] = labels[i] = self._confirmed_keys[key] = self._new_id()
                 continue
             labels[i] = -(key + 1)
-            self._sightings[key] = [(step_index, z[i].copy(), R[i].copy(), int(model[i]))]
+            self._sightings[key] = [(step_index, z[i].copy(), R[i].copy(), model[i].copy())]
             self._keys = np.r_[self._keys, key]
             self._points = np.vstack([self._points, points[f]])
             self._covs = np.concatenate([self._covs, covs[f][None]])

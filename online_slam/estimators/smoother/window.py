@@ -198,7 +198,7 @@ class Window:
             self.fixes[step.index] = fix_factors(step.fixes)
             self.unsolved.add(step.index)
 
-    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array, model: int) -> bool:
+    def add_earlier_sighting(self, lid: LandmarkId, pose: int, z: Array, R: Array, model: Any) -> bool:
         """Add a sighting ``z`` (2,) with covariance ``R`` (2, 2) and model tag ``model`` of a known landmark from
         an earlier window pose; False (nothing added) when the pose left the window or the landmark is unknown."""
         if pose not in self.poses or lid not in self.index:
