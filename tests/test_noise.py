@@ -162,3 +162,14 @@ def test_cli_noise_fit_refuses_stdin() -> None:
     result = cli("replay", "-", "--noise", "fit", stdin="")
     assert result.returncode == 2 and "not stdin" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_the_fit_pairs_each_robots_increments_with_its_own_previous_pose() -> None:
+    """Several robots interleave their poses: pairing each increment with the previous index (another robot's pose)
+    made ``--noise fit --robot all`` on MRCLAM fail with a ValueError (the start poses have no increment)."""
+    steps, truth = _steps(WORLDS["meet"].events())
+    robots = {s.robot for s in steps}
+    fit = fit_noise(steps, truth)
+    assert len(robots) >= 2 and fit.increments == len(steps) - len(robots)
+    assert fit.odometry_scale == pytest.approx(1.0, abs=0.2)
+    assert fit.horizon_scales and all(0.5 < scale < 2.0 for scale in fit.horizon_scales.values())

@@ -108,7 +108,9 @@ def fit_noise(steps: Iterable[Step], truth: GroundTruth) -> NoiseFit:
         OnlineSlamError: The stream has neither an increment nor a sighting with truth to compare.
     """
     steps = list(steps)
-    increments = [s for s in steps[1:] if s.index in truth.poses and s.index - 1 in truth.poses]
+    chains = _chains(steps)
+    known = truth.poses
+    increments = [(a, b) for chain in chains for a, b in zip(chain, chain[1:]) if a.index in known and b.index in known]
     sightings = _sighting_residuals(steps, truth)
     if not increments and not len(sightings[0]):
         raise OnlineSlamError(
@@ -116,7 +118,7 @@ def fit_noise(steps: Iterable[Step], truth: GroundTruth) -> NoiseFit:
             "pose and the landmark truth of a sighting)"
         )
     odometry, odometry_scale = _odometry_fit(increments, truth) if increments else ((), 1.0)
-    horizons = {n: scale for n in HORIZONS[1:] if (scale := _horizon_scale(steps, truth, n)) is not None}
+    horizons = {n: scale for n in HORIZONS[1:] if (scale := _horizon_scale(chains, truth, n)) is not None}
     sensor, sensor_scale, landmark_bias = _sensor_fit(*sightings) if len(sightings[0]) else ((), 1.0, (0.0, 0.0))
     return NoiseFit(
         increments=len(increments),
@@ -130,12 +132,22 @@ def fit_noise(steps: Iterable[Step], truth: GroundTruth) -> NoiseFit:
     )
 
 
-def _odometry_fit(pairs: list[Step], truth: GroundTruth) -> tuple[tuple[ComponentFit, ...], float]:
-    """Per-component figures of the increments with truth at both ends, and their maximum-likelihood scale."""
-    before = np.array([truth.poses[s.index - 1] for s in pairs])
-    after = np.array([truth.poses[s.index] for s in pairs])
-    delta = np.array([s.odometry for s in pairs])
-    cov = np.array([s.odometry_cov for s in pairs])
+def _chains(steps: list[Step]) -> list[list[Step]]:
+    """Each robot's steps in order (one chain for a stream of one robot): an increment joins a step to the previous
+    step of its robot, not to the previous index."""
+    chains: dict[object, list[Step]] = {}
+    for step in steps:
+        chains.setdefault(step.robot, []).append(step)
+    return list(chains.values())
+
+
+def _odometry_fit(pairs: list[tuple[Step, Step]], truth: GroundTruth) -> tuple[tuple[ComponentFit, ...], float]:
+    """Per-component figures of the increments (a robot's step and its next) with truth at both ends, and their
+    maximum-likelihood scale."""
+    before = np.array([truth.poses[a.index] for a, _ in pairs])
+    after = np.array([truth.poses[b.index] for _, b in pairs])
+    delta = np.array([b.odometry for _, b in pairs])
+    cov = np.array([b.odometry_cov for _, b in pairs])
     errors = odometry_residual_with_jacobians(before, after, delta)[0]
     q = np.einsum("ki,ki->k", errors, np.linalg.solve(cov, errors[..., None])[..., 0])
     variances = np.diagonal(cov, axis1=1, axis2=2)
@@ -148,17 +160,20 @@ def _odometry_fit(pairs: list[Step], truth: GroundTruth) -> tuple[tuple[Componen
     return components, float(np.mean(q)) / 3.0
 
 
-def _horizon_scale(steps: list[Step], truth: GroundTruth, n: int) -> float | None:
-    """The odometry scale over n increments composed (windows that do not overlap); None for fewer than 3."""
+def _horizon_scale(chains: list[list[Step]], truth: GroundTruth, n: int) -> float | None:
+    """The odometry scale over n increments of one robot composed (windows that do not overlap); None for fewer
+    than 3."""
     q = []
-    for first in range(0, len(steps) - n, n):
-        if first not in truth.poses or first + n not in truth.poses:
-            continue
-        delta, cov = _increment(steps[first + 1])
-        for step in steps[first + 2 : first + n + 1]:
-            delta, cov = compose_increments(delta, cov, *_increment(step))
-        error = odometry_residual_with_jacobians(truth.poses[first], truth.poses[first + n], delta)[0]
-        q.append(float(error @ np.linalg.solve(cov, error)))
+    for steps in chains:
+        for first in range(0, len(steps) - n, n):
+            a, b = steps[first].index, steps[first + n].index
+            if a not in truth.poses or b not in truth.poses:
+                continue
+            delta, cov = _increment(steps[first + 1])
+            for step in steps[first + 2 : first + n + 1]:
+                delta, cov = compose_increments(delta, cov, *_increment(step))
+            error = odometry_residual_with_jacobians(truth.poses[a], truth.poses[b], delta)[0]
+            q.append(float(error @ np.linalg.solve(cov, error)))
     return float(np.mean(q)) / 3.0 if len(q) >= 3 else None
 
 
