@@ -392,7 +392,8 @@ class SlidingWindowSmoother(SeveralRobots):
             return False
         held = self.prior.landmarks if self.prior is not None else np.zeros(0, dtype=np.int64)
         w = self.window
-        moves, stale = consensus(graph, observed, w.values(), w.landmarks, held, self._reject_bound)
+        outside = None if w.several else self._sightings_outside
+        moves, stale = consensus(graph, observed, w.values(), w.landmarks, held, self._reject_bound, outside)
         for j, position in moves:
             w.landmarks[j] = position
         if stale:
@@ -401,6 +402,13 @@ class SlidingWindowSmoother(SeveralRobots):
             self.progress.released += count
             self.association.solved = None
         return bool(moves)
+
+    def _sightings_outside(self, j: int) -> int:
+        """Sightings of window landmark j at poses older than the window (one robot)."""
+        log, w = self.relinearization.log, self.window
+        (k,) = log.landmark_indices([w.landmark_ids[j]])
+        pose, landmark = log.sightings()[:2]
+        return int(np.count_nonzero((landmark == k) & (pose < w.indices[0]))) if k >= 0 else 0
 
     def _rejudged_solve(
         self, result: SolveResult, n_poses: int, at_once: bool

@@ -470,7 +470,13 @@ def judge(window: Window, pose: int, bound: float) -> NDArray[np.bool_]:
 
 
 def consensus(
-    graph: FactorGraph, active: Index, poses: Array, landmarks: Array, held: Index, bound: float
+    graph: FactorGraph,
+    active: Index,
+    poses: Array,
+    landmarks: Array,
+    held: Index,
+    bound: float,
+    outside: Callable[[int], int] | None = None,
 ) -> tuple[list[tuple[int, Array]], list[int]]:
     """Landmarks whose window sightings agree with each other but not with them, and where they go.
 
@@ -489,6 +495,10 @@ def consensus(
         landmarks: Every landmark's estimate, shape (M, 2).
         held: The landmarks the prior holds.
         bound: The rejection bound on a sighting's squared whitened residual.
+        outside: Sightings of landmark j outside the window (folded into the prior), or None: many. A cluster
+            moves a landmark when it has three sightings, or when it outnumbers every sighting that supports the
+            landmark where it is (those outside the window and the window's that agree with it), at least two:
+            a landmark placed by one wrong-id sighting moves as soon as two true ones agree (issue 50).
 
     Returns:
         ((landmark, new position (2,)) for each landmark to move, the moved landmarks the prior holds).
@@ -501,14 +511,16 @@ def consensus(
     for j in np.unique(ids[outlying]):
         mine = ids == j
         in_prior = bool(np.isin(j, held))
-        if mine.sum() < 3 or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
+        supporters = int(np.count_nonzero(~outlying[mine])) + (3 if outside is None else outside(int(j)))
+        need = max(2, min(3, supporters + 1))
+        if mine.sum() < need or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
             continue
         seen_from, z, model = poses[graph.obs_pose[mine]], graph.obs_z[mine], graph.obs_model[mine]
         points = landmark_from_sighting(seen_from, z, model)
         median = np.median(points, axis=0)
         spread = np.median(np.linalg.norm(points - median, axis=1))
         at_median = sighting_chi2(seen_from, np.broadcast_to(median, points.shape), z, graph.obs_sqrt_info[mine], model)
-        if np.count_nonzero(at_median <= bound) < 3:
+        if np.count_nonzero(at_median <= bound) < need:
             continue
         if np.linalg.norm(landmarks[j] - median) > 3.0 * spread + 1e-9:
             moves.append((int(j), median))
