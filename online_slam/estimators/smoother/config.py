@@ -56,7 +56,8 @@ class RobustConfig:
     """After each solve, move a landmark to the consensus of its window sightings when they agree with each
     other but not with it (placed by a wrong association), releasing it from the prior if the prior holds it.
     Agreeing means three or more sightings within the rejection bound of their median: a loose cluster of
-    wrong-id sightings (different true landmarks a metre apart) once moved a well-placed landmark 12 m."""
+    wrong-id sightings (different true landmarks a metre apart) once moved a well-placed landmark 12 m. Two are
+    enough when they outnumber the sightings supporting the landmark where it is (one wrong id placed it)."""
     reject_false_alarm: float = 1e-3
     """Marginalization never folds into the prior a sighting whose squared whitened residual at the current
     estimate exceeds the chi-square bound this inlier would exceed with this probability (13.8 for 1e-3):
