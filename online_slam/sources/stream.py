@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import IO, cast
 
 from online_slam.errors import InputError
-from online_slam.sources.events import End, Event
-from online_slam.sources.validate import EventValidator
+from online_slam.sources.events import Event
+from online_slam.sources.validate import EventValidator, until_end
 
 
 def source_name(path: str | Path) -> str:
@@ -97,21 +97,13 @@ def parse_lines(
             be read (a live source's cut line), raised or skipped as a bad line is.
     """
     validator = EventValidator(name, max_latency=max_latency)
-    for number, line in enumerate(lines, 1):
-        try:
-            if isinstance(line, InputError):
-                raise InputError(name, number, line.field, line.message)
-            if not line.strip():
-                continue
-            event = validator.parse_line(line, number)
-        except InputError as exc:
-            if on_error is None:
-                raise
-            on_error(exc)
-            continue
-        if type(event) is End:
-            return
-        yield event
+
+    def parse(line: str | InputError, number: int) -> Event | None:
+        if isinstance(line, InputError):
+            raise InputError(name, number, line.field, line.message)
+        return validator.parse_line(line, number) if line.strip() else None
+
+    return until_end(parse, lines, on_error)
 
 
 def write_stream(destination: str | Path | IO[str], events: Iterable[Event]) -> int:

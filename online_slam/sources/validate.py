@@ -493,21 +493,33 @@ def validate_events(
         The validated events, up to an ``end`` (not given on: the stream ends there).
     """
     validator = EventValidator(name, max_latency=max_latency)
+
+    def parse(item: Any, position: int) -> Event:
+        if isinstance(item, Mapping):
+            record = item
+        elif callable(getattr(item, "to_record", None)):
+            record = item.to_record()
+        else:
+            raise validator.fail(position, "", f"expected an event or a stream-v1 record, got {type(item).__name__}")
+        return validator.parse_record({key: plain(value) for key, value in record.items()}, position)
+
+    return until_end(parse, items, on_error)
+
+
+def until_end(
+    parse: Callable[[Any, int], Event | None], items: Iterable[Any], on_error: Callable[[InputError], None] | None
+) -> Iterator[Event]:
+    """Each item parsed (with its 1-based position) into an event, up to an ``end``; ``parse`` giving None skips an
+    item (a blank line). A bad item raises, or with ``on_error`` is given to it and skipped."""
     for position, item in enumerate(items, 1):
         try:
-            if isinstance(item, Mapping):
-                record = item
-            elif callable(getattr(item, "to_record", None)):
-                record = item.to_record()
-            else:
-                raise validator.fail(
-                    position, "", f"expected an event or a stream-v1 record, got {type(item).__name__}"
-                )
-            event = validator.parse_record({key: plain(value) for key, value in record.items()}, position)
+            event = parse(item, position)
         except InputError as exc:
             if on_error is None:
                 raise
             on_error(exc)
+            continue
+        if event is None:
             continue
         if type(event) is End:
             return

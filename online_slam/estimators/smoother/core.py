@@ -10,6 +10,7 @@ the global relinearization (:class:`~.global_solve.Relinearization`) and associa
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, cast
 
@@ -392,7 +393,7 @@ class SlidingWindowSmoother(SeveralRobots):
             return False
         held = self.prior.landmarks if self.prior is not None else np.zeros(0, dtype=np.int64)
         w = self.window
-        outside = None if w.several else self._sightings_outside
+        outside = None if w.several else self._sightings_outside()
         moves, stale = consensus(graph, observed, w.values(), w.landmarks, held, self._reject_bound, outside)
         for j, position in moves:
             w.landmarks[j] = position
@@ -403,12 +404,21 @@ class SlidingWindowSmoother(SeveralRobots):
             self.association.solved = None
         return bool(moves)
 
-    def _sightings_outside(self, j: int) -> int:
-        """Sightings of window landmark j at poses older than the window (one robot)."""
+    def _sightings_outside(self) -> Callable[[int], int]:
+        """Sightings of window landmark j at poses older than the window (one robot), counted over the log once, when
+        first asked."""
         log, w = self.relinearization.log, self.window
-        (k,) = log.landmark_indices([w.landmark_ids[j]])
-        pose, landmark = log.sightings()[:2]
-        return int(np.count_nonzero((landmark == k) & (pose < w.indices[0]))) if k >= 0 else 0
+        counts: list[Index] = []
+
+        def outside(j: int) -> int:
+            if not counts:
+                pose, landmark = log.sightings()[:2]
+                older = landmark[(pose < w.indices[0]) & (landmark >= 0)]
+                counts.append(np.bincount(older, minlength=len(log.landmark_ids)))
+            (k,) = log.landmark_indices([w.landmark_ids[j]])
+            return int(counts[0][k]) if k >= 0 else 0
+
+        return outside
 
     def _rejudged_solve(
         self, result: SolveResult, n_poses: int, at_once: bool

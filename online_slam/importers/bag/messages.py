@@ -172,6 +172,14 @@ def _same_scan(a: tuple, b: tuple) -> bool:
     return a[:3] == b[:3] and np.array_equal(a[3], b[3]) and np.array_equal(a[4], b[4])
 
 
+LAYOUTS: dict[str, tuple[Callable[[Any, Any, bytes], bool], Callable[[bytes, bool], Any], Callable[[Table], list]]] = {
+    TWIST: (_twist_layout, _twist_row, lambda table: table.rows),
+    SCAN: (_scan_layout, _scan_row, lambda table: table.scans),
+}
+"""Message types read by their byte layout (checked against rosbags on each connection's first message): the check,
+the row read from the raw bytes, and the table's list it goes to."""
+
+
 def detect_scans(table: Table, topic: str, detector: Detector) -> None:
     """Run the laser detector over a scan table's scans (those of one length at once) into its rows."""
     scans, table.scans = table.scans, []
@@ -253,19 +261,14 @@ def _read(reader: Any, path: Path, topics: dict[str, str], detector: Detector) -
     fast: dict[int, bool] = {}  # connection id -> its twists decode by layout (checked on its first message)
     for connection, _, raw in reader.messages(connections=connections):
         count += 1
-        if connection.msgtype == TWIST and connection.topic != TF_STATIC:
+        layout = LAYOUTS.get(connection.msgtype) if connection.topic != TF_STATIC else None
+        if layout is not None:
+            check, row, into = layout
             if connection.id not in fast:
-                fast[connection.id] = _twist_layout(reader, connection, raw)
+                fast[connection.id] = check(reader, connection, raw)
             if fast[connection.id]:
                 for table, _ in by_topic[connection.topic]:
-                    table.rows.append(_twist_row(raw, reader.is2))
-                continue
-        if connection.msgtype == SCAN:
-            if connection.id not in fast:
-                fast[connection.id] = _scan_layout(reader, connection, raw)
-            if fast[connection.id]:
-                for table, _ in by_topic[connection.topic]:
-                    table.scans.append(_scan_row(raw, reader.is2))
+                    into(table).append(row(raw, reader.is2))
                 continue
         try:
             msg = reader.deserialize(raw, connection.msgtype)
