@@ -55,6 +55,7 @@ CONFIGS = {
     "BatchConfig": "online_slam.estimators.batch_config",
     "EkfConfig": "online_slam.estimators.ekf_config",
     "AssociationConfig": "online_slam.estimators.association_config",
+    "AdaptationConfig": "online_slam.estimators.adaptation_config",
     "SmootherConfig": "online_slam.estimators.smoother.config",
     "WindowConfig": "online_slam.estimators.smoother.config",
     "GlobalConfig": "online_slam.estimators.smoother.config",
@@ -280,6 +281,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "invariant are consistent on esde's circle protocol. fej and oc take one robot; invariant's updates "
                "are standard from a second robot's start on", "EKF", "ekf", ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
+    Option("adapt_noise", "EKF and smoother: inflate the declared odometry and sensor covariances while the "
+           "innovations show they are too small (a sustained mismatch; never below the declared)", "estimators",
+           ("ekf", "smoother"), kind=bool, field=("AdaptationConfig", "enabled"),
+           lands=("ekf.adaptation.enabled", "smoother.adaptation.enabled")),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
                ("WindowConfig", "size"), metavar="W", lands=("smoother.window.size",)),

@@ -55,6 +55,7 @@ from threadpoolctl import ThreadpoolController
 from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
+from online_slam.estimators.adaptation import adapt, adapted_info, innovation_statistics
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_fixes import AbsoluteFixes
 from online_slam.estimators.ekf_map import PriorMap
@@ -347,6 +348,8 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         if not accepted.all():
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
+        if len(y) and self.config.adaptation.enabled:
+            self._adapt(S, R[accepted], y)
         if len(y):
             try:
                 self._apply(PHt, S, y.reshape(-1))
@@ -355,6 +358,15 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         for i in np.flatnonzero(reanchor):
             self.reanchor_landmark(int(indices[i]), z[i], R[i], model[i])
         return nis, accepted | reanchor
+
+    def _adapt(self, S: Array, R: Array, y: Array) -> None:
+        """Fold an update's innovations y (a, 2) with covariance S (2a, 2a), R (a, 2, 2) of it the sightings',
+        into the noise adaptation (:mod:`~online_slam.estimators.adaptation`)."""
+        B = np.zeros_like(S)
+        a = len(R)
+        B.reshape(a, 2, a, 2)[np.arange(a), :, np.arange(a), :] = R
+        F, q = innovation_statistics(y.reshape(-1), S - B, B)
+        adapt(self.state.adaptation, F, q, self.config.adaptation)
 
     def _one_robot_correction_explains(
         self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]
@@ -439,7 +451,10 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             self._activate(step.robot)
             self._moved_on()
             self.state.history.append(self.x[:3, 0])  # the previous pose is complete
-            self.predict(step.odometry, step.odometry_cov)
+            odometry_cov = step.odometry_cov
+            if odometry_cov is not None and self.config.adaptation.enabled:
+                odometry_cov = odometry_cov * self.state.adaptation.odometry_scale
+            self.predict(step.odometry, odometry_cov)
         self.state.robot_steps[0], self.state.robot_times[0] = step.index, step.t
         self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
@@ -453,6 +468,8 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
         ids: tuple[LandmarkId | None, ...] | list[LandmarkId | None]  # as given, or as associated
         ids, z_all, R_all, m_all = step.landmarks[start:], step.z[start:], step.z_cov[start:], step.z_model[start:]
+        if self.config.adaptation.enabled:
+            R_all = R_all * self.state.adaptation.sensor_scale
         k = len(ids)
         if self.book.needs(ids):
             ids = self._associate(step.index, ids, z_all, R_all, m_all)
@@ -577,6 +594,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             {
                 "gated_observations": self.state.gated_total,
                 "landmarks_reanchored": self.state.reanchored,
+                **adapted_info(self.state.adaptation, self.config.adaptation),
                 **self._fix_info(),
                 "state_size": self.dim_x,
                 "linearization": self.config.linearization,

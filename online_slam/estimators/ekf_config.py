@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from online_slam.estimators.adaptation_config import AdaptationConfig
 from online_slam.estimators.association_config import AssociationConfig
 
 LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
@@ -40,6 +41,10 @@ class EkfConfig:
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     filter's own mean and covariance (with tentative landmarks)."""
+
+    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
+    """Inflate the declared odometry and sensor covariances when the innovations show a sustained mismatch
+    (:mod:`~online_slam.estimators.adaptation`); off by default."""
 
     def __post_init__(self) -> None:
         if not 0.0 < self.gate_probability <= 1.0:

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.estimators.adaptation import Adaptation
 from online_slam.estimators.history import PoseHistory
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.sources.events import LandmarkId, RobotId
@@ -101,6 +102,8 @@ class EkfState:
     """NIS of each fix used (whitened: chi-square with as many dof as the fix measures)."""
     fixes_rejected: int = 0
     """Fixes refused by the gate (their NIS beyond the chi-square quantile ``gate_probability``)."""
+    adaptation: Adaptation = field(default_factory=Adaptation)
+    """The adapted noise scales (``--adapt-noise``; 1 and 1 when off)."""
     index: dict[LandmarkId, int] = field(init=False)
     """State index of each landmark id."""
 

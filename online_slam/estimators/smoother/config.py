@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from online_slam.estimators.adaptation_config import AdaptationConfig
 from online_slam.estimators.association_config import AssociationConfig
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.solvers.config import SolverConfig
@@ -138,6 +139,10 @@ class SmootherConfig:
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     smoother's own belief (the window's information from the last solve, carried to the newest pose; the prior
     for landmarks the window does not see), with tentative landmarks. Associations are not revised later."""
+
+    adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
+    """Inflate the declared odometry and sensor covariances of new steps when the newest pose's predicted
+    sightings show a sustained mismatch (:mod:`~online_slam.estimators.adaptation`); off by default."""
 
     def __post_init__(self) -> None:
         if self.relinearize_every < 1:

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
 from online_slam.checkpoint import from_tree, to_tree
+from online_slam.estimators.adaptation import GATE, adapt, adapted_info, scaled, sighting_statistics
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
@@ -143,8 +144,11 @@ class SlidingWindowSmoother(SeveralRobots):
         """Add the step; solve every K steps; marginalize beyond the window; relinearize globally on schedule."""
         with self._blas.limit(limits=1, user_api="blas"):
             w = self.window
+            if self.config.adaptation.enabled:
+                step = scaled(step, self.state.adaptation)
             w.add_pose(step)
             step, _ = self._resolve(step, 0)
+            self._adapt(step, 0)
             w.add_sightings(step, 0)
             w.add_fixes(step)
             self.relinearization.log.add(step)
@@ -170,7 +174,10 @@ class SlidingWindowSmoother(SeveralRobots):
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
         with self._blas.limit(limits=1, user_api="blas"):
+            if self.config.adaptation.enabled:
+                step = scaled(step, self.state.adaptation)
             step, start = self._resolve(step, start)
+            self._adapt(step, start)
             self.window.add_sightings(step, start)
             self.window.add_fixes(step)
             self.relinearization.log.extend(step, start)
@@ -260,6 +267,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 "global_rejections": r.rejections,
                 "global_failures": list(r.failures),
                 "landmarks_released": p.released,
+                **adapted_info(self.state.adaptation, self.config.adaptation),
                 **self._robot_info(),
                 "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
@@ -337,6 +345,21 @@ class SlidingWindowSmoother(SeveralRobots):
         )
         a.resolved = resolved
         return resolved, cut
+
+    def _adapt(self, step: Step, start: int) -> None:
+        """Fold the newest pose's sightings ``start:`` of landmarks already mapped into the noise adaptation."""
+        w, ids = self.window, step.landmarks[start:]
+        rows = [k for k, lid in enumerate(ids) if lid in w.index] if self.config.adaptation.enabled else []
+        if not rows:
+            return
+        indices = np.array([w.index[cast(LandmarkId, ids[k])] for k in rows], dtype=np.int64)
+        unique, inverse = np.unique(indices, return_inverse=True)
+        columns = np.r_[np.arange(3), 3 + (2 * inverse[:, None] + np.arange(2)).reshape(-1)]
+        joint = self.association_covariance(unique)[np.ix_(columns, columns)]
+        at = start + np.array(rows)
+        pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
+        F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE)
+        adapt(self.state.adaptation, F, q, self.config.adaptation)
 
     def _add_retro(self) -> None:
         """Earlier sightings of the landmarks association confirmed just now, at poses still in the window."""

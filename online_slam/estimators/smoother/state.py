@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from online_slam.estimators.adaptation import Adaptation
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.smoother.covariance import Solved
 from online_slam.estimators.smoother.global_solve import Relinearization
@@ -65,3 +66,5 @@ class SmootherState:
     """The marginal prior on the oldest window pose and the landmarks it touched, once a pose left the window."""
     progress: Progress = field(default_factory=Progress)
     """Counts, and what the newest step did."""
+    adaptation: Adaptation = field(default_factory=Adaptation)
+    """The adapted noise scales (``--adapt-noise``; 1 and 1 when off)."""

@@ -1,0 +1,127 @@
+"""Noise adaptation: the declared odometry and sensor covariances inflated when the innovations show a sustained
+mismatch (``--adapt-noise``).
+
+Each update's innovations ``y`` (m,) are modelled as ``N(0, a A + b B)``: ``A = H P H^T`` the part the predicted
+state gives (too small when the odometry is declared too sure: the pose error shows in every sighting of a step
+alike), ``B = blockdiag(R)`` the sightings' own (too small when the sensor is: independent per sighting), both as
+declared times the scales already applied, so ``a = b = 1`` when they fit. The unbiased quadratic estimate of
+``(a, b)`` at ``(1, 1)`` (MINQUE; variance components as in ``--noise self``, here on innovations) is
+``F^-1 q`` with ``F_ij = tr(S^-1 V_i S^-1 V_j)``, ``q_i = y^T S^-1 V_i S^-1 y``, ``S = A + B``; its covariance
+is ``2 F^-1``. ``F`` and ``q`` are summed over the recent updates with exponential forgetting. A scale moves, by a
+fraction of its estimate's log each update, only while that estimate is beyond ``threshold`` of its standard
+errors from 1, and never below 1 (declared too cautious costs accuracy a little, never divergence). The EKF and
+the smoother each keep their own (:class:`Adaptation`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from online_slam.estimators.adaptation_config import AdaptationConfig
+from online_slam.estimators.kalman import stacked_jacobian
+from online_slam.frontend.steps import Step
+from online_slam.models.observation import predict_with_jacobians, wrap_bearings
+
+Array = NDArray[np.float64]
+
+GATE = -2.0 * math.log(1e-4)
+"""A sighting whose NIS exceeds this (18.4: the chi-square bound, 2 dof, an inlier exceeds with probability 1e-4,
+the EKF's default gate) is an outlier and tells nothing of the noise."""
+
+
+@dataclass
+class Adaptation:
+    """An estimator's adapted scales and the statistics behind them."""
+
+    odometry_scale: float = 1.0
+    """Multiplies every odometry covariance from now on."""
+    sensor_scale: float = 1.0
+    """Multiplies every sighting's covariance from now on."""
+    information: Array = field(default_factory=lambda: np.zeros((2, 2)))
+    """``F`` summed with forgetting, shape (2, 2)."""
+    quadratic: Array = field(default_factory=lambda: np.zeros(2))
+    """``q`` summed with forgetting, shape (2,)."""
+    updates: int = 0
+    """Updates seen."""
+
+
+def innovation_statistics(y: Array, A: Array, B: Array) -> tuple[Array, Array]:
+    """``(F (2, 2), q (2,))`` of one update: innovations ``y`` (m,), predicted part ``A`` and sensor part ``B``
+    (m, m) of their covariance."""
+    S = A + B
+    try:
+        L = np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        return np.zeros((2, 2)), np.zeros(2)
+    solve = np.linalg.solve
+    MA = solve(L.T, solve(L, A))  # S^-1 A
+    MB = solve(L.T, solve(L, B))
+    w = solve(L.T, solve(L, y))  # S^-1 y
+    F = np.array([[np.sum(MA * MA.T), np.sum(MA * MB.T)], [0.0, np.sum(MB * MB.T)]])
+    F[1, 0] = F[0, 1]
+    return F, np.array([w @ A @ w, w @ B @ w])
+
+
+def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> None:
+    """Fold one update's statistics in and move the scales (in place)."""
+    keep = 1.0 - 1.0 / config.memory
+    state.information = keep * state.information + F
+    state.quadratic = keep * state.quadratic + q
+    state.updates += 1
+    info = state.information
+    if np.linalg.cond(info) > 1e12 or info[0, 0] <= 0.0 or info[1, 1] <= 0.0:
+        return
+    inverse = np.linalg.inv(info)
+    estimate = inverse @ state.quadratic
+    error = np.sqrt(np.maximum(2.0 * np.diag(inverse), 0.0))
+    before = np.array([state.odometry_scale, state.sensor_scale])
+    scales = before.copy()
+    for i in range(2):
+        if abs(estimate[i] - 1.0) > config.threshold * error[i]:
+            step = config.gain * math.log(max(estimate[i], 1e-3))
+            scales[i] = min(config.max_scale, max(1.0, scales[i] * math.exp(step)))
+    # The remembered updates were judged under the scales before: what they say of the new ones is their estimate
+    # over the change (without this the scales wind up past the truth while the memory lags).
+    state.quadratic = info @ (estimate * before / scales)
+    state.odometry_scale, state.sensor_scale = float(scales[0]), float(scales[1])
+
+
+def sighting_statistics(
+    pose: Array, landmarks: Array, z: Array, R: Array, model: NDArray[np.int8], joint: Array, gate: float
+) -> tuple[Array, Array]:
+    """``(F, q)`` of k sightings ``z`` (k, 2) with covariances ``R`` (k, 2, 2) of ``landmarks`` (k, 2) from the
+    predicted ``pose`` (3,), ``joint`` the covariance (3 + 2k, 3 + 2k) of the pose and those landmarks (in that
+    order, one block per sighting); sightings whose own NIS exceeds ``gate`` are left out (outliers)."""
+    z_hat, J_p, J_l = predict_with_jacobians(pose, landmarks, model)
+    y = wrap_bearings(z - z_hat, model)
+    H = stacked_jacobian(J_p, J_l)
+    A = H @ joint @ H.T
+    k = len(z)
+    blocks = A.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] + R
+    try:
+        nis = np.einsum("ki,ki->k", y, np.linalg.solve(blocks, y[..., None])[..., 0])
+    except np.linalg.LinAlgError:
+        return np.zeros((2, 2)), np.zeros(2)
+    keep = np.repeat(nis <= gate, 2)
+    if not keep.any():
+        return np.zeros((2, 2)), np.zeros(2)
+    B = np.zeros_like(A)
+    B.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] = R
+    return innovation_statistics(y.reshape(-1)[keep], A[np.ix_(keep, keep)], B[np.ix_(keep, keep)])
+
+
+def scaled(step: Step, state: Adaptation) -> Step:
+    """The step with its odometry and sightings' covariances times the adapted scales."""
+    if state.odometry_scale == 1.0 and state.sensor_scale == 1.0:
+        return step
+    odometry_cov = None if step.odometry_cov is None else step.odometry_cov * state.odometry_scale
+    return replace(step, odometry_cov=odometry_cov, z_cov=step.z_cov * state.sensor_scale)
+
+
+def adapted_info(state: Adaptation, config: AdaptationConfig) -> dict[str, tuple[float, float]]:
+    """The final estimate's report entry: ``adapted_noise`` (odometry scale, sensor scale) when adapting."""
+    return {"adapted_noise": (state.odometry_scale, state.sensor_scale)} if config.enabled else {}
