@@ -71,6 +71,7 @@ CHOICE_HOMES = {
     "ekf_linearization": ("online_slam.estimators.ekf_config", "LINEARIZATIONS"),
     "smoother_linearization": ("online_slam.estimators.smoother.config", "LINEARIZATIONS"),
     "peer": ("online_slam.compare_config", "PEERS"),
+    "adapt_noise": ("online_slam.estimators.adaptation_config", "MODES"),
 }
 """Where the choices of an option are defined: (module, name)."""
 CHOICES: dict[str, tuple[str, ...]] = {
@@ -281,10 +282,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "invariant are consistent on esde's circle protocol. fej and oc take one robot; invariant's updates "
                "are standard from a second robot's start on", "EKF", "ekf", ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
-    Option("adapt_noise", "EKF and smoother: inflate the declared odometry and sensor covariances while the "
-           "innovations show they are too small (a sustained mismatch; never below the declared)", "estimators",
-           ("ekf", "smoother"), kind=bool, field=("AdaptationConfig", "enabled"),
-           lands=("ekf.adaptation.enabled", "smoother.adaptation.enabled")),
+    Option("adapt_noise", "EKF and smoother: scale the declared odometry and sensor covariances while their "
+           "innovations show a sustained mismatch: up only (inflate, the flag alone) or up and down (both: for "
+           "white noise, not for sigmas widened on purpose as MRCLAM's sightings)", "estimators",
+           ("ekf", "smoother"), field=("AdaptationConfig", "mode"), choices=CHOICES["adapt_noise"], nargs="?",
+           const="inflate", lands=("ekf.adaptation.mode", "smoother.adaptation.mode")),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
                ("WindowConfig", "size"), metavar="W", lands=("smoother.window.size",)),

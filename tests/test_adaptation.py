@@ -51,7 +51,7 @@ def test_the_variance_components_are_unbiased(truth: tuple[float, float]) -> Non
 
 def test_scales_stay_at_one_when_the_noise_fits_and_rise_when_it_is_too_small() -> None:
     rng = np.random.default_rng(5)
-    config = AdaptationConfig(enabled=True)
+    config = AdaptationConfig(mode="inflate")
     fits, small = Adaptation(), Adaptation()
     for _ in range(400):
         A, B = _parts(rng, 3)
@@ -65,7 +65,7 @@ def test_scales_stay_at_one_when_the_noise_fits_and_rise_when_it_is_too_small() 
 
 
 def _run(odometry: float, sensor: float, adapt_noise: bool):  # noqa: ANN202
-    config = replay_config({"estimators": "ekf,smoother", "adapt_noise": adapt_noise})
+    config = replay_config({"estimators": "ekf,smoother", "adapt_noise": "inflate" if adapt_noise else "off"})
     config = dataclasses.replace(
         config, frontend=FrontEndConfig(odometry_noise_scale=odometry, sensor_noise_scale=sensor)
     )
@@ -102,6 +102,18 @@ def test_noise_declared_too_sure_is_inflated_toward_the_truth(odometry: float, s
         before, after = plain.estimators[name], adapted.estimators[name]
         assert after.nees_mean < 0.75 * before.nees_mean, name
         assert after.online_rmse_m < 1.1 * before.online_rmse_m, name
+
+
+@pytest.mark.slow
+def test_both_also_deflates_a_sensor_declared_too_cautious() -> None:
+    """Sensor sigmas declared 3x (covariance 9x), white noise: ``both`` brings the sensor scale down toward 1/9,
+    ``inflate`` leaves it at 1."""
+    config = replay_config({"estimators": "ekf,smoother", "adapt_noise": "both"})
+    config = dataclasses.replace(config, frontend=FrontEndConfig(sensor_noise_scale=9.0))
+    both = replay(grid_world(WORLD), config, name="grid", validate=False)
+    for name in ("ekf", "smoother"):
+        odometry, sensor = both.estimates[name].info["adapted_noise"]
+        assert 0.05 < sensor < 0.3 and 0.5 < odometry < 2.0, (name, odometry, sensor)
 
 
 @pytest.mark.slow

@@ -1,16 +1,19 @@
-"""Noise adaptation: the declared odometry and sensor covariances inflated when the innovations show a sustained
+"""Noise adaptation: the declared odometry and sensor covariances scaled when the innovations show a sustained
 mismatch (``--adapt-noise``).
 
 Each update's innovations ``y`` (m,) are modelled as ``N(0, a A + b B)``: ``A = H P H^T`` the part the predicted
 state gives (too small when the odometry is declared too sure: the pose error shows in every sighting of a step
 alike), ``B = blockdiag(R)`` the sightings' own (too small when the sensor is: independent per sighting), both as
 declared times the scales already applied, so ``a = b = 1`` when they fit. The unbiased quadratic estimate of
-``(a, b)`` at ``(1, 1)`` (MINQUE; variance components as in ``--noise self``, here on innovations) is
-``F^-1 q`` with ``F_ij = tr(S^-1 V_i S^-1 V_j)``, ``q_i = y^T S^-1 V_i S^-1 y``, ``S = A + B``; its covariance
-is ``2 F^-1``. ``F`` and ``q`` are summed over the recent updates with exponential forgetting. A scale moves, by a
-fraction of its estimate's log each update, only while that estimate is beyond ``threshold`` of its standard
-errors from 1, and never below 1 (declared too cautious costs accuracy a little, never divergence). The EKF and
-the smoother each keep their own (:class:`Adaptation`).
+``(a, b)`` (MINQUE; variance components as in ``--noise self``, here on innovations) is ``F^-1 q`` with
+``F_ij = tr(S^-1 V_i S^-1 V_j)``, ``q_i = y^T S^-1 V_i S^-1 y``, ``S = a_w A + b_w B`` at a working point
+``(a_w, b_w)``: the estimate so far. It is unbiased at any working point; its covariance, ``2 F^-1`` there, is
+smallest near the truth, which matters where one part is far from declared (MRCLAM's sightings are declared wider
+than their innovations, for their errors are correlated in time, and at (1, 1) that wide part drowns the other).
+``F`` and ``q`` are summed over the recent updates with exponential forgetting. A scale moves, by a fraction of its
+estimate's log each update, only while that estimate is beyond ``threshold`` standard errors from 1; with
+``inflate`` never below 1 (a declaration too cautious costs some accuracy, never divergence). The EKF and the
+smoother each keep their own (:class:`Adaptation`).
 """
 
 from __future__ import annotations
@@ -28,6 +31,10 @@ from online_slam.models.observation import predict_with_jacobians, wrap_bearings
 
 Array = NDArray[np.float64]
 
+WORKING_RANGE = (0.02, 100.0)
+"""Bounds of the working point (:attr:`Adaptation.working`)."""
+WORKING_AFTER = 20
+"""Updates before the working point follows the estimate (the first few say little)."""
 GATE = -2.0 * math.log(1e-4)
 """A sighting whose NIS exceeds this (18.4: the chi-square bound, 2 dof, an inlier exceeds with probability 1e-4,
 the EKF's default gate) is an outlier and tells nothing of the noise."""
@@ -47,12 +54,15 @@ class Adaptation:
     """``q`` summed with forgetting, shape (2,)."""
     updates: int = 0
     """Updates seen."""
+    working: Array = field(default_factory=lambda: np.ones(2))
+    """``(a_w, b_w)``: where the next update's statistics are taken (the estimate so far, within
+    :data:`WORKING_RANGE`)."""
 
 
-def innovation_statistics(y: Array, A: Array, B: Array) -> tuple[Array, Array]:
+def innovation_statistics(y: Array, A: Array, B: Array, working: Array | None = None) -> tuple[Array, Array]:
     """``(F (2, 2), q (2,))`` of one update: innovations ``y`` (m,), predicted part ``A`` and sensor part ``B``
-    (m, m) of their covariance."""
-    S = A + B
+    (m, m) of their covariance, taken at ``working`` (2,) (None: (1, 1))."""
+    S = A + B if working is None else working[0] * A + working[1] * B
     try:
         L = np.linalg.cholesky(S)
     except np.linalg.LinAlgError:
@@ -83,19 +93,29 @@ def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> No
     for i in range(2):
         if abs(estimate[i] - 1.0) > config.threshold * error[i]:
             step = config.gain * math.log(max(estimate[i], 1e-3))
-            scales[i] = min(config.max_scale, max(1.0, scales[i] * math.exp(step)))
+            scales[i] = min(config.max_scale, max(config.min_scale, scales[i] * math.exp(step)))
     # The remembered updates were judged under the scales before: what they say of the new ones is their estimate
     # over the change (without this the scales wind up past the truth while the memory lags).
     state.quadratic = info @ (estimate * before / scales)
     state.odometry_scale, state.sensor_scale = float(scales[0]), float(scales[1])
+    if state.updates >= WORKING_AFTER:
+        state.working = np.clip(estimate * before / scales, *WORKING_RANGE)
 
 
 def sighting_statistics(
-    pose: Array, landmarks: Array, z: Array, R: Array, model: NDArray[np.int8], joint: Array, gate: float
+    pose: Array,
+    landmarks: Array,
+    z: Array,
+    R: Array,
+    model: NDArray[np.int8],
+    joint: Array,
+    gate: float,
+    working: Array,
 ) -> tuple[Array, Array]:
     """``(F, q)`` of k sightings ``z`` (k, 2) with covariances ``R`` (k, 2, 2) of ``landmarks`` (k, 2) from the
     predicted ``pose`` (3,), ``joint`` the covariance (3 + 2k, 3 + 2k) of the pose and those landmarks (in that
-    order, one block per sighting); sightings whose own NIS exceeds ``gate`` are left out (outliers)."""
+    order, one block per sighting), taken at ``working`` (2,); sightings whose own NIS exceeds ``gate`` are left out
+    (outliers)."""
     z_hat, J_p, J_l = predict_with_jacobians(pose, landmarks, model)
     y = wrap_bearings(z - z_hat, model)
     H = stacked_jacobian(J_p, J_l)
@@ -111,7 +131,7 @@ def sighting_statistics(
         return np.zeros((2, 2)), np.zeros(2)
     B = np.zeros_like(A)
     B.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] = R
-    return innovation_statistics(y.reshape(-1)[keep], A[np.ix_(keep, keep)], B[np.ix_(keep, keep)])
+    return innovation_statistics(y.reshape(-1)[keep], A[np.ix_(keep, keep)], B[np.ix_(keep, keep)], working)
 
 
 def scaled(step: Step, state: Adaptation) -> Step:

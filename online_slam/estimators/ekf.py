@@ -365,7 +365,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         B = np.zeros_like(S)
         a = len(R)
         B.reshape(a, 2, a, 2)[np.arange(a), :, np.arange(a), :] = R
-        F, q = innovation_statistics(y.reshape(-1), S - B, B)
+        F, q = innovation_statistics(y.reshape(-1), S - B, B, self.state.adaptation.working)
         adapt(self.state.adaptation, F, q, self.config.adaptation)
 
     def _one_robot_correction_explains(

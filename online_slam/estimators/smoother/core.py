@@ -358,7 +358,7 @@ class SlidingWindowSmoother(SeveralRobots):
         joint = self.association_covariance(unique)[np.ix_(columns, columns)]
         at = start + np.array(rows)
         pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
-        F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE)
+        F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, self.state.adaptation.working)
         adapt(self.state.adaptation, F, q, self.config.adaptation)
 
     def _add_retro(self) -> None:
