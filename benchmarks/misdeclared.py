@@ -5,8 +5,8 @@ sightings' covariances declared 0.09x or 9x (sigmas 0.3x or 3x; the data unchang
 ``odometry_noise_scale`` / ``sensor_noise_scale``), on 2000-pose simulated worlds (the grid at two seeds, the
 random-waypoint world) and on MRCLAM Dataset 6's robots when the folder is there. The figures against the target
 "nothing diverges": every estimator's online error within 3x of the correctly declared stream's, the smoother's
-final within 1.5x of the batch's on the same stream. Each case runs with ``--adapt-noise`` off (the default),
-``inflate`` and ``both`` (the EKF and the smoother scale what their innovations say is too small, or too large).
+final within 1.5x of the batch's on the same stream. Each case runs with ``--adapt-noise`` off (the default) and
+``inflate`` (the EKF and the smoother inflate what their innovations say is too small).
 ``python -m benchmarks --only misdeclared``.
 """
 
@@ -52,7 +52,7 @@ class Row:
     case: str
     """Which covariances are misdeclared, and how (a label of :data:`CASES`)."""
     adapt: str
-    """``--adapt-noise``: off, inflate or both."""
+    """``--adapt-noise``: off or inflate."""
     online: dict[str, float]
     """Online position RMSE of the EKF and the smoother, m."""
     final: dict[str, float]

@@ -282,9 +282,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "invariant are consistent on esde's circle protocol. fej and oc take one robot; invariant's updates "
                "are standard from a second robot's start on", "EKF", "ekf", ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
-    Option("adapt_noise", "EKF and smoother: scale the declared odometry and sensor covariances while their "
-           "innovations show a sustained mismatch: up only (inflate, the flag alone) or up and down (both: for "
-           "white noise, not for sigmas widened on purpose as MRCLAM's sightings)", "estimators",
+    Option("adapt_noise", "EKF and smoother: inflate the declared odometry and sensor covariances while their "
+           "innovations show them too small (a sustained mismatch; never below the declared; the flag alone: "
+           "inflate)", "estimators",
            ("ekf", "smoother"), field=("AdaptationConfig", "mode"), choices=CHOICES["adapt_noise"], nargs="?",
            const="inflate", lands=("ekf.adaptation.mode", "smoother.adaptation.mode")),
     # -- smoother -------------------------------------------------------------------------------------------

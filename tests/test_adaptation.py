@@ -105,18 +105,6 @@ def test_noise_declared_too_sure_is_inflated_toward_the_truth(odometry: float, s
 
 
 @pytest.mark.slow
-def test_both_also_deflates_a_sensor_declared_too_cautious() -> None:
-    """Sensor sigmas declared 3x (covariance 9x), white noise: ``both`` brings the sensor scale down toward 1/9,
-    ``inflate`` leaves it at 1."""
-    config = replay_config({"estimators": "ekf,smoother", "adapt_noise": "both"})
-    config = dataclasses.replace(config, frontend=FrontEndConfig(sensor_noise_scale=9.0))
-    both = replay(grid_world(WORLD), config, name="grid", validate=False)
-    for name in ("ekf", "smoother"):
-        odometry, sensor = both.estimates[name].info["adapted_noise"]
-        assert 0.05 < sensor < 0.3 and 0.5 < odometry < 2.0, (name, odometry, sensor)
-
-
-@pytest.mark.slow
 def test_the_cli_takes_the_flag_and_says_what_it_adapted(tmp_path) -> None:  # noqa: ANN001
     out = tmp_path / "r.json"
     done = subprocess.run(

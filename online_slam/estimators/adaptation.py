@@ -11,8 +11,11 @@ declared times the scales already applied, so ``a = b = 1`` when they fit. The u
 smallest near the truth, which matters where one part is far from declared (MRCLAM's sightings are declared wider
 than their innovations, for their errors are correlated in time, and at (1, 1) that wide part drowns the other).
 ``F`` and ``q`` are summed over the recent updates with exponential forgetting. A scale moves, by a fraction of its
-estimate's log each update, only while that estimate is beyond ``threshold`` standard errors from 1; with
-``inflate`` never below 1 (a declaration too cautious costs some accuracy, never divergence). The EKF and the
+estimate's log each update, only while that estimate is beyond ``threshold`` standard errors from 1, and never
+below 1: a declaration too cautious costs some accuracy, and deflating proved unsafe (the EKF diverged on a grid
+whose sightings were declared 3x too wide, with the right scales found; MRCLAM's sighting sigmas, widened on purpose
+for errors correlated in time, were deflated to overconfidence: benchmarks/RESULTS.md, "Declared noise that is
+wrong"). The EKF and the
 smoother each keep their own (:class:`Adaptation`).
 """
 
@@ -93,7 +96,7 @@ def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> No
     for i in range(2):
         if abs(estimate[i] - 1.0) > config.threshold * error[i]:
             step = config.gain * math.log(max(estimate[i], 1e-3))
-            scales[i] = min(config.max_scale, max(config.min_scale, scales[i] * math.exp(step)))
+            scales[i] = min(config.max_scale, max(1.0, scales[i] * math.exp(step)))
     # The remembered updates were judged under the scales before: what they say of the new ones is their estimate
     # over the change (without this the scales wind up past the truth while the memory lags).
     state.quadratic = info @ (estimate * before / scales)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-MODES = ("off", "inflate", "both")
-"""``--adapt-noise``: off; inflate the declared covariances only; or inflate and deflate them."""
+MODES = ("off", "inflate")
+"""``--adapt-noise``: off, or inflate the declared covariances (never below them)."""
 
 
 @dataclass(frozen=True)
@@ -14,10 +14,7 @@ class AdaptationConfig:
 
     mode: str = "off"
     """``off`` (default): the declared covariances as given. ``inflate``: scaled up while the innovations show them
-    too small, never below the declared. ``both``: down too, to ``1 / max_scale``, while they show them too large:
-    for noise that is white; a source whose sigmas are widened on purpose for errors correlated in time (MRCLAM's
-    sightings: header ``sightings_correlated``) shows innovations smaller than declared, and deflating them makes
-    the estimate overconfident."""
+    too small, never below the declared."""
     memory: float = 100.0
     """Updates the statistics remember (forgetting factor ``1 - 1/memory``)."""
     threshold: float = 3.0
@@ -25,7 +22,7 @@ class AdaptationConfig:
     gain: float = 0.1
     """Fraction of the estimate's log a scale moves by per update."""
     max_scale: float = 100.0
-    """Largest covariance scale (a sigma 10x the declared); ``both``: the smallest is its inverse."""
+    """Largest covariance scale (a sigma 10x the declared)."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -37,8 +34,3 @@ class AdaptationConfig:
     def enabled(self) -> bool:
         """Whether the estimator adapts at all."""
         return self.mode != "off"
-
-    @property
-    def min_scale(self) -> float:
-        """The smallest covariance scale: 1 with ``inflate``, ``1 / max_scale`` with ``both``."""
-        return 1.0 / self.max_scale if self.mode == "both" else 1.0
