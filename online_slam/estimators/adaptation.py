@@ -105,6 +105,14 @@ def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> No
         state.working = np.clip(estimate * before / scales, *WORKING_RANGE)
 
 
+def update_adaptation(state: Adaptation, S: Array, R: Array, y: Array, config: AdaptationConfig) -> None:
+    """Fold an EKF update in: innovations y (a, 2) with covariance S (2a, 2a), R (a, 2, 2) of it the sightings'."""
+    B = np.zeros_like(S)
+    a = len(R)
+    B.reshape(a, 2, a, 2)[np.arange(a), :, np.arange(a), :] = R
+    adapt(state, *innovation_statistics(y.reshape(-1), S - B, B, state.working), config)
+
+
 def sighting_statistics(
     pose: Array,
     landmarks: Array,

@@ -55,7 +55,7 @@ from threadpoolctl import ThreadpoolController
 from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
-from online_slam.estimators.adaptation import adapt, adapted_info, innovation_statistics
+from online_slam.estimators.adaptation import adapted_info, update_adaptation
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_fixes import AbsoluteFixes
 from online_slam.estimators.ekf_map import PriorMap
@@ -349,7 +349,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
         if len(y) and self.config.adaptation.enabled:
-            self._adapt(S, R[accepted], y)
+            update_adaptation(self.state.adaptation, S, R[accepted], y, self.config.adaptation)
         if len(y):
             try:
                 self._apply(PHt, S, y.reshape(-1))
@@ -358,15 +358,6 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         for i in np.flatnonzero(reanchor):
             self.reanchor_landmark(int(indices[i]), z[i], R[i], model[i])
         return nis, accepted | reanchor
-
-    def _adapt(self, S: Array, R: Array, y: Array) -> None:
-        """Fold an update's innovations y (a, 2) with covariance S (2a, 2a), R (a, 2, 2) of it the sightings',
-        into the noise adaptation (:mod:`~online_slam.estimators.adaptation`)."""
-        B = np.zeros_like(S)
-        a = len(R)
-        B.reshape(a, 2, a, 2)[np.arange(a), :, np.arange(a), :] = R
-        F, q = innovation_statistics(y.reshape(-1), S - B, B, self.state.adaptation.working)
-        adapt(self.state.adaptation, F, q, self.config.adaptation)
 
     def _one_robot_correction_explains(
         self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]
