@@ -52,7 +52,7 @@ def main() -> None:
     parser.add_argument("--estimators", default="ekf,smoother", help="estimators to run")
     args = parser.parse_args()
     config = ReplayConfig(estimators=tuple(args.estimators.split(",")))
-    figures = {}
+    figures, medians = {}, {}
     fix_times = np.array([e.t for e in events(args.data, args.every, args.sigma, True) if isinstance(e, Position)])
     for label, fixes in (("without fixes", False), ("with fixes", True)):
         results = replay(events(args.data, args.every, args.sigma, fixes), config, name=label)
@@ -67,10 +67,18 @@ def main() -> None:
         for name, series in results.series.items():
             by = since_last_fix(series.t, series.position_error_m, fix_times)
             print(label, name, "online RMSE by time since the last fix", json.dumps(by), flush=True)
+            errors = series.position_error_m[np.isfinite(series.position_error_m)]
+            medians[(label, name)] = float(np.median(errors))
+            spread = {f"p{q}": round(float(np.percentile(errors, q)), 3) for q in (50, 90, 99)}
+            print(label, name, "online error percentiles", json.dumps(spread), flush=True)
     for name, base in figures["without fixes"].items():
         fixed = figures["with fixes"][name]
         if base and fixed is not None:
             print(f"{name}: {fixed:.3f} m / {base:.3f} m = {fixed / base:.3f}")
+    for (label, name), median in medians.items():
+        if label == "with fixes" and ("without fixes", name) in medians:
+            base = medians[("without fixes", name)]
+            print(f"{name} online median error: {median:.3f} m / {base:.3f} m = {median / base:.3f}")
 
 
 if __name__ == "__main__":
