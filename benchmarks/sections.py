@@ -285,8 +285,7 @@ def _heldout(args: argparse.Namespace, world: GridConfig) -> None:
 
 
 def _misdeclared(args: argparse.Namespace, world: GridConfig) -> None:
-    from benchmarks.misdeclared import run_misdeclared, verdicts
-    from online_slam.estimators.adaptation_config import MODES
+    from benchmarks.misdeclared import MODES, run_misdeclared, verdicts
 
     rows = run_misdeclared(args.mrclam, args.workers)
     print("declared noise that is wrong (the data unchanged, sigmas declared 0.3x or 3x), --adapt-noise off (the "

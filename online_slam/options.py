@@ -71,7 +71,6 @@ CHOICE_HOMES = {
     "ekf_linearization": ("online_slam.estimators.ekf_config", "LINEARIZATIONS"),
     "smoother_linearization": ("online_slam.estimators.smoother.config", "LINEARIZATIONS"),
     "peer": ("online_slam.compare_config", "PEERS"),
-    "adapt_noise": ("online_slam.estimators.adaptation_config", "MODES"),
 }
 """Where the choices of an option are defined: (module, name)."""
 CHOICES: dict[str, tuple[str, ...]] = {
@@ -283,10 +282,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "are standard from a second robot's start on", "EKF", "ekf", ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
     Option("adapt_noise", "EKF and smoother: inflate the declared odometry and sensor covariances while their "
-           "innovations show them too small (a sustained mismatch; never below the declared; the flag alone: "
-           "inflate)", "estimators",
-           ("ekf", "smoother"), field=("AdaptationConfig", "mode"), choices=CHOICES["adapt_noise"], nargs="?",
-           const="inflate", lands=("ekf.adaptation.mode", "smoother.adaptation.mode")),
+           "innovations show them too small for a sustained stretch (never below what was declared)", "estimators",
+           ("ekf", "smoother"), kind=bool, field=("AdaptationConfig", "enabled"),
+           lands=("ekf.adaptation.enabled", "smoother.adaptation.enabled")),
     # -- smoother -------------------------------------------------------------------------------------------
     _estimator("window", "W: fewest poses the window keeps (compare: a list)", "smoother", "smoother",
                ("WindowConfig", "size"), metavar="W", lands=("smoother.window.size",)),

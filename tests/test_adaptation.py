@@ -51,7 +51,7 @@ def test_the_variance_components_are_unbiased(truth: tuple[float, float]) -> Non
 
 def test_scales_stay_at_one_when_the_noise_fits_and_rise_when_it_is_too_small() -> None:
     rng = np.random.default_rng(5)
-    config = AdaptationConfig(mode="inflate")
+    config = AdaptationConfig(enabled=True)
     fits, small = Adaptation(), Adaptation()
     for _ in range(400):
         A, B = _parts(rng, 3)
@@ -65,7 +65,7 @@ def test_scales_stay_at_one_when_the_noise_fits_and_rise_when_it_is_too_small() 
 
 
 def _run(odometry: float, sensor: float, adapt_noise: bool):  # noqa: ANN202
-    config = replay_config({"estimators": "ekf,smoother", "adapt_noise": "inflate" if adapt_noise else "off"})
+    config = replay_config({"estimators": "ekf,smoother", "adapt_noise": adapt_noise})
     config = dataclasses.replace(
         config, frontend=FrontEndConfig(odometry_noise_scale=odometry, sensor_noise_scale=sensor)
     )

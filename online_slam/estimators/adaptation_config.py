@@ -4,17 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-MODES = ("off", "inflate")
-"""``--adapt-noise``: off, or inflate the declared covariances (never below them)."""
-
 
 @dataclass(frozen=True)
 class AdaptationConfig:
     """How an estimator adapts the declared noise to its innovations."""
 
-    mode: str = "off"
-    """``off`` (default): the declared covariances as given. ``inflate``: scaled up while the innovations show them
-    too small, never below the declared."""
+    enabled: bool = False
+    """Inflate the declared covariances while the innovations show them too small, never below what was declared
+    (``--adapt-noise``); False (default): the declared covariances as given."""
     memory: float = 100.0
     """Updates the statistics remember (forgetting factor ``1 - 1/memory``)."""
     threshold: float = 3.0
@@ -25,12 +22,5 @@ class AdaptationConfig:
     """Largest covariance scale (a sigma 10x the declared)."""
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise ValueError(f"adapt_noise must be one of {', '.join(MODES)}")
         if not (self.memory >= 1.0 and self.threshold >= 0.0 and 0.0 < self.gain <= 1.0 and self.max_scale >= 1.0):
             raise ValueError("adaptation: memory >= 1, threshold >= 0, 0 < gain <= 1, max_scale >= 1")
-
-    @property
-    def enabled(self) -> bool:
-        """Whether the estimator adapts at all."""
-        return self.mode != "off"
