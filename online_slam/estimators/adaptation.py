@@ -99,18 +99,25 @@ def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> No
             scales[i] = min(config.max_scale, max(1.0, scales[i] * math.exp(step)))
     # The remembered updates were judged under the scales before: what they say of the new ones is their estimate
     # over the change (without this the scales wind up past the truth while the memory lags).
-    state.quadratic = info @ (estimate * before / scales)
+    now = estimate * before / scales
+    state.quadratic = info @ now
     state.odometry_scale, state.sensor_scale = float(scales[0]), float(scales[1])
     if state.updates >= WORKING_AFTER:
-        state.working = np.clip(estimate * before / scales, *WORKING_RANGE)
+        state.working = np.clip(now, *WORKING_RANGE)
 
 
 def update_adaptation(state: Adaptation, S: Array, R: Array, y: Array, config: AdaptationConfig) -> None:
     """Fold an EKF update in: innovations y (a, 2) with covariance S (2a, 2a), R (a, 2, 2) of it the sightings'."""
-    B = np.zeros_like(S)
-    a = len(R)
-    B.reshape(a, 2, a, 2)[np.arange(a), :, np.arange(a), :] = R
+    B = _block_diagonal(R)
     adapt(state, *innovation_statistics(y.reshape(-1), S - B, B, state.working), config)
+
+
+def _block_diagonal(R: Array) -> Array:
+    """``blockdiag(R)`` of k 2x2 blocks ``R`` (k, 2, 2), shape (2k, 2k)."""
+    k = len(R)
+    B = np.zeros((2 * k, 2 * k))
+    B.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] = R
+    return B
 
 
 def sighting_statistics(
@@ -140,13 +147,13 @@ def sighting_statistics(
     keep = np.repeat(nis <= gate, 2)
     if not keep.any():
         return np.zeros((2, 2)), np.zeros(2)
-    B = np.zeros_like(A)
-    B.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] = R
+    B = _block_diagonal(R)
     return innovation_statistics(y.reshape(-1)[keep], A[np.ix_(keep, keep)], B[np.ix_(keep, keep)], working)
 
 
 def scaled(step: Step, state: Adaptation) -> Step:
-    """The step with its odometry and sightings' covariances times the adapted scales."""
+    """The step with its odometry and sightings' covariances times the adapted scales (itself while both are 1:
+    always, when not adapting)."""
     if state.odometry_scale == 1.0 and state.sensor_scale == 1.0:
         return step
     odometry_cov = None if step.odometry_cov is None else step.odometry_cov * state.odometry_scale

@@ -55,7 +55,7 @@ from threadpoolctl import ThreadpoolController
 from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
-from online_slam.estimators.adaptation import adapted_info, update_adaptation
+from online_slam.estimators.adaptation import adapted_info, scaled, update_adaptation
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_fixes import AbsoluteFixes
 from online_slam.estimators.ekf_map import PriorMap
@@ -415,11 +415,12 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
     def step(self, step: Step) -> Snapshot:
         """Predict with the step's odometry, update with its observations, add new landmarks."""
         with self.single_threaded():
-            return self._step(step)
+            return self._step(scaled(step, self.state.adaptation))
 
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: update with its observations ``start:`` (no prediction)."""
         with self.single_threaded():
+            step = scaled(step, self.state.adaptation)
             self._observe(step, start)
             self._fix(step, self.state.fixes_used)
             return self.snapshot(step)
@@ -442,10 +443,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             self._activate(step.robot)
             self._moved_on()
             self.state.history.append(self.x[:3, 0])  # the previous pose is complete
-            odometry_cov = step.odometry_cov
-            if odometry_cov is not None and self.config.adaptation.enabled:
-                odometry_cov = odometry_cov * self.state.adaptation.odometry_scale
-            self.predict(step.odometry, odometry_cov)
+            self.predict(step.odometry, step.odometry_cov)
         self.state.robot_steps[0], self.state.robot_times[0] = step.index, step.t
         self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
@@ -459,8 +457,6 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
         ids: tuple[LandmarkId | None, ...] | list[LandmarkId | None]  # as given, or as associated
         ids, z_all, R_all, m_all = step.landmarks[start:], step.z[start:], step.z_cov[start:], step.z_model[start:]
-        if self.config.adaptation.enabled:
-            R_all = R_all * self.state.adaptation.sensor_scale
         k = len(ids)
         if self.book.needs(ids):
             ids = self._associate(step.index, ids, z_all, R_all, m_all)

@@ -144,8 +144,7 @@ class SlidingWindowSmoother(SeveralRobots):
         """Add the step; solve every K steps; marginalize beyond the window; relinearize globally on schedule."""
         with self._blas.limit(limits=1, user_api="blas"):
             w = self.window
-            if self.config.adaptation.enabled:
-                step = scaled(step, self.state.adaptation)
+            step = scaled(step, self.state.adaptation)
             w.add_pose(step)
             step, _ = self._resolve(step, 0)
             self._adapt(step, 0)
@@ -174,8 +173,7 @@ class SlidingWindowSmoother(SeveralRobots):
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
         with self._blas.limit(limits=1, user_api="blas"):
-            if self.config.adaptation.enabled:
-                step = scaled(step, self.state.adaptation)
+            step = scaled(step, self.state.adaptation)
             step, start = self._resolve(step, start)
             self._adapt(step, start)
             self.window.add_sightings(step, start)
