@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
@@ -24,11 +25,12 @@ from numpy.typing import NDArray
 
 from online_slam.compare_config import CompareConfig
 from online_slam.errors import InputError, OnlineSlamError
+from online_slam.estimators.ideal_ekf import IdealEkf
 from online_slam.estimators.protocol import Estimate
 from online_slam.evaluation.metrics import apply_transform
 from online_slam.evaluation.results import Results, Row, Series
 from online_slam.evaluation.scoring import evaluate, nees_bounds, online_figures, share_in_bounds
-from online_slam.frontend.steps import FrontEnd, GroundTruth
+from online_slam.frontend.steps import FrontEnd, GroundTruth, Step
 from online_slam.geometry.angles import wrap
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sinks.protocol import ReplaySink
@@ -181,18 +183,40 @@ def run_errors(results: Results) -> dict[str, RunErrors]:
 def peer_errors(peer: str, events: Iterable[Event], config: ReplayConfig, results: Results) -> RunErrors:
     """A peer (:data:`PEERS`) on the events ``results`` came from, through the same front-end, scored as they
     were (their truth and alignment); no landmark NEES (None)."""
-    from online_slam import gtsam_peer
-
     steps = list(FrontEnd(config.frontend).steps(events))
     if len({s.robot for s in steps}) > 1:
         raise OnlineSlamError(f"peer {peer}: takes one robot, and the stream has several")
-    run = gtsam_peer.isam2_online(steps, covariances=True, qr=True)
     truth = _truth(results)
-    final = Estimate(peer, run.final_poses, (), np.zeros((0, 2)))
+    if peer == "ideal":
+        poses, covariances, seconds, final = _ideal_ekf(steps, truth, config)
+    else:
+        from online_slam import gtsam_peer
+
+        run = gtsam_peer.isam2_online(steps, covariances=True, qr=True)
+        assert run.covariances is not None  # asked for
+        poses, covariances, seconds = run.poses, list(run.covariances), run.step_s
+        final = Estimate(peer, run.final_poses, (), np.zeros((0, 2)))
     times, nis = np.array([s.t for s in steps]), np.full(len(steps), np.nan)
-    assert run.covariances is not None  # asked for
-    figures = online_figures(final, run.poses, list(run.covariances), times, nis, run.step_s, truth, results.alignment)
+    figures = online_figures(final, poses, covariances, times, nis, seconds, truth, results.alignment)
     return _errors(peer, figures.series, final, truth, results.alignment)
+
+
+def _ideal_ekf(
+    steps: list[Step], truth: GroundTruth, config: ReplayConfig
+) -> tuple[Array, list[Array | None], Array, Estimate]:
+    """The truth-linearized EKF (:class:`~online_slam.estimators.ideal_ekf.IdealEkf`, the replay's EKF settings)
+    on the steps: (newest pose after each step (N, 3), its covariance, seconds per step (N,), final estimate)."""
+    ekf = IdealEkf(truth, config.ekf)
+    snapshots = []
+    seconds = np.zeros(len(steps))
+    for k, step in enumerate(steps):
+        began = time.perf_counter()
+        snapshots.append(ekf.step(step))
+        seconds[k] = time.perf_counter() - began
+    poses = np.array([s.pose for s in snapshots])
+    last = snapshots[-1]
+    final = Estimate("ideal", poses, last.landmark_ids, last.landmarks, landmark_covs=last.landmark_covs)
+    return poses, [s.pose_cov for s in snapshots], seconds, final
 
 
 def _truth(results: Results) -> GroundTruth:
@@ -249,7 +273,7 @@ def compare(
         The comparison (table rows, per-step series through ``results``, Monte Carlo figures).
     """
     cfg = config or CompareConfig()  # validated when made (windows, periods, runs, workers >= 1, peers)
-    if cfg.peers and importlib.util.find_spec("gtsam") is None:
+    if "isam2" in cfg.peers and importlib.util.find_spec("gtsam") is None:
         raise OnlineSlamError(f"peer {cfg.peers[0]}: GTSAM is not installed (pip install 'online-slam[peers]')")
     one_replay = replay_config(cfg)
     results = replay(source, one_replay, on_skip=on_skip, sinks=sinks)

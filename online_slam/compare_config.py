@@ -8,10 +8,11 @@ from dataclasses import dataclass, field
 from online_slam.estimators.smoother.config import SmootherConfig, WindowConfig
 from online_slam.pipeline.config import ReplayConfig
 
-PEERS = ("isam2",)
+PEERS = ("isam2", "ideal")
 """Peers Monte Carlo can run beside the estimators: ``isam2``, GTSAM's iSAM2 (full smoothing, relinearized
 incrementally; :func:`~online_slam.gtsam_peer.isam2_online`, factorized by QR), each step reading the newest pose
-and its ``marginalCovariance``."""
+and its ``marginalCovariance``; ``ideal``, the EKF with every Jacobian at the true state
+(:class:`~online_slam.estimators.ideal_ekf.IdealEkf`: the yardstick of consistency, simulated worlds only)."""
 
 
 @dataclass(frozen=True)

@@ -368,8 +368,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            metavar="N", unset="all cores", commands=("compare", "sweep")),
     Option("scheduler", "a running Dask scheduler, e.g. tcp://host:8786", "runs", ("cli",), metavar="ADDRESS",
            unset="a local cluster", commands=("sweep",)),
-    Option("peer", "with --runs: also run GTSAM's iSAM2 on every run's stream (the 'peers' extra) and report its "
-           "ANEES (newest pose's marginalCovariance), share in band and RMSE beside the estimators'", "runs",
+    Option("peer", "with --runs: also run on every run's stream, and report beside the estimators' ANEES, share in "
+           "band and RMSE: isam2, GTSAM's iSAM2 (the 'peers' extra; newest pose's marginalCovariance); ideal, the EKF "
+           "with every Jacobian at the true state (consistency's yardstick); a comma-separated list for both", "runs",
            ("cli",), choices=CHOICES["peer"], unset="none", commands=("compare",)),
 )}  # fmt: skip
 """Every option, by name, grouped by concern."""

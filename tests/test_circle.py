@@ -246,3 +246,54 @@ def test_our_standard_ekf_equals_an_independent_port_of_esdes_on_the_same_draws(
     port = run(range(100, 103))
     assert port.anees == pytest.approx(ours, rel=1e-3) and port.band == pytest.approx((low, high))
     assert run(range(100, 103), jacobians_at="truth").anees < 0.6 * ours  # the standard EKF's overconfidence
+
+
+def _noise_free_circle() -> list[object]:
+    """The circle world with every odometry increment and sighting exactly true (its noise declared as usual)."""
+    from dataclasses import replace
+
+    from online_slam.geometry.se2 import between, rotation
+
+    events = list(circle_world(CircleConfig(poses=60)))
+    truth = {e.t: np.array(e.pose) for e in events if isinstance(e, Truth)}
+    landmarks = {e.landmark: np.array(e.position) for e in events if isinstance(e, LandmarkTruth)}
+    times = sorted(truth)
+    previous = {t: truth[times[k - 1]] for k, t in enumerate(times) if k}
+    exact: list[object] = []
+    for e in events:
+        if isinstance(e, Odometry):
+            e = replace(e, delta=tuple(between(previous[e.t], truth[e.t])))
+        elif isinstance(e, Observation):
+            pose = truth[e.t]
+            e = replace(e, xy=tuple(rotation(pose[2]).T @ (landmarks[e.landmark] - pose[:2])))
+        exact.append(e)
+    return exact
+
+
+def test_the_ideal_ekf_is_the_ekf_where_the_estimate_is_the_truth() -> None:
+    """Noise-free data keep the estimate at the truth, so Jacobians at the truth are the EKF's own: the same
+    covariances to 1e-9; on noisy data they differ."""
+    from online_slam.estimators.ideal_ekf import IdealEkf
+
+    for events, same in ((_noise_free_circle(), True), (list(circle_world(CircleConfig(poses=60))), False)):
+        front = FrontEnd()
+        steps = list(front.steps(events))
+        ekf, ideal = EkfSlam(EkfConfig(linearization="standard")), IdealEkf(front.truth)
+        gaps = []
+        for step in steps:
+            a, b = ekf.step(step), ideal.step(step)
+            gaps.append(np.abs(a.pose_cov - b.pose_cov).max())
+        assert (max(gaps) < 1e-9) == same, max(gaps)
+    assert np.abs(b.pose - front.truth.poses[steps[-1].index]).max() < 1.0
+
+
+def test_the_ideal_ekf_refuses_a_stream_without_truth() -> None:
+    from online_slam.errors import OnlineSlamError
+    from online_slam.estimators.ideal_ekf import IdealEkf
+    from online_slam.frontend.pose import GroundTruth
+
+    steps = list(FrontEnd().steps(circle_world(CircleConfig(poses=5))))
+    ideal = IdealEkf(GroundTruth())
+    ideal.step(steps[0])
+    with pytest.raises(OnlineSlamError, match="ideal EKF: no true pose for step"):
+        ideal.step(steps[1])

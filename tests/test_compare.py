@@ -142,15 +142,17 @@ def test_isam2_reports_the_newest_poses_covariance_in_world_axes() -> None:
 
 
 @pytest.mark.slow
-def test_monte_carlo_puts_isam2_beside_the_estimators(tmp_path: Path) -> None:
+def test_monte_carlo_puts_isam2_and_the_ideal_ekf_beside_the_estimators(tmp_path: Path) -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
     out, png = tmp_path / "mc.json", tmp_path / "mc.png"
-    done = cli("compare", "circle", "--runs", "2", "--estimators", "ekf", "--peer", "isam2", "--json", str(out),
+    done = cli("compare", "circle", "--runs", "2", "--estimators", "ekf", "--peer", "isam2,ideal", "--json", str(out),
                "--plot", str(png))  # fmt: skip
     assert done.returncode == 0, done.stderr
-    assert png.stat().st_size > 0  # the peer drawn in the NEES panel, in the legend
+    assert png.stat().st_size > 0  # the peers drawn in the NEES panel, in the legend
     mc = json.loads(out.read_text())["monte_carlo"]
-    assert set(mc["anees"]) == {"ekf", "isam2"} and "isam2" not in mc["mean"]  # no table row: figures over steps
+    assert set(mc["anees"]) == {"ekf", "isam2", "ideal"} and "isam2" not in mc["mean"]  # no row: figures over steps
+    assert 1.0 < mc["anees"]["ideal"] < 10.0 and mc["landmark_anees"]["ideal"] > 0.5  # the ideal EKF has a map
+    assert abs(mc["position_rmse_m"]["ideal"] - mc["position_rmse_m"]["ekf"]) < 0.05
     assert 1.0 < mc["anees"]["isam2"] < 10.0 and 0.0 < mc["position_rmse_m"]["isam2"] < 1.0
     assert mc["landmark_anees"]["isam2"] is None and len(mc["anees_per_step"]["isam2"]) == 400
     assert re.search(r"^\s+isam2\s+\d+\.\d\d\s+\w+\s+\d+%\s+-\s+\d\.\d{4}", done.stdout, flags=re.M)

@@ -10,7 +10,7 @@ from online_slam import options
 from online_slam.cli.replay import check_outputs, report_skip, sinks_from, write_json
 from online_slam.errors import OnlineSlamError
 
-GRID = ("window", "relinearize_every")
+GRID = ("window", "relinearize_every", "peer")
 """Options compare takes as lists: one smoother per (W, K)."""
 
 
@@ -22,7 +22,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Run the estimators (--estimators: by default the EKF, every smoother (W, K) and the batch "
         "solver) on the same stream; print one table. "
         "With --runs N (simulated worlds), Monte Carlo over N noise seeds: ANEES, share of steps in its 95% band, "
-        "RMSE per online estimator, and with --peer isam2 GTSAM's iSAM2 beside them.",
+        "RMSE per online estimator, and with --peer isam2 GTSAM's iSAM2 beside them (--peer ideal: the EKF "
+        "linearized at the truth).",
     )
     options.add_options(p, "compare", lists=GRID)
 
@@ -45,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
             replay=replace(base, estimators=names),
             runs=args.runs,
             workers=args.workers,
-            peers=(args.peer,) if args.peer else (),
+            peers=tuple(args.peer or ()),
         )
     except ValueError as exc:
         raise OnlineSlamError(f"compare: {exc}") from None
