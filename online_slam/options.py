@@ -40,6 +40,7 @@ ADVANCED = frozenset({
     "align", "first_observation_only", "keyframe_angle", "keyframe_time", "max_iterations", "gate_probability",
     "gate_persistence", "ekf_update", "ekf_linearization", "window_distance", "window_max", "relinearize_every",
     "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "convention",
+    "pose_covariance",
 })  # fmt: skip
 """The research knobs, by option name: what a user seldom sets. ``--help`` leaves them out, ``--help-all`` shows
 them and docs/options.md marks them."""
@@ -71,6 +72,7 @@ CHOICE_HOMES = {
     "ekf_linearization": ("online_slam.estimators.ekf_config", "LINEARIZATIONS"),
     "smoother_linearization": ("online_slam.estimators.smoother.config", "LINEARIZATIONS"),
     "peer": ("online_slam.compare_config", "PEERS"),
+    "pose_covariance": ("online_slam.estimators.ekf_config", "POSE_COVARIANCES"),
 }
 """Where the choices of an option are defined: (module, name)."""
 CHOICES: dict[str, tuple[str, ...]] = {
@@ -281,6 +283,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "invariant are consistent on esde's circle protocol. fej and oc take one robot; invariant's updates "
                "are standard from a second robot's start on", "EKF", "ekf", ("EkfConfig", "linearization"),
                choices=CHOICES["ekf_linearization"], lands=("ekf.linearization",)),
+    Option("pose_covariance", "EKF and smoother: how the newest pose's covariance is reported (NEES, recordings, "
+           "--emit, Slam): curved, the second moment of the belief read as an arc about the pivot its heading "
+           "correlation implies; linear, as linearized. The estimates are the same", "estimators",
+           ("ekf", "smoother"), field=("EkfConfig", "pose_covariance"), choices=CHOICES["pose_covariance"],
+           lands=("ekf.pose_covariance", "smoother.pose_covariance")),
     Option("adapt_noise", "EKF and smoother: inflate the declared odometry and sensor covariances while their "
            "innovations show them too small for a sustained stretch (never below what was declared)", "estimators",
            ("ekf", "smoother"), kind=bool, field=("AdaptationConfig", "enabled"),

@@ -74,7 +74,7 @@ def test_bad_scales_are_refused(bad: float) -> None:
 
 
 def test_slam_takes_the_scales() -> None:
-    slam = Slam("ekf", odometry_noise_scale=4.0)
+    slam = Slam("ekf", odometry_noise_scale=4.0, pose_covariance="linear")
     slam.start(0.0, [0.0, 0.0, 0.0])
     slam.add_odometry(1.0, [1.0, 0.0, 0.0], sigma=[0.1, 0.1, 0.01])
     assert slam.estimate().pose_cov[0, 0] == pytest.approx(4.0 * 0.01, rel=1e-12)

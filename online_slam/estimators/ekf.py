@@ -72,6 +72,7 @@ from online_slam.estimators.linearization import (
 )
 from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.frontend.steps import Step
+from online_slam.geometry.pose_moments import reported
 from online_slam.geometry.se2 import compose_with_jacobians
 from online_slam.models.observation import (
     RANGE_BEARING,
@@ -545,7 +546,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             index=step.index,
             t=step.t,
             pose=self.x[:3, 0].copy(),
-            pose_cov=self.P[:3, :3].copy(),
+            pose_cov=reported(self.P[:3, :3], self.config.pose_covariance),
             landmark_ids=ids,
             landmarks=landmarks,
             landmark_covs=covs,

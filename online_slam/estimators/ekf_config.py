@@ -9,6 +9,8 @@ from online_slam.estimators.association_config import AssociationConfig
 
 LINEARIZATIONS = ("standard", "fej", "oc", "invariant")
 """Where the EKF evaluates its Jacobians (see the module docstring)."""
+POSE_COVARIANCES = ("curved", "linear")
+"""How the EKF and the smoother report their newest pose's covariance (:attr:`EkfConfig.pose_covariance`)."""
 
 
 @dataclass(frozen=True)
@@ -41,6 +43,11 @@ class EkfConfig:
     association: AssociationConfig = field(default_factory=AssociationConfig)
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     filter's own mean and covariance (with tentative landmarks)."""
+    pose_covariance: str = "curved"
+    """How the newest pose's covariance is reported (snapshots: NEES, recordings, ``--emit``, ``Slam``):
+    ``curved``, the second moment of the belief read as an arc about the pivot its heading correlation implies
+    (:mod:`~online_slam.geometry.pose_moments`); ``linear``, the covariance as linearized. The estimate, and
+    the covariance the estimator works with, are the same either way."""
 
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
     """Inflate the declared odometry and sensor covariances when the innovations show a sustained mismatch
@@ -55,3 +62,5 @@ class EkfConfig:
             raise ValueError("update must be 'joint' or 'sequential'")
         if self.linearization not in LINEARIZATIONS:
             raise ValueError(f"linearization must be one of {', '.join(LINEARIZATIONS)}")
+        if self.pose_covariance not in POSE_COVARIANCES:
+            raise ValueError(f"pose_covariance must be one of {', '.join(POSE_COVARIANCES)}")

@@ -18,10 +18,12 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_state import EkfState, WaitingSighting
 from online_slam.factors.graph import robot_sighting_residual_with_jacobians
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
+from online_slam.geometry.pose_moments import reported
 from online_slam.sources.events import RobotId
 
 Array = NDArray[np.float64]
@@ -37,6 +39,7 @@ class SeveralRobots:
 
     several_robots = True
     state: EkfState
+    config: EkfConfig
     x: Array
     P: Array
     _gate: float
@@ -97,11 +100,11 @@ class SeveralRobots:
 
     def robot_poses(self) -> dict[RobotId | None, tuple[int, float, Array, Array]]:
         """Each robot's newest pose by robot: (its step index, its time, ``[x, y, theta]`` (3,), its covariance
-        (3, 3)), copies."""
+        (3, 3), as :attr:`~.EkfConfig.pose_covariance` says), copies."""
         out = {}
         for k, robot in enumerate(self.state.robots):
             block = slice(3 * k, 3 * k + 3)
-            pose, cov = self.x[block, 0].copy(), self.P[block, block].copy()
+            pose, cov = self.x[block, 0].copy(), reported(self.P[block, block], self.config.pose_covariance)
             out[robot] = (self.state.robot_steps[k], self.state.robot_times[k], pose, cov)
         return out
 

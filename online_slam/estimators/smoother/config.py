@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, replace
 
 from online_slam.estimators.adaptation_config import AdaptationConfig
 from online_slam.estimators.association_config import AssociationConfig
+from online_slam.estimators.ekf_config import POSE_COVARIANCES
 from online_slam.factors.robust import RobustLoss, outlier_threshold
 from online_slam.solvers.config import SolverConfig
 
@@ -139,6 +140,11 @@ class SmootherConfig:
     """How sightings are paired with landmarks: the stream's ids, or nearest neighbour / JCBB against the
     smoother's own belief (the window's information from the last solve, carried to the newest pose; the prior
     for landmarks the window does not see), with tentative landmarks. Associations are not revised later."""
+    pose_covariance: str = "curved"
+    """How the newest pose's covariance is reported (snapshots: NEES, recordings, ``--emit``, ``Slam``):
+    ``curved``, the second moment of the belief read as an arc about the pivot its heading correlation implies
+    (:mod:`~online_slam.geometry.pose_moments`); ``linear``, the covariance as linearized. The estimate, and
+    the covariance the estimator works with, are the same either way."""
 
     adaptation: AdaptationConfig = field(default_factory=AdaptationConfig)
     """Inflate the declared odometry and sensor covariances of new steps when the newest pose's predicted
@@ -149,6 +155,8 @@ class SmootherConfig:
             raise ValueError("relinearize_every must be >= 1")
         if self.linearization not in LINEARIZATIONS:
             raise ValueError(f"smoother linearization must be one of {', '.join(LINEARIZATIONS)}")
+        if self.pose_covariance not in POSE_COVARIANCES:
+            raise ValueError(f"pose_covariance must be one of {', '.join(POSE_COVARIANCES)}")
 
     @property
     def carried(self) -> bool:

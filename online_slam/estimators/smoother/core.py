@@ -60,6 +60,7 @@ from online_slam.estimators.smoother.window import (
 from online_slam.factors.graph import FactorGraph, observation_chi2
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
+from online_slam.geometry.pose_moments import reported
 from online_slam.solvers.least_squares import SolveResult
 from online_slam.sources.events import LandmarkId
 from online_slam.sources.landmark_map import LandmarkMap
@@ -215,7 +216,7 @@ class SlidingWindowSmoother(SeveralRobots):
             index=step.index,
             t=step.t,
             pose=w.poses[w.indices[-1]].copy(),
-            pose_cov=w.pose_cov.copy(),
+            pose_cov=reported(w.pose_cov, self.config.pose_covariance),
             landmark_ids=tuple(w.landmark_ids),
             landmarks=w.landmarks.copy(),
             info={

@@ -15,6 +15,7 @@ from online_slam.estimators.smoother.prior import Prior, RobotFold, Sightings, i
 from online_slam.estimators.smoother.state import SmootherState
 from online_slam.factors.graph import robot_sighting_residual_with_jacobians, sqrt_information
 from online_slam.geometry.angles import wrap
+from online_slam.geometry.pose_moments import reported
 from online_slam.sources.events import RobotId
 
 Array = NDArray[np.float64]
@@ -69,13 +70,13 @@ class SeveralRobots:
     def robot_poses(self) -> dict[RobotId | None, tuple[int, float, Array, Array]]:
         """Each robot's newest pose by robot: (its step index, its time, ``[x, y, theta]`` (3,), its covariance (3, 3)),
         copies. The covariance is the window's newest pose's for that pose, otherwise as it was when the robot's
-        pose stopped being the window's newest."""
+        pose stopped being the window's newest (reported as :attr:`~.SmootherConfig.pose_covariance` says)."""
         w = self.state.window
         out = {}
         for robot, t in zip(w.robots, w.robot_times):
             g = w.newest(robot)
             cov = w.pose_cov if g == w.indices[-1] else w.robot_cov.get(g, w.pose_cov)
-            out[robot] = (g, t, w.poses[g].copy(), np.array(cov, dtype=float))
+            out[robot] = (g, t, w.poses[g].copy(), reported(cov, self.config.pose_covariance))
         return out
 
     def _link_robot_sightings(self, final: bool = False) -> None:
