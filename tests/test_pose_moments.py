@@ -101,3 +101,32 @@ def test_estimators_report_it_and_estimate_the_same_either_way() -> None:
         assert not np.allclose(sa.pose_cov, sb.pose_cov, rtol=1e-3, atol=0.0)
     with pytest.raises(ValueError, match="pose_covariance"):
         replace(base.ekf, pose_covariance="banana")
+
+
+def _by_quadrature(P: np.ndarray, nodes: int = 40) -> np.ndarray:
+    """The same moment by Gauss-Hermite quadrature over the heading error (exact in v)."""
+    s2 = P[2, 2]
+    w = P[:2, 2] / s2
+    lever = np.array([w[1], -w[0]])
+    S = P[:2, :2] - s2 * np.outer(w, w)
+    x, weights = np.polynomial.hermite.hermgauss(nodes)
+    M = np.zeros((3, 3))
+    for a, q in zip(np.sqrt(2.0 * s2) * x, weights / np.sqrt(np.pi)):
+        c, s = np.cos(a), np.sin(a)
+        V = np.array([[s / a, -(1 - c) / a], [(1 - c) / a, s / a]])
+        turn = np.array([[c - 1, -s], [s, c - 1]]) @ lever
+        M[:2, :2] += q * (np.outer(turn, turn) + V @ S @ V.T)
+        M[:2, 2] += q * a * turn
+        M[2, 2] += q * a * a
+    M[2, :2] = M[:2, 2]
+    return M
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(1e-3, 1.5))
+def test_the_closed_form_is_the_quadrature(seed: int, sigma: float) -> None:
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(3, 3))
+    P = A @ A.T + 1e-3 * np.eye(3)
+    P = P * (sigma**2 / P[2, 2]) ** np.array([[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.5, 0.5, 1.0]])
+    assert curved_covariance(P) == pytest.approx(_by_quadrature(P), rel=1e-9, abs=1e-10 * np.abs(P).max())

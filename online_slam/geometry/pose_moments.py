@@ -15,20 +15,47 @@ variance along the lever, which matters where a thin position covariance meets a
 from its pivot (esde's circle world; the figures are in benchmarks/RESULTS.md, "Curved pose covariances").
 The pivot comes from ``P`` itself, so the result does not depend on the frame's origin.
 
-The expectation over ``a`` is a Gauss-Hermite rule (:data:`NODES` nodes; exact for ``v``, which enters linearly).
+Its expectations over ``a`` have closed forms (``E[cos a] = exp(-sigma^2 / 2)``, and ``E[(1 - cos a) / a^2]`` through
+``erf``); ``v`` enters linearly.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
 
-NODES = 12
-"""Gauss-Hermite nodes of the expectation over the heading error (the arc's moments to ~1e-12 for sigma <= 1)."""
-_X, _W = np.polynomial.hermite.hermgauss(NODES)
-_W = _W / np.sqrt(np.pi)
+
+def _g(sigma: float) -> float:
+    """``E[(1 - cos a) / a^2]`` for ``a ~ N(0, sigma^2)``: ``int_0^1 (1 - t) exp(-t^2 sigma^2 / 2) dt``."""
+    return math.sqrt(math.pi / 2.0) / sigma * math.erf(sigma / math.sqrt(2.0)) + math.expm1(-0.5 * sigma**2) / sigma**2
+
+
+def _curved(P: Array) -> Array:
+    """:func:`curved_covariance` of one (3, 3) covariance with a positive heading variance (closed form)."""
+    s2 = float(P[2, 2])
+    s = math.sqrt(s2)
+    wx, wy = float(P[0, 2]) / s2, float(P[1, 2]) / s2
+    lx, ly = wy, -wx  # the lever l, J l = w
+    sxx, sxy, syy = P[0, 0] - s2 * wx * wx, P[0, 1] - s2 * wx * wy, P[1, 1] - s2 * wy * wy  # S
+    c1, c2 = math.exp(-0.5 * s2), math.exp(-2.0 * s2)  # E[cos a], E[cos 2a]
+    g1, g2 = _g(s), _g(2.0 * s)
+    # In complex numbers: (R(a) - I) l = (e^ia - 1) l and V(a) v = nu(a) v with nu = (e^ia - 1) / (i a); a 2x2
+    # second moment is |z|^2 / 2 I plus the traceless part of z^2 / 2 (and likewise for nu S nu^*).
+    iso = (1.0 - c1) * (lx * lx + ly * ly) + g1 * (sxx + syy)  # E|e^ia - 1|^2 = 2 - 2 c1, E|nu|^2 = 2 g1
+    turn2, nu2 = c2 - 2.0 * c1 + 1.0, 4.0 * g2 - 2.0 * g1  # E[(e^ia - 1)^2], E[nu^2] (both real)
+    dr = 0.5 * turn2 * (lx * lx - ly * ly) + nu2 * 0.5 * (sxx - syy)
+    di = turn2 * lx * ly + nu2 * sxy
+    return np.array(
+        [
+            [iso + dr, di, s2 * c1 * wx],  # E[a (e^ia - 1)] l = i sigma^2 c1 l = sigma^2 c1 w
+            [di, iso - dr, s2 * c1 * wy],
+            [s2 * c1 * wx, s2 * c1 * wy, s2],
+        ]
+    )
 
 
 def curved_covariance(cov: ArrayLike) -> Array:
@@ -38,40 +65,15 @@ def curved_covariance(cov: ArrayLike) -> Array:
         cov: Pose covariances ``[x, y, theta]``, shape (..., 3, 3), symmetric positive semi-definite.
 
     Returns:
-        Their curved second moments, shape (..., 3, 3): the same heading variance and heading-position
-        covariance to first order, more position variance along the lever. A heading variance of 0 (or not
-        finite covariances) returns ``cov`` unchanged.
+        Their curved second moments, shape (..., 3, 3): the same heading variance, the heading-position
+        covariance times ``exp(-sigma^2 / 2)``, position variance added along the lever and a relative ``sigma^2``
+        taken across it. A heading variance of 0 (or a covariance not finite) is returned unchanged.
     """
     P = np.array(cov, dtype=float)
-    var = P[..., 2, 2]
-    ok = np.isfinite(P).all(axis=(-2, -1)) & (var > 1e-18)
-    if not ok.any():
-        return P
-    Q = P[ok]
-    s2 = Q[:, 2, 2]
-    w = Q[:, :2, 2] / s2[:, None]  # position per radian of heading, (k, 2)
-    lever = np.stack([w[:, 1], -w[:, 0]], -1)  # l = p - c with J l = w
-    S = Q[:, :2, :2] - s2[:, None, None] * w[:, :, None] * w[:, None, :]
-    S = 0.5 * (S + S.transpose(0, 2, 1))
-    a = np.sqrt(2.0 * s2)[:, None] * _X[None, :]  # (k, n) heading errors at the nodes
-    c, s = np.cos(a), np.sin(a)
-    small = np.abs(a) < 1e-6
-    safe = np.where(small, 1.0, a)
-    v1 = np.where(small, 1.0 - a**2 / 6.0, s / safe)  # V(a) = [[v1, -v2], [v2, v1]]
-    v2 = np.where(small, a / 2.0, (1.0 - c) / safe)
-    # (R(a) - I) l, shape (k, n, 2)
-    turn = np.stack(
-        [(c - 1.0) * lever[:, None, 0] - s * lever[:, None, 1], s * lever[:, None, 0] + (c - 1.0) * lever[:, None, 1]],
-        -1,
-    )
-    V = np.stack([np.stack([v1, -v2], -1), np.stack([v2, v1], -1)], -2)  # (k, n, 2, 2)
-    moved = np.einsum("n,kni,knj->kij", _W, turn, turn) + np.einsum("n,knia,kab,knjb->kij", _W, V, S, V)
-    cross = np.einsum("n,kn,kni->ki", _W, a, turn)
-    M = np.empty_like(Q)
-    M[:, :2, :2] = 0.5 * (moved + moved.transpose(0, 2, 1))
-    M[:, :2, 2] = M[:, 2, :2] = cross
-    M[:, 2, 2] = s2
-    P[ok] = M
+    flat = P.reshape(-1, 3, 3)
+    for k in range(len(flat)):  # one per step in use; stacks are for analysis
+        if np.isfinite(flat[k]).all() and flat[k, 2, 2] > 1e-18:
+            flat[k] = _curved(flat[k])
     return P
 
 
