@@ -1,5 +1,5 @@
 """esde's Monte Carlo protocol (the ``circle`` world, and ``circle-rb`` with range-bearing sightings): the EKF with
-each linearization, the smoother and GTSAM's iSAM2 over the same seeds."""
+each linearization, the smoother, the EKF linearized at the truth and GTSAM's iSAM2 over the same seeds."""
 
 from __future__ import annotations
 
@@ -7,8 +7,7 @@ from dataclasses import dataclass, replace
 
 from online_slam import gtsam_peer
 from online_slam.compare import CompareConfig, MonteCarlo, compare
-from online_slam.estimators.ekf_config import EkfConfig
-from online_slam.estimators.linearization import LINEARIZATIONS
+from online_slam.estimators.ekf_config import LINEARIZATIONS, EkfConfig
 from online_slam.estimators.smoother import SmootherConfig
 from online_slam.pipeline import ReplayConfig
 
@@ -46,7 +45,8 @@ def run_circle(
     worlds: tuple[str, ...] = tuple(CIRCLE_WORLDS),
 ) -> tuple[tuple[float, float], list[CircleRow]]:
     """The EKF with every linearization, the default smoother, the smoother with First-Estimates Jacobians and
-    with the invariant prior, and iSAM2 (when GTSAM is installed) over seeds 0..runs-1 of each world.
+    with the invariant prior, the ideal EKF (Jacobians at the truth) and iSAM2 (when GTSAM is installed) over seeds
+    0..runs-1 of each world.
 
     Returns:
         (the 95% band of the ANEES for ``runs`` runs, one row per world and estimator).
@@ -59,8 +59,8 @@ def run_circle(
             config = CompareConfig(replay=replay, runs=runs, workers=workers)
             if not (smoother and first):
                 config = replace(config, windows=(), relinearize_every=())
-            if peer and first and gtsam_peer.available():
-                config = replace(config, peers=("isam2",))
+            if peer and first:  # the EKF linearized at the truth, and iSAM2 with GTSAM installed
+                config = replace(config, peers=("ideal", "isam2") if gtsam_peer.available() else ("ideal",))
             mc = compare(world, config).monte_carlo
             assert mc is not None
             band = mc.anees_bounds
