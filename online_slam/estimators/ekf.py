@@ -586,6 +586,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
                 **self._fix_info(),
                 "state_size": self.dim_x,
                 "linearization": self.config.linearization,
+                "pose_covariance": self.config.pose_covariance,
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),
                 **self.book.info(),
                 **self._robot_info(),

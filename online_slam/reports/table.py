@@ -180,7 +180,12 @@ def notes(results: Results) -> list[str]:
             several = ""
             if d["linearization"] == "invariant" and result.robots:
                 several = " (standard updates: several robots)" if name == "ekf" else " (re-centred: several robots)"
-            out.append(f"{name}: {d['linearization']} linearization{several}")
+            linear = (
+                ", pose covariance as linearized (--pose-covariance linear)"
+                if d.get("pose_covariance") == "linear"
+                else ""
+            )
+            out.append(f"{name}: {d['linearization']} linearization{several}{linear}")
         if d.get("global_failures"):
             failures = d["global_failures"]
             out.append(f"{name}: {counted(len(failures), 'background global solve')} failed, results kept without "

@@ -271,6 +271,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
                 "linearization": self.config.linearization,
+                "pose_covariance": self.config.pose_covariance,
                 "final_solve_s": time.perf_counter() - started,
                 **self.association.book.info(),
             },
