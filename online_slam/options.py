@@ -40,7 +40,7 @@ ADVANCED = frozenset({
     "align", "first_observation_only", "keyframe_angle", "keyframe_time", "max_iterations", "gate_probability",
     "gate_persistence", "ekf_update", "ekf_linearization", "window_distance", "window_max", "relinearize_every",
     "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "convention",
-    "pose_covariance", "ambiguity",
+    "pose_covariance",
 })  # fmt: skip
 """The research knobs, by option name: what a user seldom sets. ``--help`` leaves them out, ``--help-all`` shows
 them and docs/options.md marks them."""
@@ -329,10 +329,6 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "landmark at this density (0 = off)", "association", "association",
                ("AssociationConfig", "new_density"), metavar="D", unit="per m^2",
                lands=("ekf.association.new_density", "smoother.association.new_density")),
-    _estimator("ambiguity", "nn/jcbb: hold back a pairing (its sighting unused) when another landmark in the gate "
-               "explains the sighting at least this fraction as likely (0 = off)", "association", "association",
-               ("AssociationConfig", "ambiguity"), metavar="F",
-               lands=("ekf.association.ambiguity", "smoother.association.ambiguity")),
     # -- outliers -------------------------------------------------------------------------------------------
     Option("robust", "smoother and batch: auto (Cauchy tail beyond 5.3 sigmas in the window, batch robust pass "
            "when residuals show outliers), none (least squares), huber or cauchy (with --robust-scale)",

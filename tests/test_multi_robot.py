@@ -172,7 +172,16 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
     assert results.to_json()["odometry"]["robots"]["2"]["rmse_m"] == odometry.robots["2"].rmse_m
     ekf = results.estimators["ekf"]
     assert ekf.online_rmse_m < 0.1 and results.estimators["batch"].final_rmse_m < ekf.final_rmse_m
-    whole_run = ("gated", "landmarks_", "state_", "robot", "association", "outliers", "linearization", "pose_covariance")
+    whole_run = (
+        "gated",
+        "landmarks_",
+        "state_",
+        "robot",
+        "association",
+        "outliers",
+        "linearization",
+        "pose_covariance",
+    )
     assert set(ekf.robots["1"].to_json()) == {k for k in ekf.to_json() if not k.startswith(whole_run)}
 
 

@@ -33,10 +33,6 @@ class AssociationConfig:
     landmark (this density times the range; a position sighting's density is per unit area: this one); otherwise
     the sighting starts a new tentative landmark, however near a mapped one it lies. 0 (default): no such test
     (JCBB's pairing stands)."""
-    ambiguity: float = 0.0
-    """A pairing is held back (its sighting not used, and no new landmark made of it) when another landmark that
-    passes the individual gate explains the sighting at least this fraction as likely as the paired one (ratio of
-    their innovations' Gaussian densities). 0 (default): JCBB's pairing stands however close the runner-up."""
     reach: float = 2.0
     """Candidates: landmarks within the scan's longest range plus this margin (m) plus three sigmas of the
     pose's position and heading from the predicted pose."""
@@ -46,8 +42,6 @@ class AssociationConfig:
             raise ValueError(f"association must be one of {', '.join(ASSOCIATION_CHOICES)}, not {self.method!r}")
         if not 0.0 < self.gate_probability < 1.0 or not self.gate_probability <= self.new_probability < 1.0:
             raise ValueError("need 0 < gate_probability <= new_probability < 1")
-        if not 0.0 <= self.ambiguity <= 1.0:
-            raise ValueError("ambiguity must be in [0, 1]")
         if not 0.0 <= self.new_density < math.inf:
             raise ValueError("new_density must be finite and >= 0")
         if self.confirm < 1 or self.tentative_steps < 1:

@@ -224,8 +224,6 @@ class LandmarkBook(Checkpointed):
                 pairing = associate(self.config.scan_method, belief, z, R, self.config.gate_probability, model)
                 if self.config.new_density > 0.0:
                     pairing = self._likely(pairing, belief, z, R, model)
-                if self.config.ambiguity > 0.0:
-                    pairing = self._unambiguous(pairing, belief, z, R, model)
                 for i in np.flatnonzero(pairing.landmark >= 0):
                     lid = ids[int(candidates[pairing.landmark[i]])]
                     out[i] = labels[i] = lid
@@ -262,25 +260,6 @@ class LandmarkBook(Checkpointed):
         landmark = pairing.landmark.copy()
         landmark[paired[unlikely]] = -2
         self.unlikely += int(unlikely.sum())
-        return Association(landmark, pairing.joint_distance, pairing.distances)
-
-    def _unambiguous(
-        self, pairing: Association, belief: Belief, z: Array, R: Array, model: NDArray[np.int8]
-    ) -> Association:
-        """The pairing without pairs another gated landmark explains nearly as well (``ambiguity``): held (-3)."""
-        paired = np.flatnonzero(pairing.landmark >= 0)
-        if len(paired) == 0 or len(belief.landmarks) < 2:
-            return pairing
-        d2, log_l = individual_log_likelihoods(belief, z[paired], R[paired], model[paired])
-        rows = np.arange(len(paired))
-        own = log_l[rows, pairing.landmark[paired]]
-        rival = np.where(d2 <= self._gate, log_l, -np.inf)
-        rival[rows, pairing.landmark[paired]] = -np.inf
-        close = rival.max(axis=1) >= own + np.log(self.config.ambiguity)
-        if not close.any():
-            return pairing
-        landmark = pairing.landmark.copy()
-        landmark[paired[close]] = -3
         return Association(landmark, pairing.joint_distance, pairing.distances)
 
     def _seen_again(self, lid: LandmarkId, step_index: int) -> None:
