@@ -213,9 +213,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         Only the robot block and its cross-covariances change: ``P_rr = F P_rr F^T + G Q G^T``, ``P_rm = F P_rm``.
         """
         Q = self.state.Q if Q is None else np.asarray(Q, dtype=float)
-        pose, F, G = compose_with_jacobians(self.x[:3, 0], u)
-        if self.config.linearization in FIRST_ESTIMATES:  # at the poses as predicted: p_k+1|k - p_k|k-1, not - p_k|k
-            F[:2, 2] = heading_column(pose[:2], self.state.predicted[:2])
+        pose, F, G = self._motion(u)
         self.state.predicted = pose.copy()
         self.x[:3, 0] = pose
         P = self.P
@@ -225,6 +223,13 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         P[:3, :3] = 0.5 * (P_rr + P_rr.T)
         self.state.Q = Q
         self.Q[:3, :3] = Q
+
+    def _motion(self, u: Array) -> tuple[Array, Array, Array]:
+        """The pose moved by u (3,), and the prediction's ``F``, ``G`` (3, 3) (fej, oc: ``J (p_k+1|k - p_k|k-1)``)."""
+        pose, F, G = compose_with_jacobians(self.x[:3, 0], u)
+        if self.config.linearization in FIRST_ESTIMATES:  # at the poses as predicted, not p_k|k
+            F[:2, 2] = heading_column(pose[:2], self.state.predicted[:2])
+        return pose, F, G
 
     # -- landmarks -------------------------------------------------------------------------------
     def add_landmark(self, landmark: LandmarkId, z: Array, R: Array, model: int = RANGE_BEARING) -> None:

@@ -67,22 +67,12 @@ class IdealEkf(EkfSlam):
         self._before, self._at = self._at, step.index
         return super()._step(step)
 
-    def predict(self, u: Array, Q: Array | None = None) -> None:
-        """The EKF's prediction with ``F`` and ``G`` at the true poses: ``F[:2, 2] = J (p_k+1 - p_k)``."""
-        Q = self.state.Q if Q is None else np.asarray(Q, dtype=float)
+    def _motion(self, u: Array) -> tuple[Array, Array, Array]:
+        """The pose moved by u at the estimate; ``F`` and ``G`` at the true poses: ``F[:2, 2] = J (p_k+1 - p_k)``."""
         before, after = self._true_pose(self._before), self._true_pose(self._at)
         _, F, G = compose_with_jacobians(before, u)
         F[:2, 2] = heading_column(after[:2], before[:2])
-        pose, _, _ = compose_with_jacobians(self.x[:3, 0], u)
-        self.state.predicted = pose.copy()
-        self.x[:3, 0] = pose
-        P = self.P
-        P[:3, 3:] = F @ P[:3, 3:]
-        P[3:, :3] = P[:3, 3:].T
-        P_rr = F @ P[:3, :3] @ F.T + G @ Q @ G.T
-        P[:3, :3] = 0.5 * (P_rr + P_rr.T)
-        self.state.Q = Q
-        self.Q[:3, :3] = Q
+        return compose_with_jacobians(self.x[:3, 0], u)[0], F, G
 
     def add_landmark(self, landmark: Any, z: Array, R: Array, model: int = RANGE_BEARING) -> None:
         """The EKF's placement, its Jacobians at the true pose and landmark."""
