@@ -5,8 +5,8 @@ Monte Carlo (simulated worlds only) repeats the comparison over noise seeds on a
 average NEES across runs against its chi-square bounds. Its figures over steps follow Bar-Shalom, Li &
 Kirubarajan (2001, 5.4) and esde (Brossard et al. 2019): per step, the NEES averaged over runs (ANEES) and the
 error's root mean square over runs; then both averaged over the world's scored steps (:attr:`World.scored`).
-A peer (:data:`PEERS`: GTSAM's iSAM2, the ``peers`` extra) can run beside the estimators on every run's stream;
-its figures over steps join theirs.
+A peer (:data:`PEERS`: GTSAM's iSAM2, the ``peers`` extra; the EKF linearized at the truth) can run beside the
+estimators on every run's stream; its figures over steps join theirs.
 """
 
 from __future__ import annotations
@@ -182,7 +182,7 @@ def run_errors(results: Results) -> dict[str, RunErrors]:
 
 def peer_errors(peer: str, events: Iterable[Event], config: ReplayConfig, results: Results) -> RunErrors:
     """A peer (:data:`PEERS`) on the events ``results`` came from, through the same front-end, scored as they
-    were (their truth and alignment); no landmark NEES (None)."""
+    were (their truth and alignment); iSAM2 has no landmark NEES (None), the ideal EKF has."""
     steps = list(FrontEnd(config.frontend).steps(events))
     if len({s.robot for s in steps}) > 1:
         raise OnlineSlamError(f"peer {peer}: takes one robot, and the stream has several")
