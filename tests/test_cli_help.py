@@ -127,3 +127,12 @@ def test_format_is_refused_where_it_does_not_apply_or_fit() -> None:
 def test_a_misspelt_advanced_flag_points_to_help_all() -> None:
     line = one_error(cli("replay", "square", "--window-distanc", "3"))
     assert "did you mean --window-distance?" in line and "--help-all lists it" in line
+
+
+def test_a_bad_value_of_an_advanced_option_points_at_help_all() -> None:
+    """An advanced option is only in ``--help-all``: its errors say so; a plain option's say ``--help``."""
+    advanced = cli("compare", "circle", "--pose-covariance", "banana")
+    assert advanced.returncode == 2 and "Traceback" not in advanced.stderr
+    assert advanced.stderr.strip().endswith("see 'online-slam compare --help-all'"), advanced.stderr
+    plain = cli("replay", "--window", "x")
+    assert plain.returncode == 2 and plain.stderr.strip().endswith("see 'online-slam replay --help'"), plain.stderr

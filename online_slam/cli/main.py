@@ -43,8 +43,10 @@ class Parser(argparse.ArgumentParser):
         super().__init__(**{"allow_abbrev": False, **kwargs})
 
     def error(self, message: str) -> NoReturn:
-        """Print one line and exit 2."""
-        self.exit(2, f"{PREFIX} {message}; see '{self.prog} --help'\n")
+        """Print one line and exit 2 (pointing at ``--help-all`` when the option at fault is an advanced one)."""
+        flag = message.split(":", 1)[0].removeprefix("argument ")
+        advanced = flag.startswith("--") and flag[2:].replace("-", "_") in ADVANCED
+        self.exit(2, f"{PREFIX} {message}; see '{self.prog} {'--help-all' if advanced else '--help'}'\n")
 
     def _check_value(self, action: argparse.Action, value: Any) -> None:
         """Refuse a value out of the choices with the closest one named (commands: 'unknown command')."""
