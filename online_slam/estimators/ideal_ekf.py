@@ -55,11 +55,10 @@ class IdealEkf(EkfSlam):
             raise OnlineSlamError(f"ideal EKF: no true pose for step {index}")
         return np.asarray(self.truth.poses[index], dtype=float)
 
-    def _true_landmarks(self, indices: NDArray[np.int64]) -> Array:
-        try:
-            return np.array([self.truth.landmarks[self.landmark_ids[j]] for j in indices], dtype=float).reshape(-1, 2)
-        except KeyError as missing:
-            raise OnlineSlamError(f"ideal EKF: no true position for landmark {missing}") from None
+    def _true_landmark(self, landmark: Any) -> Array:
+        if landmark not in self.truth.landmarks:
+            raise OnlineSlamError(f"ideal EKF: no true position for landmark {landmark}")
+        return np.asarray(self.truth.landmarks[landmark], dtype=float)
 
     def _step(self, step: Step) -> Snapshot:
         if step.odometry is None and step.index > 0:
@@ -90,9 +89,7 @@ class IdealEkf(EkfSlam):
         position, _, _ = landmark_from_sighting_with_jacobians(self.x[:3, 0], z, model)
         pose = self._true_pose(self._at)
         _, G_r, G_z = landmark_from_sighting_with_jacobians(pose, z, model)
-        if self._placing not in self.truth.landmarks:
-            raise OnlineSlamError(f"ideal EKF: no true position for landmark {self._placing}")
-        G_r[:, 2] = heading_column(np.asarray(self.truth.landmarks[self._placing], dtype=float), pose[:2])
+        G_r[:, 2] = heading_column(self._true_landmark(self._placing), pose[:2])
         return position, G_r, G_z
 
     def _innovation(
@@ -101,7 +98,8 @@ class IdealEkf(EkfSlam):
         """Innovations at the estimate, Jacobians at the true pose and landmarks."""
         landmarks = self.x[self._offset :, 0].reshape(-1, 2)[indices]
         z_hat, _, _ = predict_with_jacobians(self.x[:3, 0], landmarks, model)
-        _, J_p, J_l = predict_with_jacobians(self._true_pose(self._at), self._true_landmarks(indices), model)
+        true = np.array([self._true_landmark(self.landmark_ids[j]) for j in indices]).reshape(-1, 2)
+        _, J_p, J_l = predict_with_jacobians(self._true_pose(self._at), true, model)
         y = wrap_bearings(z - z_hat, model)
         columns = np.r_[np.arange(3), landmark_columns(indices, self._offset)]
         return y, stacked_jacobian(J_p, J_l), columns
