@@ -274,7 +274,7 @@ def compare(
     """
     cfg = config or CompareConfig()  # validated when made (windows, periods, runs, workers >= 1, peers)
     if "isam2" in cfg.peers and importlib.util.find_spec("gtsam") is None:
-        raise OnlineSlamError(f"peer {cfg.peers[0]}: GTSAM is not installed (pip install 'online-slam[peers]')")
+        raise OnlineSlamError("peer isam2: GTSAM is not installed (pip install 'online-slam[peers]')")
     one_replay = replay_config(cfg)
     results = replay(source, one_replay, on_skip=on_skip, sinks=sinks)
     rows = results.rows()
