@@ -2,7 +2,8 @@
 
 - ``simulated``: a world replayed once (run 1), its final map written; then replayed on that map (run 2) on the
   same stream, and on fresh noise draws of the same world (the honest case: run 1's map errors are not those of
-  run 2's data). The square world (25 poses, fixed path and landmarks: seed 1616, fresh seeds 1..N) and the grid
+  run 2's data), each also on the same map without its joint covariance (independent landmark priors) and with
+  no map. The square world (25 poses, fixed path and landmarks: seed 1616, fresh seeds 1..N) and the grid
   world (2000 poses: seed 7; fresh noise: its path and landmarks sensed again with seeds 1000..). For each, run 1's
   final errors, run 2's online errors and mean NEES, and whether the map grew.
 - ``mrclam``: Dataset 6, each robot: SLAM (no map), then the surveyed landmarks (``Landmark_Groundtruth.dat``) as a
@@ -59,8 +60,9 @@ def world_case(name: str, first: Iterable[Event], fresh: list[Iterable[Event]], 
     """Run 1, then run 2 on its map (same stream, fresh draws); the figures printed, the summary returned."""
     one = replay(first, name=name)
     assert one.map is not None and one.map.final is not None
-    path = folder / f"{name}.json"
+    path, independent = folder / f"{name}.json", folder / f"{name}-independent.json"
     write_map(path, one.map.final)
+    write_map(independent, dataclasses.replace(one.map.final, joint=None))
     size = len(one.map.final)
     best = min(e.final_rmse_m for e in one.estimators.values() if e.final_rmse_m is not None)
     print(f"{name} run 1: {size} landmarks; {_errors(one)}", flush=True)
@@ -68,17 +70,20 @@ def world_case(name: str, first: Iterable[Event], fresh: list[Iterable[Event]], 
     grew = {n: len(same.estimates[n].landmark_ids) - size for n in ONLINE}
     print(f"{name} run 2, same stream, on the map: {_errors(same)}; map grew by {grew}", flush=True)
     summary = {f"same {n}": float(same.estimators[n].online_rmse_m or np.nan) for n in ONLINE}
-    draws: dict[str, list[float]] = {n: [] for n in ONLINE}
+    draws: dict[str, list[float]] = {}
     for k, events in enumerate(fresh):
         events = list(events)
         two = replay(events, _with_map(path), name=name)
+        apart = replay(events, _with_map(independent), name=name)
         alone = replay(events, name=name)
         grew = {n: len(two.estimates[n].landmark_ids) - size for n in ONLINE}
         print(f"{name} fresh draw {k}: on the map: {_errors(two)}; grew by {grew}", flush=True)
+        print(f"{name} fresh draw {k}: independent: {_errors(apart)}", flush=True)
         print(f"{name} fresh draw {k}: no map:     {_errors(alone)}", flush=True)
-        for n in ONLINE:
-            draws[n].append(float(two.estimators[n].online_rmse_m or np.nan))
-    summary |= {f"fresh {n}": float(np.mean(v)) for n, v in draws.items()}
+        for label, results in (("fresh", two), ("fresh independent", apart), ("fresh no map", alone)):
+            for n in ONLINE:
+                draws.setdefault(f"{label} {n}", []).append(float(results.estimators[n].online_rmse_m or np.nan))
+    summary |= {key: float(np.mean(v)) for key, v in draws.items()}
     figures = ", ".join(f"{k} {v:.3f}" for k, v in summary.items())
     print(f"{name}: run 1 best final {best:.3f}; run 2 online: {figures}")
     return summary

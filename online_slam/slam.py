@@ -48,7 +48,7 @@ from online_slam.slam_estimate import (
     empty_estimate,
 )
 from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
-from online_slam.sources.landmark_map import LandmarkMap, read_map, write_map
+from online_slam.sources.landmark_map import LandmarkMap, finite_joint, read_map, write_map
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
 from online_slam.wording import did_you_mean
 
@@ -522,13 +522,16 @@ class Slam:
         return self._engine.steps + (frontend.pending is not None) + len(frontend.later)
 
     def map(self) -> LandmarkMap:
-        """The current map: every landmark's position and 2x2 marginal covariance (write it with
-        :func:`~online_slam.sources.landmark_map.write_map`, or :meth:`save_map`); before the first pose, the map
-        it started from."""
+        """The current map: every landmark's position, 2x2 marginal covariance and (EKF, smoother) their joint
+        covariance (write it with :func:`~online_slam.sources.landmark_map.write_map`, or :meth:`save_map`);
+        before the first pose, the map it started from."""
         estimate = self.estimate()
         if estimate.index < 0 and self._loaded is not None:
             return self._loaded
-        return LandmarkMap.of(estimate.landmark_ids, estimate.landmark_array, estimate.landmark_cov_array, "Slam")
+        ids, joint = estimate.landmark_ids, getattr(self._estimator, "landmark_joint", lambda: None)()
+        return LandmarkMap.of(
+            ids, estimate.landmark_array, estimate.landmark_cov_array, "Slam", finite_joint(joint, len(ids))
+        )
 
     def save_map(self, path: str | Path) -> None:
         """Write :meth:`map` as a map file."""

@@ -51,7 +51,7 @@ def test_a_map_file_round_trips(tmp_path: Path) -> None:
     ("change", "field"),
     [
         (lambda t: t.update(format="other"), "format"),
-        (lambda t: t.update(version=2), "version"),
+        (lambda t: t.update(version=3), "version"),
         (lambda t: t.update(landmarks=3), "landmarks"),
         (lambda t: t["landmarks"][1].update(xy=[1.0]), "landmarks[1].xy"),
         (lambda t: t["landmarks"][1].update(xy=[1.0, float("nan")]), "landmarks[1].xy"),

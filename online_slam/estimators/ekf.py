@@ -535,14 +535,6 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         """Estimate of every pose so far (each as it was when newest), shape (N, 3)."""
         return np.concatenate(self.trajectory_parts())
 
-    def landmark_marginals(self) -> Array:
-        """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
-        m = len(self.landmark_ids)
-        first = self._offset + 2 * np.arange(m)
-        rows = first[:, None, None] + np.arange(2)[None, :, None]
-        cols = first[:, None, None] + np.arange(2)[None, None, :]
-        return self.P[rows, cols]
-
     def snapshot(self, step: Step) -> Snapshot:
         """The current estimate as an immutable snapshot; ``info`` covers all of the step's observations."""
         ids, landmarks, covs = self._map()
@@ -597,4 +589,5 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
                 **self._robot_info(),
             },
             landmark_covs=covs,
+            landmark_joint=self.landmark_joint(),
         )

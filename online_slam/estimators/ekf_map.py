@@ -19,23 +19,42 @@ class PriorMap:
 
     state: EkfState
     dim_x: int
+    P: Array
+    _mapped: Callable[[], NDArray[np.bool_] | None]
     _grow: Callable[[Array, Array, Array], None]
     """Appends rows to the state: values, their cross-covariance with the state, their own covariance block."""
 
     def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
-        """Start from a map (before the first step): its landmarks enter the state as independent priors with their
-        covariances, confirmed. ``fixed``: with zero covariance instead, so that no update moves them (their rows
-        of the gain are exactly zero: they act as known points) and they are never re-anchored; the invariant
-        retraction, which turns the whole map with each heading correction, gives way to the standard update."""
+        """Start from a map (before the first step): its landmarks enter the state as priors with their joint
+        covariance (independent when the map has none), confirmed. ``fixed``: with zero covariance instead, so
+        that no update moves them (their rows of the gain are exactly zero: they act as known points) and they are
+        never re-anchored; the invariant retraction, which turns the whole map with each heading correction, gives
+        way to the standard update."""
         if len(self.state.landmark_ids) or len(self.state.history):
             raise OnlineSlamError("a map is loaded before the first step, into an empty filter")
         m = len(landmark_map)
-        block = np.zeros((2 * m, 2 * m))
-        if not fixed:  # the 2x2 blocks on the diagonal
-            block.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :] = landmark_map.cov
+        block = np.zeros((2 * m, 2 * m)) if fixed else landmark_map.covariance.copy()
         self.state.landmark_ids.extend(landmark_map.ids)
         self.state.index = {lid: j for j, lid in enumerate(self.state.landmark_ids)}
         self.state.streak, self.state.confirmed = np.zeros(m, dtype=np.int64), np.ones(m, dtype=bool)
         self.state.first = landmark_map.xy.copy()
         self.state.fixed = m if fixed else 0
         self._grow(landmark_map.xy.reshape(-1), np.zeros((2 * m, self.dim_x)), block)
+
+    def landmark_marginals(self) -> Array:
+        """2x2 marginal covariance of every landmark, shape (M, 2, 2)."""
+        m = len(self.state.landmark_ids)
+        first = len(self.P) - 2 * m + 2 * np.arange(m)  # the landmarks follow the robots' poses
+        rows = first[:, None, None] + np.arange(2)[None, :, None]
+        cols = first[:, None, None] + np.arange(2)[None, None, :]
+        return self.P[rows, cols]
+
+    def landmark_joint(self) -> Array:
+        """Joint covariance of the reported map's landmarks (tentative ones left out), shape (2M, 2M)."""
+        first = len(self.P) - 2 * len(self.state.landmark_ids)  # after the robots' poses
+        block = self.P[first:, first:]
+        mapped = self._mapped()
+        if mapped is None:
+            return block.copy()
+        keep = np.repeat(mapped, 2)
+        return block[np.ix_(keep, keep)]

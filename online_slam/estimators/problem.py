@@ -22,7 +22,7 @@ from online_slam.geometry.se2 import compose
 from online_slam.models.fix import fix_factors
 from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.sources.events import LandmarkId, RobotId
-from online_slam.sources.landmark_map import FIXED_STD, LandmarkMap
+from online_slam.sources.landmark_map import FIXED_STD, LandmarkMap, joint_of
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -143,6 +143,8 @@ class ProblemLog(Checkpointed):
     """The map's positions, shape (map_size, 2)."""
     map_cov: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Their prior covariances, shape (map_size, 2, 2) (a fixed map's: :data:`FIXED_STD` squared)."""
+    map_joint: Array = field(default_factory=lambda: np.zeros((0, 0)))
+    """The map's joint covariance, shape (2 map_size, 2 map_size), when it has one (empty: independent)."""
     fixes: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
     """Absolute fixes of each pose that has some: (mean (f, 3), offset (f, 2), square-root information (f, 3, 3)),
     as :func:`~online_slam.models.fix.fix_factors` gives them."""
@@ -217,6 +219,8 @@ class ProblemLog(Checkpointed):
         self._landmarks = list(landmark_map.xy.copy())
         self.map_size, self.map_xy = len(landmark_map), landmark_map.xy.copy()
         self.map_cov = np.broadcast_to(floor, landmark_map.cov.shape).copy() if fixed else landmark_map.cov + floor
+        if landmark_map.joint is not None and not fixed:
+            self.map_joint = landmark_map.joint + FIXED_STD**2 * np.eye(2 * len(landmark_map))
 
     def map_priors(self, ids: Sequence[LandmarkId] | None = None) -> dict[str, Any]:
         """The map's prior factors (keyword arguments of a graph) on the landmarks ``ids`` index (default: this
@@ -227,7 +231,10 @@ class ProblemLog(Checkpointed):
         pairs = [(j, where[lid]) for j, lid in enumerate(self.landmark_ids if ids is None else ids) if lid in where]
         rows = np.array([j for j, _ in pairs], dtype=np.int64)
         of = np.array([k for _, k in pairs], dtype=np.int64)
-        return {"lp_landmark": rows, "lp_mean": self.map_xy[of], "lp_sqrt_info": sqrt_information(self.map_cov[of])}
+        priors = {"lp_landmark": rows, "lp_mean": self.map_xy[of], "lp_sqrt_info": sqrt_information(self.map_cov[of])}
+        if len(self.map_joint) and len(of):
+            priors["lp_joint"] = sqrt_information(joint_of(self.map_joint, of))
+        return priors
 
     def landmark_indices(self, ids: Sequence[LandmarkId | None]) -> NDArray[np.int64]:
         """Indices of known landmarks (-1 for unknown ids, and for None)."""

@@ -60,6 +60,9 @@ class Estimate:
     """Solver report (iterations, convergence, costs...)."""
     landmark_covs: Array | None = None
     """Final 2x2 landmark marginal covariances, shape (M, 2, 2), where the estimator has them."""
+    landmark_joint: Array | None = None
+    """Final joint covariance of the landmarks, shape (2M, 2M) (rows ``[x0, y0, x1, ...]``), where the estimator
+    has it (a saved map keeps it: :class:`~online_slam.sources.landmark_map.LandmarkMap`)."""
 
 
 @runtime_checkable

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 
 from online_slam.estimators.protocol import Estimate
 from online_slam.sources.events import LandmarkId
+from online_slam.sources.landmark_map import joint_of
 
 
 @dataclass(frozen=True)
@@ -127,4 +128,5 @@ def with_true_ids(estimate: Estimate, owner: dict) -> Estimate:
         landmark_ids=tuple(owner[estimate.landmark_ids[k]] for k in keep),
         landmarks=estimate.landmarks[keep],
         landmark_covs=None if estimate.landmark_covs is None else estimate.landmark_covs[keep],
+        landmark_joint=None if estimate.landmark_joint is None else joint_of(estimate.landmark_joint, keep),
     )

@@ -26,6 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from online_slam.factors import landmark_prior
 from online_slam.factors.information import sqrt_information as sqrt_information
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.angles import wrap
@@ -90,6 +91,9 @@ class FactorGraph:
     """Prior means, shape (Q, 2)."""
     lp_sqrt_info: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Prior square-root information, shape (Q, 2, 2)."""
+    lp_joint: Array = field(default_factory=lambda: np.zeros((0, 0)))
+    """Or their joint square-root information, shape (2Q, 2Q) over ``[x0, y0, x1, ...]`` of ``lp_landmark``, which
+    replaces ``lp_sqrt_info`` when not empty (:mod:`~online_slam.factors.landmark_prior`)."""
     prior_offset: Array = field(default_factory=lambda: np.zeros((0, 2)))
     """The robot-frame point each prior fixes (absolute fixes), shape (P, 2); empty: every prior is on the pose."""
 
@@ -214,9 +218,7 @@ def layout(graph: FactorGraph, entries: bool = True) -> SparseLayout:
             _block_indices(rob_rows, 2, pose_column[graph.rob_to], 3),
         ]
     if len(graph.lp_landmark):
-        first = graph.n_residuals - 2 * len(graph.lp_landmark)
-        lp_rows = first + 2 * np.arange(len(graph.lp_landmark), dtype=np.int64)
-        parts.append(_block_indices(lp_rows, 2, landmark_column[graph.lp_landmark], 2))
+        parts.append(landmark_prior.entries(graph, graph.n_residuals - 2 * len(graph.lp_landmark), landmark_column))
     rows = np.concatenate([p[0] for p in parts])
     cols = np.concatenate([p[1] for p in parts])
     keep = cols >= 0
@@ -333,13 +335,8 @@ def evaluate(graph: FactorGraph, poses: Array, landmarks: Array) -> Array:
     if len(graph.rob_from):
         parts.append(_robot_rows(graph, poses, None)[0].reshape(-1))
     if len(graph.lp_landmark):
-        parts.append(_landmark_prior_rows(graph, landmarks).reshape(-1))
+        parts.append(landmark_prior.residuals(graph, landmarks).reshape(-1))
     return np.concatenate(parts)
-
-
-def _landmark_prior_rows(graph: FactorGraph, landmarks: Array) -> Array:
-    """Whitened residuals of the landmark priors, shape (Q, 2) (their Jacobian is ``lp_sqrt_info``)."""
-    return _whiten(graph.lp_sqrt_info, landmarks[graph.lp_landmark] - graph.lp_mean)
 
 
 def sighting_chi2(poses: Array, landmarks: Array, z: Array, sqrt_info: Array, model: ArrayLike) -> Array:
@@ -407,6 +404,7 @@ def subgraph(
         lp_landmark=graph.lp_landmark,
         lp_mean=graph.lp_mean,
         lp_sqrt_info=graph.lp_sqrt_info,
+        lp_joint=graph.lp_joint,
     )
 
 
@@ -487,8 +485,8 @@ def linearize(
         r_parts.append(r_rob.reshape(-1))
         data_parts += [WJ_from.reshape(-1), WJ_to.reshape(-1)]
     if len(graph.lp_landmark):
-        r_parts.append(_landmark_prior_rows(graph, landmarks).reshape(-1))
-        data_parts.append(graph.lp_sqrt_info.reshape(-1))
+        r_parts.append(landmark_prior.residuals(graph, landmarks).reshape(-1))
+        data_parts.append(landmark_prior.jacobian(graph).reshape(-1))
     r = np.concatenate(r_parts)
     data = np.concatenate(data_parts)[sparse.keep]
     J = sp.csr_matrix((data, (sparse.rows, sparse.cols)), shape=(graph.n_residuals, sparse.n_columns))
@@ -528,7 +526,7 @@ class DenseAssembler:
                 (sparse.pose_column[graph.rob_from], 3), (sparse.pose_column[graph.rob_to], 3)
             )
         if len(graph.lp_landmark):
-            self._columns["landmark prior"] = columns((sparse.landmark_column[graph.lp_landmark], 2))
+            self._columns["landmark prior"] = landmark_prior.columns(graph, sparse.landmark_column)
         h_index, g_index = [], []
         # Which entries of each kind's (K, c, c) block products and (K, c) gradients land (None: all of them).
         self._keep: dict[str, tuple[NDArray[np.bool_] | None, NDArray[np.bool_] | None]] = {}
@@ -576,8 +574,8 @@ class DenseAssembler:
             factors["robot"] = (r_rob, np.concatenate([WJ_from, WJ_to], axis=2))
             total += rob_cost
         if len(graph.lp_landmark):
-            r_lp = _landmark_prior_rows(graph, landmarks)
-            factors["landmark prior"] = (r_lp, graph.lp_sqrt_info)
+            r_lp = landmark_prior.residuals(graph, landmarks)
+            factors["landmark prior"] = (r_lp, landmark_prior.jacobian(graph))
             total += 0.5 * float(np.sum(r_lp**2))
         h_value, g_value = [], []
         for kind, (r, J) in factors.items():

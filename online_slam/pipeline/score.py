@@ -8,6 +8,7 @@ import time
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.batch import BatchConfig, BatchEstimator
@@ -34,7 +35,9 @@ from online_slam.evaluation.scoring import (
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
 from online_slam.sources.events import LandmarkId
-from online_slam.sources.landmark_map import LandmarkMap
+from online_slam.sources.landmark_map import LandmarkMap, diagonal_blocks, joint_of
+
+Array = NDArray[np.float64]
 
 
 def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
@@ -107,8 +110,24 @@ def map_report(run: ReplayRun, estimates: Mapping[str, Estimate]) -> MapReport:
         rows.append(cov if cov is not None and np.isfinite(cov).all() else prior.get(lid, np.full((2, 2), np.nan)))
     known = [k for k, cov in enumerate(rows) if np.isfinite(cov).all()]  # a landmark without covariance is left out
     covariances = np.array(rows)[known].reshape(-1, 2, 2)
-    final = LandmarkMap.of([best.landmark_ids[k] for k in known], best.landmarks[known], covariances, run.source)
+    ids = [best.landmark_ids[k] for k in known]
+    final = LandmarkMap.of(ids, best.landmarks[known], covariances, run.source, _joint(online, ids, covariances))
     return dataclasses.replace(report, final=final, positions_from=best.estimator, covariances_from=online.estimator)
+
+
+def _joint(online: Estimate, ids: list[LandmarkId], covariances: Array) -> Array | None:
+    """The online estimate's joint landmark covariance over ``ids`` in their order (a landmark it lacks, or has
+    none for: its ``covariances`` block, independent of the others); None when it has none or it is not finite."""
+    if online.landmark_joint is None:
+        return None
+    blocks = diagonal_blocks(online.landmark_joint).reshape(-1, 4)
+    where = {lid: k for k, lid in enumerate(online.landmark_ids) if np.isfinite(blocks[k]).all()}
+    have = np.array([i for i, lid in enumerate(ids) if lid in where], dtype=np.int64)
+    source = np.array([where[ids[i]] for i in have], dtype=np.int64)
+    joint = LandmarkMap(tuple(ids), np.zeros((len(ids), 2)), covariances).covariance  # block-diagonal
+    to = (2 * have[:, None] + np.arange(2)).reshape(-1)
+    joint[np.ix_(to, to)] = joint_of(online.landmark_joint, source)
+    return joint if np.isfinite(joint).all() else None
 
 
 def initial_values(batch: BatchConfig, estimates: Mapping[str, Estimate]) -> Estimate | None:

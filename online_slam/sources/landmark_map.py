@@ -1,8 +1,11 @@
-"""A landmark map: ids, positions and covariances, and its file (``online-slam-map`` v1, JSON).
+"""A landmark map: ids, positions and covariances, and its file (``online-slam-map`` v2, JSON; v1 is read).
 
-A run can write its final map (``--map-out``) and start from one (``--map``): the estimators take each landmark
-as a prior with its covariance, or as known (``--map-fixed``). See docs/formats.md ("Map file") for the format and
-docs/commands.md ("Maps: save and reuse") for its use.
+A run can write its final map (``--map-out``) and start from one (``--map``): the estimators take the landmarks
+as a prior with their covariance, or as known (``--map-fixed``). A map of a SLAM run carries its landmarks' joint
+covariance: a map's errors are mostly shared (the whole map turned and shifted against the start pose with the
+run's drift), and independent priors would hold that common error as if each landmark's own (why: benchmarks/
+RESULTS.md, "Maps saved and reused"). See docs/formats.md ("Map file") for the format and docs/commands.md
+("Maps: save and reuse") for its use.
 """
 
 from __future__ import annotations
@@ -23,8 +26,8 @@ Array = NDArray[np.float64]
 
 FORMAT = "online-slam-map"
 """The ``format`` field of a map file."""
-VERSION = 1
-"""The map file version this code writes and reads."""
+VERSION = 2
+"""The map file version this code writes; it reads 1 too (without ``joint_cov``)."""
 FIXED_STD = 1e-6
 """Standard deviation (m) the factor-graph estimators give a landmark of a fixed map (``--map-fixed``): held to a
 micrometre. The EKF holds such a landmark exactly (zero covariance)."""
@@ -44,6 +47,9 @@ class LandmarkMap:
     """Where the map comes from (the run's source, or a survey)."""
     generated: tuple[bool, ...] = ()
     """Per landmark: an estimator made it from sightings without an id (empty: none)."""
+    joint: Array | None = None
+    """The landmarks' joint covariance, shape (2M, 2M), rows ``[x0, y0, x1, y1, ...]`` in ``ids`` order; its 2x2
+    diagonal blocks are ``cov``. None: the landmarks are independent (a survey, a version 1 file)."""
 
     def __post_init__(self) -> None:
         m = len(self.ids)
@@ -51,6 +57,8 @@ class LandmarkMap:
             raise ValueError(f"a map of {m} ids needs xy (M, 2) and cov (M, 2, 2)")
         if len(set(self.ids)) != m:
             raise ValueError("map ids repeat")
+        if self.joint is not None and self.joint.shape != (2 * m, 2 * m):
+            raise ValueError(f"a map of {m} ids needs a joint covariance (2M, 2M)")
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -64,6 +72,7 @@ class LandmarkMap:
             and np.array_equal(self.cov, other.cov)
             and self.source == other.source
             and self.flags == other.flags
+            and _same(self.joint, other.joint)
         )
 
     @property
@@ -78,16 +87,33 @@ class LandmarkMap:
         xy: Any,
         cov: Any = None,
         source: str = "",
+        joint: Any = None,
     ) -> LandmarkMap:
-        """A map from ids, positions (M, 2) and covariances (M, 2, 2) (None: zero, known exactly); an estimator's
-        generated ids become their strings ``new-<n>``, flagged."""
+        """A map from ids, positions (M, 2) and covariances (M, 2, 2) (None: zero, known exactly), and optionally
+        their joint covariance (2M, 2M) (its diagonal blocks then replace ``cov``); an estimator's generated ids
+        become their strings ``new-<n>``, flagged."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         cov = np.zeros((len(xy), 2, 2)) if cov is None else np.asarray(cov, dtype=float).reshape(-1, 2, 2)
         cov = np.where(np.isfinite(cov), cov, 0.0)
+        if joint is not None:
+            joint = np.asarray(joint, dtype=float)
+            joint = 0.5 * (joint + joint.T)
+            cov = diagonal_blocks(joint)
         flags = tuple(isinstance(lid, GeneratedId) for lid in ids)
         taken = {lid for lid in ids if not isinstance(lid, GeneratedId)}
         names = tuple(_spelled(lid, taken) if isinstance(lid, GeneratedId) else lid for lid in ids)
-        return cls(names, xy, 0.5 * (cov + cov.transpose(0, 2, 1)), source, flags if any(flags) else ())
+        cov = 0.5 * (cov + cov.transpose(0, 2, 1))
+        return cls(names, xy, cov, source, flags if any(flags) else (), joint)
+
+    @property
+    def covariance(self) -> Array:
+        """The joint covariance (2M, 2M): ``joint``, or block-diagonal from ``cov`` when the map has none."""
+        if self.joint is not None:
+            return self.joint
+        m = len(self.ids)
+        out = np.zeros((2 * m, 2 * m))
+        out.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :] = self.cov
+        return out
 
     def to_json(self) -> dict[str, Any]:
         """The file's content as a JSON object."""
@@ -97,7 +123,35 @@ class LandmarkMap:
             if made:
                 entry["generated"] = True
             landmarks.append(entry)
-        return {"format": FORMAT, "version": VERSION, "source": self.source, "frame": "map", "landmarks": landmarks}
+        tree = {"format": FORMAT, "version": VERSION, "source": self.source, "frame": "map", "landmarks": landmarks}
+        if self.joint is not None:
+            tree["joint_cov"] = self.joint.tolist()
+        return tree
+
+
+def _same(a: Array | None, b: Array | None) -> bool:
+    """Both None, or equal arrays."""
+    return a is None and b is None or a is not None and b is not None and np.array_equal(a, b)
+
+
+def finite_joint(joint: Array | None, count: int) -> Array | None:
+    """``joint`` when it is a finite joint covariance of ``count`` landmarks, else None (the landmarks then go
+    independent: an estimator without one, or a singular system)."""
+    if joint is None or joint.shape != (2 * count, 2 * count) or not np.isfinite(joint).all():
+        return None
+    return joint
+
+
+def joint_of(joint: Array, rows: Any) -> Array:
+    """The joint covariance (2k, 2k) of landmarks ``rows`` (k indices) from a (2M, 2M) one."""
+    columns = (2 * np.asarray(rows, dtype=np.int64).reshape(-1, 1) + np.arange(2)).reshape(-1)
+    return joint[np.ix_(columns, columns)]
+
+
+def diagonal_blocks(joint: Array) -> Array:
+    """The 2x2 diagonal blocks of a (2M, 2M) matrix, shape (M, 2, 2)."""
+    m = len(joint) // 2
+    return joint.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :].copy()
 
 
 def _spelled(lid: GeneratedId, taken: set[int | str]) -> str:
@@ -114,7 +168,11 @@ def write_map(path: str | Path, landmark_map: LandmarkMap) -> None:
     """Write a map file (replaced whole)."""
     tree = landmark_map.to_json()
     rows = ",\n".join(json.dumps(entry) for entry in tree.pop("landmarks"))  # one landmark a line
-    text = json.dumps(tree)[:-1] + ', "landmarks": [\n' + rows + "\n]}"
+    joint = tree.pop("joint_cov", None)
+    text = json.dumps(tree)[:-1] + ', "landmarks": [\n' + rows + "\n]"
+    if joint is not None:  # one row a line
+        text += ',\n"joint_cov": [\n' + ",\n".join(json.dumps(row) for row in joint) + "\n]"
+    text += "}"
     try:
         Path(path).write_text(text + "\n", encoding="utf-8")
     except OSError as exc:
@@ -147,8 +205,9 @@ def map_from_json(tree: Any, name: str = "<map>") -> LandmarkMap:
         raise InputError(name, 0, "", "expected a JSON object (an online-slam-map file)")
     if tree.get("format") != FORMAT:
         raise InputError(name, 0, "format", f"expected {FORMAT!r}, not {tree.get('format')!r}")
-    if tree.get("version") != VERSION:
-        raise InputError(name, 0, "version", f"expected {VERSION}, not {tree.get('version')!r}")
+    version = tree.get("version")
+    if isinstance(version, bool) or version not in (1, VERSION):
+        raise InputError(name, 0, "version", f"expected 1 or {VERSION}, not {version!r}")
     if tree.get("frame", "map") != "map":
         raise InputError(name, 0, "frame", f"expected 'map', not {tree.get('frame')!r}")
     source = tree.get("source", "")
@@ -182,7 +241,28 @@ def map_from_json(tree: Any, name: str = "<map>") -> LandmarkMap:
         if not isinstance(generated, bool):
             raise InputError(name, 0, f"{where}.generated", "expected true or false")
         flags.append(generated)
-    return LandmarkMap(tuple(ids), xy, cov, source, tuple(flags) if any(flags) else ())
+    joint = _joint(tree, version, cov, name)
+    return LandmarkMap(tuple(ids), xy, cov, source, tuple(flags) if any(flags) else (), joint)
+
+
+def _joint(tree: dict[str, Any], version: int, cov: Array, name: str) -> Array | None:
+    """The file's ``joint_cov`` (version 2; None when absent), checked against the landmarks' ``cov``."""
+    if "joint_cov" not in tree:
+        return None
+    if version == 1:
+        raise InputError(name, 0, "joint_cov", "not in a version 1 map")
+    m = len(cov)
+    joint = _numbers(tree["joint_cov"], (2 * m, 2 * m), name, "joint_cov")
+    scale = max(1.0, float(abs(joint).max(initial=0.0)))
+    if abs(joint - joint.T).max(initial=0.0) > 1e-9 * scale:
+        raise InputError(name, 0, "joint_cov", "not symmetric")
+    blocks = diagonal_blocks(joint)
+    differ = np.flatnonzero(abs(blocks - cov).reshape(m, -1).max(axis=1, initial=0.0) > 1e-9 * scale)
+    if len(differ):
+        raise InputError(name, 0, "joint_cov", f"its diagonal block {differ[0]} is not landmarks[{differ[0]}].cov")
+    if m and np.linalg.eigvalsh(joint).min() < -1e-9 * scale:
+        raise InputError(name, 0, "joint_cov", "not positive semi-definite")
+    return joint
 
 
 def _numbers(value: Any, shape: tuple[int, ...], name: str, field: str) -> Array:

@@ -26,6 +26,7 @@ from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.estimators.smoother.config import SmootherConfig
 from online_slam.estimators.smoother.covariance import (
     factored,
+    landmark_joint,
     landmark_marginals,
     pose_marginals,
     propagated_covariance,
@@ -49,14 +50,7 @@ from online_slam.estimators.smoother.prior import Prior, Sightings, fold_map, in
 from online_slam.estimators.smoother.relinearize import rejudged, solve_all
 from online_slam.estimators.smoother.robots import SeveralRobots
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
-from online_slam.estimators.smoother.window import (
-    Window,
-    active,
-    consensus,
-    judge,
-    linearize,
-    solve_window,
-)
+from online_slam.estimators.smoother.window import Linearized, Window, active, consensus, judge, linearize, solve_window
 from online_slam.factors.graph import FactorGraph, observation_chi2
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
@@ -130,7 +124,8 @@ class SlidingWindowSmoother(SeveralRobots):
     def load_map(self, landmark_map: LandmarkMap, fixed: bool = False) -> None:
         """Start from a map (before the first step): its landmarks come first, each with a prior of its covariance
         (at least :data:`~online_slam.sources.landmark_map.FIXED_STD` squared; exactly that with ``fixed``), in
-        the window's graph while the marginal prior does not hold it, and in the global solves' graphs."""
+        the window's graph while the marginal prior does not hold it, and in the global solves' graphs. A map with
+        a joint covariance is one prior over all its landmarks: the marginal prior holds them all from its start."""
         w, log = self.window, self.relinearization.log
         if w.indices or w.landmark_ids:
             raise ValueError("a map is loaded before the first step")
@@ -139,6 +134,7 @@ class SlidingWindowSmoother(SeveralRobots):
         w.index = {lid: j for j, lid in enumerate(w.landmark_ids)}
         w.landmarks = landmark_map.xy.copy()
         w.map_size, w.map_xy, w.map_cov = len(landmark_map), log.map_xy.copy(), log.map_cov.copy()
+        w.map_joint = log.map_joint.copy()
 
     # -- protocol --------------------------------------------------------------------------------
     def step(self, step: Step) -> Snapshot:
@@ -276,6 +272,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 **self.association.book.info(),
             },
             landmark_covs=self.landmark_marginals(),
+            landmark_joint=self.landmark_joint(),
         )
 
     # -- covariances -----------------------------------------------------------------------------
@@ -293,18 +290,30 @@ class SlidingWindowSmoother(SeveralRobots):
             linearize(self.window, self.prior, self.config.robust.loss, self.config.fej), self.prior, indices
         )
 
+    def landmark_joint(self) -> Array:
+        """Joint covariance of every landmark at the current estimate, shape (2M, 2M) (as :meth:`landmark_marginals`;
+        :func:`~.covariance.landmark_joint`)."""
+        return self._at_estimate(landmark_joint, (2, 2))
+
     def landmark_marginals(self) -> Array:
         """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
 
         The window's factors and the reduced prior are linearized once at the current estimate (no iteration,
         no state change); see :func:`~.covariance.landmark_marginals`. NaN where the system is singular.
         """
+        return self._at_estimate(landmark_marginals, (1, 2, 2))
+
+    def _at_estimate(
+        self, covariance: Callable[[Linearized, Prior | None, int], Array], shape: tuple[int, ...]
+    ) -> Array:
+        """``covariance`` of the window linearized at the current estimate; NaN of shape M * ``shape`` (the first
+        axis scaled by M) before any pose."""
         count = len(self.window.landmark_ids)
         if not self.window.indices:
-            return np.full((count, 2, 2), np.nan)
+            return np.full((count * shape[0], *shape[1:]), np.nan)
         with self._blas.limit(limits=1, user_api="blas"):
             linearized = linearize(self.window, self.prior, self.config.robust.loss, self.config.fej)
-            return landmark_marginals(linearized, self.prior, count)
+            return covariance(linearized, self.prior, count)
 
     # -- association -----------------------------------------------------------------------------
     def _resolve(self, step: Step, start: int) -> tuple[Step, int]:
@@ -476,7 +485,7 @@ class SlidingWindowSmoother(SeveralRobots):
         o, n1 = w.indices[0], w.indices[1]
         if self.prior is None:
             assert w.start is not None
-            p = initial_prior(w.start, w.poses[w.start[0]])
+            p = initial_prior(w.start, w.poses[w.start[0]], w.joint_map())
         else:
             p = self.prior
         assert p.pose == o

@@ -279,3 +279,38 @@ def landmark_marginals(linearized: Linearized, prior: Prior | None, count: int) 
     blocks = conditional + propagated
     out[prior.landmarks[~s.is_active]] = 0.5 * (blocks + blocks.transpose(0, 2, 1))
     return out
+
+
+def landmark_joint(linearized: Linearized, prior: Prior | None, count: int) -> Array:
+    """Joint covariance of every landmark (``count``) from a linearized window, shape (2M, 2M), rows ``[x0, y0,
+    x1, ...]``: as :func:`landmark_marginals`, with the cross terms. Given the part of the prior the window sees
+    (``d_a``), a passive landmark is ``d_p = mu_p + B (d_a - mu_a) + noise``, so ``cov(d_p, v) = B cov(d_a, v)``
+    for any window variable ``v`` and ``cov(d_p) = S_pp - B S_ap + B C_a B^T``. NaN where the system is singular,
+    and for a landmark neither observed nor held by the prior."""
+    out = np.full((2 * count, 2 * count), np.nan)
+    active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
+    if H is None:
+        return out
+    try:
+        C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
+    except (la.LinAlgError, ValueError):  # singular, or not finite
+        return out
+    columns = (sparse.landmark_column[np.arange(len(active))][:, None] + np.arange(2)).reshape(-1)
+    rows = (2 * active[:, None] + np.arange(2)).reshape(-1)
+    out[np.ix_(rows, rows)] = C[np.ix_(columns, columns)]
+    if prior is None or quadratic is None:
+        return out
+    s = split(prior, active)
+    if len(s.passive) == 0:
+        return out
+    S_pa = prior.Sigma[np.ix_(s.passive, s.order)]
+    B = S_pa @ s.information
+    C_a = C[np.ix_(quadratic.columns, quadratic.columns)]
+    passive = prior.landmarks[~s.is_active]
+    p_rows = (2 * passive[:, None] + np.arange(2)).reshape(-1)
+    cross = B @ C[np.ix_(quadratic.columns, columns)]
+    out[np.ix_(p_rows, rows)] = cross
+    out[np.ix_(rows, p_rows)] = cross.T
+    pp = prior.Sigma[np.ix_(s.passive, s.passive)] - B @ S_pa.T + B @ C_a @ B.T
+    out[np.ix_(p_rows, p_rows)] = 0.5 * (pp + pp.T)
+    return out

@@ -100,12 +100,17 @@ class PriorSplit:
     """``Sigma_aa^-1``, the information of the active part, shape (len(order), len(order))."""
 
 
-def initial_prior(start: tuple[int, Array, Array | None], pose: Array) -> Prior:
-    """The prior before any marginalization: the start pose, fixed (Sigma = 0) or with its prior.
+def initial_prior(
+    start: tuple[int, Array, Array | None], pose: Array, landmark_map: tuple[Array, Array, Array] | None = None
+) -> Prior:
+    """The prior before any marginalization: the start pose, fixed (Sigma = 0) or with its prior; with a map that
+    has a joint covariance, every map landmark too (independent of the start: the map's frame is the start's).
 
     Args:
         start: (start pose index, its prior mean, its prior covariance or None when fixed).
         pose: The start pose's current estimate, shape (3,).
+        landmark_map: (the map landmarks' current estimates (M, 2), the map's positions (M, 2), its joint
+            covariance (2M, 2M)), landmarks 0..M-1; None: no landmark.
     """
     index, mean, cov = start
     x_lin = pose.copy()
@@ -114,7 +119,14 @@ def initial_prior(start: tuple[int, Array, Array | None], pose: Array) -> Prior:
     Sigma = np.zeros((3, 3))
     if cov is not None:
         Sigma[:] = cov
-    return Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
+    if landmark_map is None:
+        return Prior(index, np.zeros(0, dtype=np.int64), x_lin, mu, Sigma)
+    estimates, xy, joint = landmark_map
+    n = len(joint)
+    both = np.zeros((n + 3, n + 3))
+    both[:n, :n], both[n:, n:] = joint, Sigma
+    lin = estimates.reshape(-1)
+    return Prior(index, np.arange(len(xy), dtype=np.int64), np.r_[lin, x_lin], np.r_[xy.reshape(-1) - lin, mu], both)
 
 
 def resized(Sigma: Array, size: int, keep: int) -> Array:

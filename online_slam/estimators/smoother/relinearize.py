@@ -58,7 +58,10 @@ def history_graph(graph: FactorGraph, oldest: int) -> FactorGraph:
 
 
 def _map_seen(past: FactorGraph) -> FactorGraph:
-    """A history graph with the map's priors on the landmarks it saw only (the ones the marginal prior holds)."""
+    """A history graph with the map's priors on the landmarks it saw only (the ones the marginal prior holds; with
+    a joint map, all of them)."""
+    if len(past.lp_joint):
+        return past
     seen = np.isin(past.lp_landmark, past.obs_landmark)
     return replace(
         past, lp_landmark=past.lp_landmark[seen], lp_mean=past.lp_mean[seen], lp_sqrt_info=past.lp_sqrt_info[seen]

@@ -154,7 +154,7 @@ class SeveralRobots:
         else:
             start = w.starts.pop(pose)
         if prior is None:
-            return initial_prior((pose, *start), w.poses[pose])
+            return initial_prior((pose, *start), w.poses[pose], w.joint_map())
         return with_last(with_start(prior, pose, start, w.poses[pose]), pose)
 
     def _robot_fold(self, o: int) -> RobotFold | None:

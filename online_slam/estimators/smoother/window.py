@@ -37,6 +37,7 @@ from online_slam.models.fix import fix_factors
 from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
 from online_slam.sources.events import LandmarkId, RobotId
+from online_slam.sources.landmark_map import joint_of
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -100,6 +101,8 @@ class Window:
     """The map's positions, shape (map_size, 2)."""
     map_cov: Array = field(default_factory=lambda: np.zeros((0, 2, 2)))
     """Their prior covariances, shape (map_size, 2, 2)."""
+    map_joint: Array = field(default_factory=lambda: np.zeros((0, 0)))
+    """Their joint covariance, shape (2 map_size, 2 map_size), when the map has one (empty: independent)."""
     fixes: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
     """Window poses' absolute fixes (mean (f, 3), offset (f, 2), square-root information (f, 3, 3):
     :func:`~online_slam.models.fix.fix_factors`), keyed by pose."""
@@ -113,6 +116,13 @@ class Window:
     def several(self) -> bool:
         """Whether a second robot began."""
         return len(self.robots) > 1
+
+    def joint_map(self) -> tuple[Array, Array, Array] | None:
+        """(the map landmarks' estimates, their map positions, the joint covariance) for the marginal prior to hold
+        from its start (:func:`~.prior.initial_prior`), or None without a joint map."""
+        if not len(self.map_joint):
+            return None
+        return self.landmarks[: self.map_size], self.map_xy, self.map_joint
 
     def values(self) -> Array:
         """The window poses' estimates, oldest first, shape (P, 3)."""
@@ -388,11 +398,13 @@ def with_map_factors(graph: FactorGraph, window: Window, prior: Prior | None, ac
     rows = active[active < window.map_size]
     if prior is not None:
         rows = rows[~np.isin(rows, prior.landmarks)]
+    joint = sqrt_information(joint_of(window.map_joint, rows)) if len(window.map_joint) and len(rows) else None
     return replace(
         graph,
         lp_landmark=np.searchsorted(active, rows).astype(np.int64),
         lp_mean=window.map_xy[rows],
         lp_sqrt_info=sqrt_information(window.map_cov[rows]) if len(rows) else np.zeros((0, 2, 2)),
+        lp_joint=np.zeros((0, 0)) if joint is None else joint,
     )
 
 
