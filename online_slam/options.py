@@ -238,8 +238,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     Option("strict", "exit 2 when most of the first sightings are rejected or lines skipped (wrong units? "
            "sigmas?), keeping the figures before it; without it, one warning names the likely cause", "input",
            ("replay",), kind=bool, field=("ReplayConfig", "strict"), lands=("strict",), commands=("replay",)),
-    Option("map", "start from this map (online-slam-map JSON): its landmarks as priors with their covariances; the "
-           "stream's start pose must be in the map's frame", "input", ("replay",), metavar="PATH",
+    Option("map", "start from this map (online-slam-map JSON): its landmarks as one prior with the map's joint "
+           "covariance (or each its own, when the map has none); the stream's start pose must be in the map's frame",
+           "input", ("replay",), metavar="PATH",
            field=("MapConfig", "path"), unset="none", lands=("map.path",), commands=("replay",)),
     Option("map_fixed", "--map's landmarks are known: held where the map puts them", "input", ("replay",),
            kind=bool, field=("MapConfig", "fixed"), lands=("map.fixed",), commands=("replay",)),

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +22,8 @@ from online_slam.frontend.steps import FrontEnd
 from online_slam.pipeline import MapConfig, ReplayConfig, replay
 from online_slam.sources.landmark_map import LandmarkMap, map_from_json, read_map, write_map
 from online_slam.sources.worlds import square_world
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def spd(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -57,8 +61,10 @@ def test_a_joint_map_file_round_trips_and_a_version_1_file_still_reads(tmp_path:
     ("change", "message"),
     [
         (lambda t: t.update(version=1), "not in a version 1 map"),
-        (lambda t: t.update(joint_cov=[[1.0, 0.0], [0.0, 1.0]]), "expected 4x4 numbers"),
-        (lambda t: t["joint_cov"][0].__setitem__(3, 0.9), "not symmetric"),
+        (lambda t: t.update(joint_cov=[[1.0, 0.0], [0.0, 1.0]]), "expected 4x4 numbers (2 per landmark), found 2 rows"),
+        (lambda t: t["joint_cov"][2].pop(), "found rows of other lengths"),
+        (lambda t: t.update(joint_cov=None), "found null"),
+        (lambda t: t["joint_cov"][0].__setitem__(3, 0.9), "not symmetric (row 0, column 3)"),
         (lambda t: [t["joint_cov"][i].__setitem__(i, 5.0) for i in (2, 3)], "diagonal block 1 is not landmarks[1]"),
         (lambda t: t["joint_cov"][0].__setitem__(2, float("nan")), "expected a finite number"),
     ],
@@ -171,9 +177,21 @@ def test_runs_save_the_joint_covariance_and_reuse_it_in_every_estimator(tmp_path
         config = dataclasses.replace(ReplayConfig(), map=MapConfig(str(file)))
         for seed in (1, 2, 3, 4):  # fresh noise on the same world
             results = replay(square_world(seed), config, name="square")
+            assert results.map is not None and results.map.joint == (label == "joint") and results.map.loaded == 12
             for name, e in results.estimators.items():
                 errors[label].setdefault(name, []).append(float(e.final_rmse_m or np.nan))
                 if name != "batch":
                     errors[label].setdefault(name + " nees", []).append(float(e.nees_mean or np.nan))
     for name, values in errors["joint"].items():  # the map's shared error is corrected by the new run's data
         assert np.mean(values) < np.mean(errors["independent"][name]), name
+
+
+def test_the_table_says_which_map_the_run_started_from(tmp_path: Path) -> None:
+    path = tmp_path / "map.json"
+    write_map(path, LandmarkMap.of([0, 1], [[-1.0, -1.0], [1.0, 1.0]], np.tile(0.01 * np.eye(2), (2, 1, 1))))
+    run = subprocess.run(
+        [sys.executable, "-m", "online_slam", "replay", "square", "--map", str(path), "--estimators", "ekf"],
+        capture_output=True, text=True, timeout=120, env={"PYTHONPATH": str(ROOT), "PATH": ""},
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert f"started from a map of 2 landmarks ({path}): independent priors" in run.stdout

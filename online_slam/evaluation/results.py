@@ -202,12 +202,17 @@ class MapReport:
     """The estimator whose final landmark positions it holds."""
     covariances_from: str = ""
     """The estimator whose final covariances it holds."""
+    joint: bool = False
+    """The map started from was one prior with its joint covariance (False: independent priors, or fixed)."""
+    path: str = ""
+    """The file of the map started from (empty: none, or a map given as an object)."""
 
     def to_json(self) -> dict[str, Any]:
         """The ``"map"`` object of the results JSON."""
         return {
             "loaded": self.loaded,
             "fixed": self.fixed,
+            "joint": self.joint,
             "not_in_map": self.not_in_map,
             "final_landmarks": None if self.final is None else len(self.final),
             "positions_from": self.positions_from,

@@ -167,6 +167,8 @@ class ReplayRun:
         """Sightings ``--map-only`` skipped: of landmarks not in the map."""
         self.map_fixed = config.map.fixed
         """The map's landmarks are held (``--map-fixed``)."""
+        self.map_path = config.map.path or ""
+        """The map's file (empty: none, or a map given as an object)."""
         self._map_only = frozenset(self.landmark_map.ids) if self.landmark_map and config.map.only else None
         frontend = dataclasses.replace(config.frontend, max_latency=opened.latency)
         self.engine = Engine([self.odometry, *self.estimators], frontend)

@@ -98,7 +98,8 @@ def map_report(run: ReplayRun, estimates: Mapping[str, Estimate]) -> MapReport:
     loaded = run.landmark_map
     fixed = loaded is not None and run.map_fixed
     online = next((estimates[n] for n in ("smoother", "ekf") if n in estimates), None)
-    report = MapReport(0 if loaded is None else len(loaded), fixed, run.not_in_map)
+    joint = loaded is not None and loaded.joint is not None and not fixed
+    report = MapReport(0 if loaded is None else len(loaded), fixed, run.not_in_map, joint=joint, path=run.map_path)
     if online is None or online.landmark_covs is None:
         return report
     best = next(estimates[n] for n in ("batch", "smoother", "ekf") if n in estimates)

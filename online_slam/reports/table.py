@@ -174,6 +174,10 @@ def notes(results: Results) -> list[str]:
     out = []
     if results.alignment != "anchor":
         out.append(f"errors after {results.alignment} alignment")
+    if results.map is not None and results.map.loaded:
+        m = results.map
+        how = "held fixed" if m.fixed else "one prior, joint covariance" if m.joint else "independent priors"
+        out.append(f"started from a map of {counted(m.loaded, 'landmark')}{f' ({m.path})' if m.path else ''}: {how}")
     for name, result in results.estimators.items():
         d = result.details
         if name in ("ekf", "smoother") and "linearization" in d:  # compare's smoother rows name theirs (`` FEJ``)

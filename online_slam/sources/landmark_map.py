@@ -251,11 +251,17 @@ def _joint(tree: dict[str, Any], version: int, cov: Array, name: str) -> Array |
         return None
     if version == 1:
         raise InputError(name, 0, "joint_cov", "not in a version 1 map")
-    m = len(cov)
-    joint = _numbers(tree["joint_cov"], (2 * m, 2 * m), name, "joint_cov")
+    m, rows = len(cov), tree["joint_cov"]
+    square = isinstance(rows, list) and len(rows) == 2 * m
+    if not square or not all(isinstance(r, list) and len(r) == 2 * m for r in rows):
+        found = f"{len(rows)} rows" if isinstance(rows, list) and not square else "rows of other lengths"
+        found = found if isinstance(rows, list) else json.dumps(rows)[:20]
+        raise InputError(name, 0, "joint_cov", f"expected {2 * m}x{2 * m} numbers (2 per landmark), found {found}")
+    joint = _numbers(rows, (2 * m, 2 * m), name, "joint_cov")
     scale = max(1.0, float(abs(joint).max(initial=0.0)))
     if abs(joint - joint.T).max(initial=0.0) > 1e-9 * scale:
-        raise InputError(name, 0, "joint_cov", "not symmetric")
+        i, j = np.unravel_index(np.argmax(abs(joint - joint.T)), joint.shape)
+        raise InputError(name, 0, "joint_cov", f"not symmetric (row {i}, column {j})")
     blocks = diagonal_blocks(joint)
     differ = np.flatnonzero(abs(blocks - cov).reshape(m, -1).max(axis=1, initial=0.0) > 1e-9 * scale)
     if len(differ):
