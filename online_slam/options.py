@@ -232,6 +232,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            "delaying the estimate by S); later ones are skipped and counted", "input", ("front-end",), kind=float,
            field=("FrontEndConfig", "max_latency"), unset="0 for files, 0.5 s for stdin, tcp://", metavar="S", unit="s",
            lands=("frontend.max_latency",)),
+    Option("fix_correlation", "time constant of fixes' errors (a GPS's wander): each fix's covariance widened by its "
+           "correlation with the previous one; 0: none", "input", ("front-end",), kind=float, unit="s", metavar="S",
+           field=("FrontEndConfig", "fix_correlation"), unset="header, else 0", lands=("frontend.fix_correlation",)),
     Option("on_error", "a bad line of a stream: stop there, or report it on stderr and skip it", "input",
            ("replay",), choices=("stop", "skip"), unset="stop for files, skip for stdin and tcp://",
            lands=("on_error",), commands=_DATASET),

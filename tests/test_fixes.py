@@ -16,11 +16,11 @@ from online_slam.estimators import BatchEstimator, EkfSlam, SlidingWindowSmoothe
 from online_slam.estimators.smoother import WindowConfig
 from online_slam.factors.fixes import fix_rows, with_fixes
 from online_slam.factors.graph import FactorGraph, evaluate, layout, linearize
-from online_slam.frontend import FrontEnd
+from online_slam.frontend import FrontEnd, FrontEndConfig
 from online_slam.geometry import wrap
-from online_slam.models.fix import fix_factors, fix_residual_with_jacobians, fixed_point
+from online_slam.models.fix import correlated_widening, fix_factors, fix_residual_with_jacobians, fixed_point
 from online_slam.sources import GridConfig, Truth, grid_world
-from online_slam.sources.events import Event, Heading, Odometry, Position, Start
+from online_slam.sources.events import Event, Header, Heading, Odometry, Position, Start
 from online_slam.sources.stream import read_stream, write_stream
 from online_slam.sources.validate import validate_events
 
@@ -54,10 +54,10 @@ def fixed_world(
     yield from pending
 
 
-def run(events: Iterable[Event]) -> dict[str, float]:
+def run(events: Iterable[Event], config: FrontEndConfig | None = None) -> dict[str, float]:
     """RMSE of the final positions (no alignment: fixes give the frame) per estimator, and the EKF's mean pose
     NEES over its online poses."""
-    fe = FrontEnd()
+    fe = FrontEnd(config)
     estimators = [EkfSlam(), SlidingWindowSmoother(SmootherConfig(window=WindowConfig(size=10))), BatchEstimator()]
     nees = []
     for step in fe.steps(events):
@@ -355,3 +355,69 @@ def test_the_ekf_gates_a_fix_that_jumps(jump: np.ndarray) -> None:
     assert np.abs(poses[:, :2] - clean[:, :2]).max() < 0.5  # the jump did not drag it
     ungated, ungated_info = final(events, gate=1.0)  # without the gate it does
     assert ungated_info["fixes_rejected"] == 0 and np.abs(ungated[:, :2] - clean[:, :2]).max() > 1.0
+
+
+def correlated_fixes(tau: float, sigma: float = 0.3) -> Iterator[Event]:
+    """The sparse world with a position fix at every pose whose errors are first-order Markov (time constant
+    ``tau`` seconds): a GPS whose error wanders."""
+    rng = np.random.default_rng(5)
+    error, last = rng.normal(0.0, sigma, 2), None
+    for event in grid_world(SPARSE):
+        yield event
+        if isinstance(event, Truth) and event.t > 0.0:
+            rho = np.exp(-(event.t - last) / tau) if last is not None else 0.0
+            error = rho * error + np.sqrt(1.0 - rho**2) * rng.normal(0.0, sigma, 2)
+            last = event.t
+            xy = np.array(event.pose[:2]) + error
+            yield Position(event.t, tuple(map(float, xy)), (sigma, sigma))
+
+
+@pytest.mark.parametrize("tau", [0.5, 3.0, 20.0])
+def test_the_widening_is_the_information_correlated_fixes_hold(tau: float) -> None:
+    # The mean of n AR(1) samples (one every dt) has variance sigma^2 / n (1 + 2 sum_k (1 - k/n) rho^k): as n
+    # grows, that of n independent samples widened by (1 + rho) / (1 - rho).
+    dt, n = 1.0, 20_000
+    rho = np.exp(-dt / tau)
+    k = np.arange(1, n)
+    exact = 1.0 + 2.0 * np.sum((1.0 - k / n) * rho**k)
+    assert correlated_widening(dt, tau) == pytest.approx(exact, rel=5e-3)  # the rest: the sum's finite n
+    assert correlated_widening(100.0 * tau, tau) == pytest.approx(1.0, abs=1e-12)
+    assert correlated_widening(0.0, tau) >= 1e12
+
+
+def test_the_front_end_widens_each_fix_by_its_correlation_with_the_one_before() -> None:
+    events: list[Event] = [
+        Start(0.0, (0.0, 0.0, 0.0)),
+        Position(0.0, (0.0, 0.0), (0.5, 0.5)),
+        Heading(0.0, 0.0, 0.1),
+        Odometry(1.0, (1.0, 0.0, 0.0), (0.1, 0.1, 0.01)),
+        Position(1.0, (1.0, 0.0), cov=((0.25, 0.0), (0.0, 0.25))),
+        Heading(1.0, 0.0, 0.1),
+        Odometry(2.0, (1.0, 0.0, 0.0), (0.1, 0.1, 0.01)),
+    ]
+    steps = list(FrontEnd(FrontEndConfig(fix_correlation=2.0)).steps(events))
+    widen = correlated_widening(1.0, 2.0)
+    first, second = steps[0].fixes, steps[1].fixes
+    assert first[0].sigma == (0.5, 0.5) and first[1].sigma == 0.1  # the first of each kind: as given
+    assert np.allclose(second[0].cov, 0.25 * widen * np.eye(2))  # its kind's previous fix 1 s before
+    assert second[1].sigma == pytest.approx(0.1 * np.sqrt(widen))
+    unset = list(FrontEnd().steps(events))  # no header, no option: independent
+    assert unset[1].fixes[0].cov == ((0.25, 0.0), (0.0, 0.25))
+    declared = [Header(name="gps", meta={"fix_correlation_s": 2.0}), *events]
+    assert np.allclose(list(FrontEnd().steps(declared))[1].fixes[0].cov, 0.25 * widen * np.eye(2))
+    off = FrontEndConfig(fix_correlation=0.0)  # the option overrides the header
+    assert list(FrontEnd(off).steps(declared))[1].fixes[0].cov == ((0.25, 0.0), (0.0, 0.25))
+
+
+def test_fixes_with_wandering_errors_keep_the_ekf_consistent_once_widened() -> None:
+    tau = 20.0
+    plain = run(correlated_fixes(tau))
+    widened = run(correlated_fixes(tau), FrontEndConfig(fix_correlation=tau))
+    assert plain["fixes"] == widened["fixes"] == 199
+    assert plain["ekf_nees"] > 6.0  # each fix taken as news: far too sure
+    assert widened["ekf_nees"] < 0.5 * plain["ekf_nees"]
+    for name in ("smoother", "batch"):  # they weigh the whole run's fixes: more accurate for it
+        assert widened[name] < plain[name]
+    # The filter trades accuracy for it (0.53 against 0.39 m here): a fix too sure pulls the estimate to the
+    # newest reading, which is close; widened, it follows the odometry more between readings.
+    assert widened["ekf"] < 1.5 * plain["ekf"]

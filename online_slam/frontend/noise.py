@@ -21,7 +21,7 @@ import math
 from typing import Any, cast
 
 from online_slam.geometry.angles import wrap
-from online_slam.sources.events import Event, Matrix, Observation, Odometry, Scan, Vector
+from online_slam.sources.events import Event, Heading, Matrix, Observation, Odometry, Position, Scan, Vector
 
 SensorBias = tuple[str | None, float, float]
 """One sensor's bias: its name (None: the robot's centre), the range bias (m) and the bearing bias (rad)."""
@@ -48,6 +48,15 @@ def scaled_event(event: Event | Scan, odometry: float, sensor: float) -> Event |
     if isinstance(event, Scan) and sensor != 1.0:
         return dataclasses.replace(event, noise=tuple(_scaled_scan_noise(n, sensor) for n in event.noise))
     return event
+
+
+def scaled_fix(fix: Position | Heading, scale: float) -> Position | Heading:
+    """An absolute fix with its covariance multiplied by ``scale`` (a heading's sigma by its square root)."""
+    if scale == 1.0:
+        return fix
+    if isinstance(fix, Heading):
+        return dataclasses.replace(fix, sigma=math.sqrt(scale) * fix.sigma)
+    return dataclasses.replace(fix, **_scaled_noise(fix.sigma, fix.cov, scale))
 
 
 def _scaled_noise(sigma: Vector | None, cov: Matrix | None, scale: float) -> dict[str, Any]:

@@ -32,8 +32,16 @@ from typing import cast
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.frontend.noise import SensorBias, check_biases, check_scale, scaled_event, unbiased_event
+from online_slam.frontend.noise import (
+    SensorBias,
+    check_biases,
+    check_scale,
+    scaled_event,
+    scaled_fix,
+    unbiased_event,
+)
 from online_slam.frontend.pose import GroundTruth, PendingStep, Step
+from online_slam.models.fix import correlated_widening
 from online_slam.models.motion import compose_increments, split_increment
 from online_slam.models.observation import POSITION, RANGE_BEARING
 from online_slam.sources.events import (
@@ -102,6 +110,12 @@ class FrontEndConfig:
     """Lines may arrive up to this many seconds older than the newest line's time: they are held back (a reorder
     buffer) and given on in time order; older ones are skipped and counted. 0: no buffer (time going back is an
     input error). None: 0, but :data:`STDIN_LATENCY` for a replay of a live source (standard input, TCP)."""
+    fix_correlation: float | None = None
+    """Seconds: the time constant of the absolute fixes' errors (a GPS's multipath wanders for seconds to minutes),
+    taken as first-order Markov: each fix's covariance is widened by what its correlation with the robot's previous
+    fix of its kind takes from it (:func:`~online_slam.models.fix.correlated_widening`), so that a fix every second
+    counts for what its errors are worth, not each as news. 0: fixes independent. None: the stream header's
+    ``fix_correlation_s``, else 0."""
 
     def __post_init__(self) -> None:
         check_scale("odometry_noise_scale", self.odometry_noise_scale)
@@ -109,6 +123,8 @@ class FrontEndConfig:
         check_biases(self.sensor_bias)
         if self.max_latency is not None and not 0.0 <= self.max_latency < math.inf:  # NaN fails too
             raise ValueError("max_latency must be a finite number of seconds >= 0")
+        if self.fix_correlation is not None and not 0.0 <= self.fix_correlation < math.inf:
+            raise ValueError("fix_correlation must be a finite number of seconds >= 0")
 
 
 Held = Odometry | Observation | Scan | Truth | Start | Position | Heading
@@ -170,6 +186,8 @@ class FrontEnd:
     """Newest time of a line so far (with ``max_latency`` > 0)."""
     sensors: dict[str, tuple[float, ...]] = field(default_factory=dict)
     """Each sensor the header declares: its pose ``[x, y, theta]`` in the robot frame."""
+    last_fix: dict[str, float] = field(default_factory=dict)
+    """The time of each robot's newest fix of each kind (``"position <robot>"``, ``"heading <robot>"``)."""
     _seen: set[LandmarkId | None] = field(default_factory=set)
     """Landmarks sighted so far (kept for ``first_observation_only``)."""
     _sigma_covariance: tuple[tuple[float, ...], Array] | None = field(default=None, init=False, repr=False)
@@ -249,6 +267,8 @@ class FrontEnd:
             self._count("odometry")
             self._odometry(event)
         elif isinstance(event, (Observation, Scan, Truth, Position, Heading)):
+            if isinstance(event, (Position, Heading)):
+                event = self._decorrelated(event)
             if isinstance(event, Scan):
                 self._count("observation", len(event.landmarks))
             elif isinstance(event, Observation):
@@ -269,6 +289,18 @@ class FrontEnd:
             self.header = event
             declared = event.meta.get("sensors") or {}
             self.sensors = {name: tuple(float(v) for v in spec["pose"]) for name, spec in declared.items()}
+
+    def _decorrelated(self, fix: Position | Heading) -> Position | Heading:
+        """The fix with its covariance widened for its correlation with the robot's previous one of its kind
+        (``fix_correlation``; the fix itself when that is 0)."""
+        tau = cast(FrontEndConfig, self.config).fix_correlation
+        if tau is None:
+            tau = float((self.header.meta.get("fix_correlation_s") or 0.0) if self.header is not None else 0.0)
+        key = f"{type(fix).__name__.lower()} {fix.robot}"
+        previous, self.last_fix[key] = self.last_fix.get(key), fix.t
+        if not tau or previous is None:
+            return fix
+        return scaled_fix(fix, correlated_widening(fix.t - previous, tau))
 
     def _attach(self, event: Ahead, pending: PendingStep) -> None:
         """Attach a sighting (or a truth) to the pose at its time."""

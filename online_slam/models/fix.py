@@ -13,6 +13,7 @@ The heading residual is wrapped (:func:`~online_slam.geometry.angles.wrap`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, cast
 
@@ -81,3 +82,18 @@ def fix_factors(fixes: Sequence[Position | Heading]) -> tuple[Array, Array, Arra
             if fix.offset is not None:
                 offset[k] = fix.offset
     return mean, offset, W
+
+
+def correlated_widening(dt: float, tau: float) -> float:
+    """How much to widen a fix's covariance whose error is first-order Markov with time constant ``tau`` (s), taken
+    ``dt`` (s) after the previous fix of its kind: ``(1 + rho) / (1 - rho)``, ``rho = exp(-dt / tau)``.
+
+    A long run of such fixes, every ``dt``, holds the information of independent ones with that much wider
+    covariance (the mean of n AR(1) samples has variance ``sigma^2 (1 + rho) / ((1 - rho) n)`` as n grows), so the
+    widened fixes can be used as independent factors. 1 when far apart (``dt >> tau``); a fix at the same time as
+    the previous one (``dt <= 0``) carries nothing new: widened by 1e12.
+    """
+    if dt <= 0.0:
+        return 1e12
+    rho = math.exp(-dt / tau)
+    return min(1e12, (1.0 + rho) / -math.expm1(-dt / tau))
