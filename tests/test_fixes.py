@@ -234,6 +234,7 @@ def test_the_gtsam_peer_refuses_fixes() -> None:
 def test_acfr_gps_fixes_leave_the_truth(tmp_path: Path) -> None:
     from test_acfr import _simulate
 
+    from online_slam.importers.acfr import GPS_CORRELATION_S
     from online_slam.importers.acfr.reader import read_acfr
 
     _simulate(tmp_path, seconds=30.0)
@@ -242,6 +243,8 @@ def test_acfr_gps_fixes_leave_the_truth(tmp_path: Path) -> None:
     fixes = [e for e in fixed if isinstance(e, Position)]
     assert len(fixes) == 5 and all(f.sigma == (2.0, 2.0) and f.offset == (4.0, 0.6) for f in fixes)
     assert not any(isinstance(e, Position) for e in plain)
+    headers = [e for e in (*plain, *fixed) if isinstance(e, Header)]  # the GPS's wander declared with its fixes
+    assert "fix_correlation_s" not in headers[0].meta and headers[1].meta["fix_correlation_s"] == GPS_CORRELATION_S
     times = [e.t for e in fixed if hasattr(e, "t")]
     assert times == sorted(times)
     truth_plain = {e.t: e.pose for e in plain if isinstance(e, Truth)}

@@ -51,7 +51,7 @@ from numpy.typing import NDArray
 from online_slam.errors import InputError
 from online_slam.geometry.se2 import between
 from online_slam.importers._lines import numbered_lines, numbers
-from online_slam.importers.acfr import FILES, GPS_ANTENNA
+from online_slam.importers.acfr import FILES, GPS_ANTENNA, GPS_CORRELATION_S
 from online_slam.importers.laser import to_robot_frame
 from online_slam.importers.motion import ackermann, integrate, pose_times, start_from_positions, truth_at
 from online_slam.models.fix import fixed_point
@@ -144,6 +144,14 @@ def _fix_rows(gps: Array, every: float, noise: AcfrNoise) -> NDArray[np.bool_]:
     return chosen
 
 
+def _fix_meta(fixes: int, every: float | None, sigma: float) -> dict[str, float]:
+    """The header's fields on GPS fixes (none without): how many, how often, their sigma, their errors' time
+    constant (:data:`GPS_CORRELATION_S`, read by the front-end)."""
+    if not every:
+        return {}
+    return {"gps_fixes": fixes, "gps_fix_every": every, "gps_sigma": sigma, "fix_correlation_s": GPS_CORRELATION_S}
+
+
 def _positions(rows: Array, sigma: float, offset: tuple[float, float] | None) -> Iterator[Position]:
     """GPS readings ``[t, x, y]`` (k, 3) as position fixes of the antenna (``offset``; None: the axle centre)."""
     for row in rows:
@@ -213,7 +221,7 @@ def read_acfr(
             "detections_kept": int(keep.sum()),
             "dropped_by_limits": int((~keep).sum()),
             "truth": "GPS position only, linearly interpolated at pose times; align rigidly",
-            **({"gps_fixes": int(fixed.sum()), "gps_fix_every": every, "gps_sigma": gps_sigma} if every else {}),
+            **_fix_meta(int(fixed.sum()), every, gps_sigma),
             "gps_antenna": list(antenna),
             "start": "GPS position at the first pose, heading from GPS and dead reckoning over the first "
             f"{cfg.start_distance:g} m (the start pose is held fixed)",
