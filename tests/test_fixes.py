@@ -424,3 +424,29 @@ def test_fixes_with_wandering_errors_keep_the_ekf_consistent_once_widened() -> N
     # The filter trades accuracy for it (0.53 against 0.39 m here): a fix too sure pulls the estimate to the
     # newest reading, which is close; widened, it follows the odometry more between readings.
     assert widened["ekf"] < 1.5 * plain["ekf"]
+
+
+@pytest.mark.parametrize("jump", [np.array([36.0, 0.0, 0.0]), np.array([0.0, 0.0, 2.5])])
+def test_the_smoother_and_the_batch_refuse_a_fix_that_jumps(jump: np.ndarray) -> None:
+    events = list(fixed_world(every=10, sigma=0.3, heading=0.05))
+    fixes = [i for i, e in enumerate(events) if isinstance(e, (Position, Heading))]
+    k = fixes[len(fixes) // 2] if jump[2] == 0 else fixes[len(fixes) // 2 + 1]
+    bad = events[k]
+    if isinstance(bad, Position):
+        events[k] = Position(bad.t, tuple(map(float, np.array(bad.xy) + jump[:2])), bad.sigma, offset=bad.offset)
+    else:
+        assert isinstance(bad, Heading)
+        events[k] = Heading(bad.t, float(wrap(bad.theta + jump[2])), bad.sigma)
+    clean, jumped = run(fixed_world(every=10, sigma=0.3, heading=0.05)), run(events)
+    for name in ("smoother", "batch"):  # before the gate: 3.67 / 4.03 m (position), 0.80 / 0.82 m (heading)
+        assert jumped[name] < clean[name] + 0.02, (name, jumped[name], clean[name])
+    fe = FrontEnd()
+    smoother, batch = SlidingWindowSmoother(SmootherConfig(window=WindowConfig(size=10))), BatchEstimator()
+    for step in fe.steps(events):
+        smoother.step(step)
+        batch.step(step)
+    assert smoother.finish().info["fixes_rejected"] == 1 and batch.finish().info["fixes_rejected"] == 1
+    started = BatchEstimator()  # from the smoother's estimate, as a replay starts it: refused there at once
+    for step in FrontEnd().steps(events):
+        started.step(step)
+    assert started.finish(smoother.finish()).info["fixes_rejected"] == 1

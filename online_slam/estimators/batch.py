@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from online_slam.estimators.batch_config import BatchConfig
 from online_slam.estimators.problem import LoggedEstimator, ProblemLog
 from online_slam.estimators.protocol import Estimate
+from online_slam.factors.fixes import fix_gate_ratio, fix_rows, without_fixes
 from online_slam.factors.graph import (
     FactorGraph,
     evaluate,
@@ -49,6 +50,9 @@ ROBUST_MARGIN = 0.05
 The online estimators judged each sighting with what came before and after it; a lower truncated cost is no proof
 of a better estimate under structured contamination (20% wrong ids: 1.2% lower at twice the error), while a start
 that lost the robot costs twice as much (benchmarks/RESULTS.md, "The batch judges from its start")."""
+FIX_ROUNDS = 10
+"""Most fixes the batch refuses after its solution, one at a time, the farthest off first (the others are refused at
+the estimate it starts from, when another estimator's)."""
 TRIMMED_ROUNDS = 3
 """Most times :func:`trimmed` judges the sightings again at its least-squares solution."""
 
@@ -179,7 +183,15 @@ class BatchEstimator(LoggedEstimator):
                 if lid in where:
                     landmarks[k] = initial.landmarks[where[lid]]
         cfg = self.config
-        result = solve(graph, poses, landmarks, cfg.solver, loss=cfg.loss)
+        refused = fix_gate_ratio(graph, poses) > 1.0 if initial is not None else np.zeros(len(graph.prior_pose), bool)
+        result = solve(without_fixes(graph, refused), poses, landmarks, cfg.solver, loss=cfg.loss)
+        for _ in range(FIX_ROUNDS):  # a GPS jump the solution bent to (its neighbours then read off too: worst first)
+            ratio = fix_gate_ratio(without_fixes(graph, refused), result.poses)
+            if ratio.max(initial=0.0) <= 1.0:
+                break
+            refused[np.argmax(ratio)] = True
+            result = solve(without_fixes(graph, refused), result.poses, result.landmarks, cfg.solver, loss=cfg.loss)
+        graph = without_fixes(graph, refused)
         rejected = np.zeros(len(graph.obs_pose), dtype=bool)
         rejected_robots = np.zeros(len(graph.rob_from), dtype=bool)
         robust_pass = False
@@ -208,6 +220,7 @@ class BatchEstimator(LoggedEstimator):
             "initial": "odometry" if initial is None else initial.estimator,
             "robust_pass": robust_pass,
             "rejected": rejected,
+            **({"fixes_rejected": int(refused.sum())} if fix_rows(graph).any() else {}),
         }
         if len(rejected_robots):
             info["robot_sightings"] = len(rejected_robots)

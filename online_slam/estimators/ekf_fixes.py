@@ -6,8 +6,9 @@ update of unit noise on the pose columns, ``S = H P_rr H^T + I``, its heading re
 function. A step that grows (``extend``) updates with its new fixes only: each enters once.
 
 Each fix is gated first: its own NIS (against the state before the step's fixes) beyond the chi-square bound a
-good fix exceeds with probability :data:`FIX_FALSE_ALARM` (41.4 for a position's 2 degrees of freedom, 37.3 for a
-heading's 1; ``gate_probability`` 1 turns it off, as for sightings) refuses it, and it is counted
+good fix exceeds with probability :data:`~online_slam.models.fix.FIX_FALSE_ALARM` (41.4 for a position's 2 degrees
+of freedom, 37.3 for a heading's 1; ``gate_probability`` 1 turns it off, as for sightings) refuses it, and it is
+counted
 (``fixes_rejected``), so one GPS jump does not drag the estimate off; the rest update jointly.
 """
 
@@ -22,16 +23,9 @@ from scipy.stats import chi2
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.frontend.steps import Step
-from online_slam.models.fix import fix_factors, fix_residual_with_jacobians
+from online_slam.models.fix import FIX_FALSE_ALARM, fix_factors, fix_residual_with_jacobians
 
 Array = NDArray[np.float64]
-
-
-FIX_FALSE_ALARM = 1e-9
-"""The fixes' gate, looser than the sightings' (1e-4): a fix is the only absolute measurement and comes seldom, so
-refusing one that disagrees because the filter drifted costs more than a sighting; a GPS jump of metres still fails.
-Victoria Park, fixes every 30 s: 45 of 48 used and 0.705x the error without fixes, against 37 and 0.777x at the
-sightings' gate (benchmarks/RESULTS.md, "Victoria Park with GPS fixes")."""
 
 
 class AbsoluteFixes:

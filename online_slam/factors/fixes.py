@@ -7,11 +7,18 @@ a start prior's is full rank: that tells them apart where a marginal prior must 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+from scipy.stats import chi2
 
 from online_slam.factors.graph import FactorGraph
+from online_slam.models.fix import FIX_FALSE_ALARM, fix_factors, fix_residual_with_jacobians
+
+if TYPE_CHECKING:
+    from online_slam.sources.events import Heading, Position
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -44,3 +51,45 @@ def fix_rows(graph: FactorGraph) -> NDArray[np.bool_]:
     if not len(graph.prior_pose):
         return np.zeros(0, dtype=bool)
     return ~np.all(np.any(graph.prior_sqrt_info != 0.0, axis=2), axis=1)
+
+
+def fix_gate_ratio(graph: FactorGraph, poses: Array) -> Array:
+    """Each prior's squared whitened residual at ``poses`` (n_poses, 3) over the fixes' gate
+    (:data:`~online_slam.models.fix.FIX_FALSE_ALARM` at its degrees of freedom) for a fix, 0 for a start prior or a
+    fix switched off, shape (P,). At an estimate that used it, a good fix reads within its noise (below 1); a GPS
+    jump far above."""
+    out = np.zeros(len(graph.prior_pose))
+    fixes = fix_rows(graph)
+    W = graph.prior_sqrt_info[fixes]
+    dof = np.count_nonzero(np.any(W != 0.0, axis=2), axis=1)
+    if not np.any(dof):
+        return out
+    pose, offset, mean = poses[graph.prior_pose[fixes]], graph.prior_offset[fixes], graph.prior_mean[fixes]
+    e = fix_residual_with_jacobians(pose, offset, mean)[0]  # its heading wrapped
+    r = np.einsum("kij,kj->ki", W, e)
+    out[fixes] = np.where(dof > 0, np.sum(r * r, axis=1) / chi2.isf(FIX_FALSE_ALARM, np.maximum(dof, 1)), 0.0)
+    return out
+
+
+def without_fixes(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
+    """The same graph with the priors flagged in ``drop`` (P,) switched off (zero information)."""
+    W = graph.prior_sqrt_info.copy()
+    W[drop] = 0.0
+    return dataclasses.replace(graph, prior_sqrt_info=W)
+
+
+def fix_gate(pose: ArrayLike, cov: ArrayLike, fixes: Sequence[Position | Heading]) -> NDArray[np.bool_]:
+    """Which fixes pass the gate against a pose estimate ``pose`` (3,) of covariance ``cov`` (3, 3): each fix's NIS
+    ``y^T (H P H^T + I)^-1 y`` over the rows it measures (whitened: unit noise) within the chi-square bound a good
+    fix exceeds with probability :data:`FIX_FALSE_ALARM` at its degrees of freedom (41.4 for a position, 37.3 for a
+    heading), shape (f,)."""
+    mean, offset, W = fix_factors(fixes)
+    e, J = fix_residual_with_jacobians(np.broadcast_to(np.asarray(pose, dtype=float), (len(fixes), 3)), offset, mean)
+    y, H = np.einsum("kij,kj->ki", W, e), W @ J  # (f, 3), (f, 3, 3)
+    passed = np.zeros(len(fixes), dtype=bool)
+    for k in range(len(fixes)):
+        rows = np.any(H[k] != 0.0, axis=1)
+        S = H[k][rows] @ np.asarray(cov, dtype=float) @ H[k][rows].T + np.eye(int(rows.sum()))
+        nis = float(y[k][rows] @ np.linalg.solve(S, y[k][rows]))
+        passed[k] = nis <= float(chi2.isf(FIX_FALSE_ALARM, int(rows.sum())))
+    return passed

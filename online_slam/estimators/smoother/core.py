@@ -32,6 +32,7 @@ from online_slam.estimators.smoother.covariance import (
     propagated_covariance,
     window_covariance,
 )
+from online_slam.estimators.smoother.fixes import fix_counts, gated
 from online_slam.estimators.smoother.global_solve import (
     Decisions,
     Relinearization,
@@ -143,6 +144,7 @@ class SlidingWindowSmoother(SeveralRobots):
             w = self.window
             step = scaled(step, self.state.adaptation)
             w.add_pose(step)
+            step = gated(step, self.progress.fixes, w.poses[step.index], w.pose_cov)
             step, _ = self._resolve(step, 0)
             self._adapt(step, 0)
             w.add_sightings(step, 0)
@@ -170,7 +172,8 @@ class SlidingWindowSmoother(SeveralRobots):
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
         with self._blas.limit(limits=1, user_api="blas"):
-            step = scaled(step, self.state.adaptation)
+            step = gated(scaled(step, self.state.adaptation), self.progress.fixes, self.window.poses[step.index],
+                         self.window.pose_cov)  # fmt: skip
             step, start = self._resolve(step, start)
             self._adapt(step, start)
             self.window.add_sightings(step, start)
@@ -264,6 +267,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 "landmarks_released": p.released,
                 **adapted_info(self.state.adaptation, self.config.adaptation),
                 **self._robot_info(),
+                **fix_counts(self.progress.fixes),
                 "window": self.config.window.size,
                 "relinearize_every": self.config.relinearize_every,
                 "linearization": self.config.linearization,
@@ -291,26 +295,21 @@ class SlidingWindowSmoother(SeveralRobots):
         )
 
     def landmark_joint(self) -> Array:
-        """Joint covariance of every landmark at the current estimate, shape (2M, 2M) (as :meth:`landmark_marginals`;
-        :func:`~.covariance.landmark_joint`)."""
-        return self._at_estimate(landmark_joint, (2, 2))
+        """Joint covariance of every landmark, shape (2M, 2M), as :meth:`landmark_marginals` gives the blocks."""
+        return self._at_estimate(landmark_joint, lambda m: (2 * m, 2 * m))
 
     def landmark_marginals(self) -> Array:
-        """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2).
-
-        The window's factors and the reduced prior are linearized once at the current estimate (no iteration,
-        no state change); see :func:`~.covariance.landmark_marginals`. NaN where the system is singular.
-        """
-        return self._at_estimate(landmark_marginals, (1, 2, 2))
+        """2x2 marginal covariance of every landmark at the current estimate, shape (M, 2, 2): the window's factors and
+        the reduced prior linearized once (no iteration, no state change); NaN where the system is singular."""
+        return self._at_estimate(landmark_marginals, lambda m: (m, 2, 2))
 
     def _at_estimate(
-        self, covariance: Callable[[Linearized, Prior | None, int], Array], shape: tuple[int, ...]
+        self, covariance: Callable[[Linearized, Prior | None, int], Array], empty: Callable[[int], tuple[int, ...]]
     ) -> Array:
-        """``covariance`` of the window linearized at the current estimate; NaN of shape M * ``shape`` (the first
-        axis scaled by M) before any pose."""
+        """``covariance`` of the window linearized at the current estimate (NaN, shape ``empty(M)``, before a pose)."""
         count = len(self.window.landmark_ids)
         if not self.window.indices:
-            return np.full((count * shape[0], *shape[1:]), np.nan)
+            return np.full(empty(count), np.nan)
         with self._blas.limit(limits=1, user_api="blas"):
             linearized = linearize(self.window, self.prior, self.config.robust.loss, self.config.fej)
             return covariance(linearized, self.prior, count)

@@ -38,6 +38,8 @@ class Progress:
     """The newest step's last solve and global relinearization figures (iteration counts are ints)."""
     step_marginalized: list[int] = field(default_factory=list)
     """The poses the newest step marginalized."""
+    fixes: dict[int, list[bool]] = field(default_factory=dict)
+    """Each pose's absolute fixes in the order they came: used (True), or refused by the gate."""
 
 
 @dataclass(eq=False)
