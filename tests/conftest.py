@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from online_slam.factors.graph import FactorGraph, evaluate
 from online_slam.geometry import wrap
 
 DATA_VARIABLE = "ONLINE_SLAM_DATA"
@@ -52,6 +53,24 @@ def assert_close(a: object, b: object, rtol: float = 1e-12, where: str = "") -> 
         )
     else:
         assert a == b, f"{where}: {a!r} != {b!r}"
+
+
+def numerical_graph_jacobian(
+    graph: FactorGraph, poses: np.ndarray, landmarks: np.ndarray, eps: float = 1e-6
+) -> np.ndarray:
+    """Forward-difference Jacobian of a factor graph's whitened residuals over its free variables: every pose but
+    the first (held fixed), then every landmark."""
+    r = evaluate(graph, poses, landmarks)
+    n = 3 * (len(poses) - 1) + landmarks.size
+    numerical = np.zeros((len(r), n))
+    for c in range(n):
+        dx = np.zeros(n)
+        dx[c] = eps
+        p, l = poses.copy(), landmarks.copy()
+        p[1:] += dx[: 3 * (len(poses) - 1)].reshape(-1, 3)
+        l += dx[3 * (len(poses) - 1) :].reshape(-1, 2)
+        numerical[:, c] = (evaluate(graph, p, l) - r) / eps
+    return numerical
 
 
 def numerical_jacobian(

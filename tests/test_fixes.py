@@ -331,8 +331,9 @@ def test_slam_takes_position_and_heading_fixes() -> None:
     assert slam.poses == before
 
 
-@pytest.mark.parametrize("jump", [np.array([30.0, -20.0, 0.0]), np.array([0.0, 0.0, 2.5])])
-def test_the_ekf_gates_a_fix_that_jumps(jump: np.ndarray) -> None:
+def jumped(jump: np.ndarray) -> tuple[list[Event], list[int]]:
+    """The fixed world (position and heading fixes) with one fix jumped by ``jump`` ``[dx, dy, dtheta]`` (a position
+    fix when dtheta is 0, else a heading fix) midway; and where its fixes are."""
     events = list(fixed_world(every=10, sigma=0.3, heading=0.05))
     fixes = [i for i, e in enumerate(events) if isinstance(e, (Position, Heading))]
     k = fixes[len(fixes) // 2] if jump[2] == 0 else fixes[len(fixes) // 2 + 1]
@@ -342,6 +343,12 @@ def test_the_ekf_gates_a_fix_that_jumps(jump: np.ndarray) -> None:
     else:
         assert isinstance(bad, Heading)
         events[k] = Heading(bad.t, float(wrap(bad.theta + jump[2])), bad.sigma)
+    return events, fixes
+
+
+@pytest.mark.parametrize("jump", [np.array([30.0, -20.0, 0.0]), np.array([0.0, 0.0, 2.5])])
+def test_the_ekf_gates_a_fix_that_jumps(jump: np.ndarray) -> None:
+    events, fixes = jumped(jump)
     from online_slam.estimators import EkfConfig
 
     def final(events: Iterable[Event], gate: float = 0.9999) -> tuple[np.ndarray, dict]:
@@ -428,18 +435,10 @@ def test_fixes_with_wandering_errors_keep_the_ekf_consistent_once_widened() -> N
 
 @pytest.mark.parametrize("jump", [np.array([36.0, 0.0, 0.0]), np.array([0.0, 0.0, 2.5])])
 def test_the_smoother_and_the_batch_refuse_a_fix_that_jumps(jump: np.ndarray) -> None:
-    events = list(fixed_world(every=10, sigma=0.3, heading=0.05))
-    fixes = [i for i, e in enumerate(events) if isinstance(e, (Position, Heading))]
-    k = fixes[len(fixes) // 2] if jump[2] == 0 else fixes[len(fixes) // 2 + 1]
-    bad = events[k]
-    if isinstance(bad, Position):
-        events[k] = Position(bad.t, tuple(map(float, np.array(bad.xy) + jump[:2])), bad.sigma, offset=bad.offset)
-    else:
-        assert isinstance(bad, Heading)
-        events[k] = Heading(bad.t, float(wrap(bad.theta + jump[2])), bad.sigma)
-    clean, jumped = run(fixed_world(every=10, sigma=0.3, heading=0.05)), run(events)
+    events, _ = jumped(jump)
+    clean, moved = run(fixed_world(every=10, sigma=0.3, heading=0.05)), run(events)
     for name in ("smoother", "batch"):  # before the gate: 3.67 / 4.03 m (position), 0.80 / 0.82 m (heading)
-        assert jumped[name] < clean[name] + 0.02, (name, jumped[name], clean[name])
+        assert moved[name] < clean[name] + 0.02, (name, moved[name], clean[name])
     fe = FrontEnd()
     smoother, batch = SlidingWindowSmoother(SmootherConfig(window=WindowConfig(size=10))), BatchEstimator()
     for step in fe.steps(events):

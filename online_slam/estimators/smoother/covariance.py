@@ -16,7 +16,7 @@ import numpy as np
 import scipy.linalg as la
 from numpy.typing import NDArray
 
-from online_slam.estimators.smoother.prior import Prior, split
+from online_slam.estimators.smoother.prior import Prior, PriorSplit, split
 from online_slam.estimators.smoother.window import Linearized, Window
 from online_slam.factors.graph import SparseLayout
 from online_slam.geometry.se2 import compose_with_jacobians
@@ -245,6 +245,40 @@ def _passive_regression(s: Solved, prior: Prior | None, wanted: Index) -> tuple[
     return a_columns, B, prior.Sigma[np.ix_(rows, rows)] - B @ S_pa.T
 
 
+@dataclass(frozen=True)
+class Passive:
+    """The landmarks only the prior holds, as a regression on the part of it the window sees (``d_a``):
+    ``d_p = mu_p + B (d_a - mu_a) + noise``."""
+
+    split: PriorSplit
+    """The prior's state split (active part, passive landmarks)."""
+    S_pa: Array
+    """The prior's covariance of the passive landmarks with the active part, shape (2P, q)."""
+    B: Array
+    """The regression, ``S_pa Sigma_aa^-1``, shape (2P, q)."""
+    C_a: Array
+    """The window's covariance of the active part now, shape (q, q)."""
+
+
+def _inverse(linearized: Linearized, prior: Prior | None) -> tuple[Array | None, Passive | None]:
+    """(The inverse of the window's information, None when it has no free variable or is singular; the passive
+    landmarks' regression, None when there are none)."""
+    H, quadratic = linearized.information, linearized.quadratic
+    if H is None:  # no free variable
+        return None, None
+    try:
+        C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
+    except (la.LinAlgError, ValueError):  # singular, or not finite
+        return None, None
+    if prior is None or quadratic is None:
+        return C, None
+    s = split(prior, linearized.active)
+    if len(s.passive) == 0:
+        return C, None
+    S_pa = prior.Sigma[np.ix_(s.passive, s.order)]
+    return C, Passive(s, S_pa, S_pa @ s.information, C[np.ix_(quadratic.columns, quadratic.columns)])
+
+
 def landmark_marginals(linearized: Linearized, prior: Prior | None, count: int) -> Array:
     """2x2 marginal covariance of every landmark (``count``) from a linearized window, shape (M, 2, 2).
 
@@ -253,29 +287,21 @@ def landmark_marginals(linearized: Linearized, prior: Prior | None, count: int) 
     where the system is singular.
     """
     out = np.full((count, 2, 2), np.nan)
-    active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
-    if H is None:  # no free variable
-        return out
-    try:
-        C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
-    except (la.LinAlgError, ValueError):  # singular, or not finite
+    active, sparse = linearized.active, linearized.layout
+    C, passive = _inverse(linearized, prior)
+    if C is None:
         return out
     cols = sparse.landmark_column[np.arange(len(active))][:, None] + np.arange(2)  # (A, 2)
     out[active] = C[cols[:, :, None], cols[:, None, :]]
-    if prior is None or quadratic is None:
+    if passive is None or prior is None:
         return out
-    s = split(prior, active)
-    if len(s.passive) == 0:
-        return out
-    S_pa = prior.Sigma[np.ix_(s.passive, s.order)]
-    B = S_pa @ s.information  # d_p = mu_p + B (d_a - mu_a) + noise
-    C_a = C[np.ix_(quadratic.columns, quadratic.columns)]
+    s, B = passive.split, passive.B
     q = len(s.order)
-    B3, S3 = B.reshape(-1, 2, q), S_pa.reshape(-1, 2, q)
+    B3, S3 = B.reshape(-1, 2, q), passive.S_pa.reshape(-1, 2, q)
     pairs = s.passive.reshape(-1, 2)
     S_pp = prior.Sigma[pairs[:, :, None], pairs[:, None, :]]
     conditional = S_pp - np.einsum("piq,pjq->pij", B3, S3)
-    propagated = np.einsum("piq,qr,pjr->pij", B3, C_a, B3)
+    propagated = np.einsum("piq,qr,pjr->pij", B3, passive.C_a, B3)
     blocks = conditional + propagated
     out[prior.landmarks[~s.is_active]] = 0.5 * (blocks + blocks.transpose(0, 2, 1))
     return out
@@ -288,29 +314,20 @@ def landmark_joint(linearized: Linearized, prior: Prior | None, count: int) -> A
     for any window variable ``v`` and ``cov(d_p) = S_pp - B S_ap + B C_a B^T``. NaN where the system is singular,
     and for a landmark neither observed nor held by the prior."""
     out = np.full((2 * count, 2 * count), np.nan)
-    active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
-    if H is None:
-        return out
-    try:
-        C = la.cho_solve(la.cho_factor(H), np.eye(len(H)))
-    except (la.LinAlgError, ValueError):  # singular, or not finite
+    active, sparse, quadratic = linearized.active, linearized.layout, linearized.quadratic
+    C, passive = _inverse(linearized, prior)
+    if C is None:
         return out
     columns = (sparse.landmark_column[np.arange(len(active))][:, None] + np.arange(2)).reshape(-1)
     rows = (2 * active[:, None] + np.arange(2)).reshape(-1)
     out[np.ix_(rows, rows)] = C[np.ix_(columns, columns)]
-    if prior is None or quadratic is None:
+    if passive is None or prior is None or quadratic is None:
         return out
-    s = split(prior, active)
-    if len(s.passive) == 0:
-        return out
-    S_pa = prior.Sigma[np.ix_(s.passive, s.order)]
-    B = S_pa @ s.information
-    C_a = C[np.ix_(quadratic.columns, quadratic.columns)]
-    passive = prior.landmarks[~s.is_active]
-    p_rows = (2 * passive[:, None] + np.arange(2)).reshape(-1)
+    s, B = passive.split, passive.B
+    p_rows = (2 * prior.landmarks[~s.is_active][:, None] + np.arange(2)).reshape(-1)
     cross = B @ C[np.ix_(quadratic.columns, columns)]
     out[np.ix_(p_rows, rows)] = cross
     out[np.ix_(rows, p_rows)] = cross.T
-    pp = prior.Sigma[np.ix_(s.passive, s.passive)] - B @ S_pa.T + B @ C_a @ B.T
+    pp = prior.Sigma[np.ix_(s.passive, s.passive)] - B @ passive.S_pa.T + B @ passive.C_a @ B.T
     out[np.ix_(p_rows, p_rows)] = 0.5 * (pp + pp.T)
     return out
