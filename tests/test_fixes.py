@@ -4,6 +4,9 @@ on a sparse world, the GTSAM peer's refusal and the raw Victoria Park importer's
 from __future__ import annotations
 
 import io
+import json
+import subprocess
+import sys
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -21,9 +24,10 @@ from online_slam.geometry import wrap
 from online_slam.models.fix import correlated_widening, fix_factors, fix_residual_with_jacobians, fixed_point
 from online_slam.sources import GridConfig, Truth, grid_world
 from online_slam.sources.events import Event, Header, Heading, Odometry, Position, Start
-from online_slam.sources.stream import read_stream, write_stream
+from online_slam.sources.stream import parse_lines, read_stream, write_stream
 from online_slam.sources.validate import validate_events
 
+ROOT = Path(__file__).resolve().parents[1]
 SPARSE = GridConfig(poses=200, seed=3, landmarks=12, sensor_range=5.0, odometry_sigma=(0.05, 0.05, 0.02))
 """A world whose few landmarks leave the path to drift by metres: fixes have something to correct."""
 
@@ -449,3 +453,27 @@ def test_the_smoother_and_the_batch_refuse_a_fix_that_jumps(jump: np.ndarray) ->
     for step in FrontEnd().steps(events):
         started.step(step)
     assert started.finish(smoother.finish()).info["fixes_rejected"] == 1
+
+
+def test_a_fix_widened_for_its_correlation_is_still_judged_by_its_own_covariance(tmp_path: Path) -> None:
+    events, _ = jumped(np.array([30.0, 0.0, 0.0]))
+    path = tmp_path / "jump.jsonl"
+    write_stream(path, events)
+    run_cli = subprocess.run(
+        [sys.executable, "-m", "online_slam", "replay", str(path), "--fix-correlation", "20", "--json",
+         str(tmp_path / "out.json")],
+        capture_output=True, text=True, timeout=120, env={"PYTHONPATH": str(ROOT), "PATH": ""},
+    )  # fmt: skip
+    assert run_cli.returncode == 0, run_cli.stderr
+    for name in ("ekf", "smoother", "batch"):  # widened, the jump would read within the gate (30 m / 4.2 sigma)
+        assert f"{name}: fixes 39 used, 1 refused by the gate" in run_cli.stdout
+    figures = json.loads((tmp_path / "out.json").read_text())["estimators"]
+    assert all(figures[name]["fixes_rejected"] == 1 for name in ("ekf", "smoother", "batch"))
+
+
+@pytest.mark.parametrize("value", [-1, "abc", [20], True, float("inf")])
+def test_a_bad_declared_fix_correlation_is_one_line(value: object) -> None:
+    header = json.dumps({"type": "header", "format": "online-slam", "version": 1, "fix_correlation_s": value})
+    with pytest.raises(InputError) as caught:
+        list(parse_lines("s.jsonl", [header]))
+    assert caught.value.field == "fix_correlation_s" and "expected seconds >= 0" in str(caught.value)

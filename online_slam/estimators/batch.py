@@ -183,10 +183,13 @@ class BatchEstimator(LoggedEstimator):
                 if lid in where:
                     landmarks[k] = initial.landmarks[where[lid]]
         cfg = self.config
-        refused = fix_gate_ratio(graph, poses) > 1.0 if initial is not None else np.zeros(len(graph.prior_pose), bool)
+        widened = self.log.fix_widenings()
+        refused = np.zeros(len(graph.prior_pose), dtype=bool)
+        if initial is not None:  # another estimator's estimate: fixes far off it are refused at once
+            refused = fix_gate_ratio(graph, poses, widened) > 1.0
         result = solve(without_fixes(graph, refused), poses, landmarks, cfg.solver, loss=cfg.loss)
         for _ in range(FIX_ROUNDS):  # a GPS jump the solution bent to (its neighbours then read off too: worst first)
-            ratio = fix_gate_ratio(without_fixes(graph, refused), result.poses)
+            ratio = fix_gate_ratio(without_fixes(graph, refused), result.poses, widened)
             if ratio.max(initial=0.0) <= 1.0:
                 break
             refused[np.argmax(ratio)] = True
@@ -220,7 +223,11 @@ class BatchEstimator(LoggedEstimator):
             "initial": "odometry" if initial is None else initial.estimator,
             "robust_pass": robust_pass,
             "rejected": rejected,
-            **({"fixes_rejected": int(refused.sum())} if fix_rows(graph).any() else {}),
+            **(
+                {"fixes_used": int((fix_rows(graph) & ~refused).sum()), "fixes_rejected": int(refused.sum())}
+                if fix_rows(graph).any()
+                else {}
+            ),  # fmt: skip
         }
         if len(rejected_robots):
             info["robot_sightings"] = len(rejected_robots)

@@ -51,9 +51,9 @@ class AbsoluteFixes:
         H, y = H[rows], y[rows]
         S = H @ self.P[:3, :3] @ H.T + np.eye(len(H))
         keep = np.zeros(len(H), dtype=bool)
-        for k in range(len(new)):  # each fix's own NIS, gated at its dof
-            at = owner == k
-            nis = float(y[at] @ np.linalg.solve(S[np.ix_(at, at)], y[at]))
+        for k in range(len(new)):  # each fix's own NIS (by its own covariance, not as widened), gated at its dof
+            at, w = owner == k, new[k].widened
+            nis = float(w * y[at] @ np.linalg.solve(w * S[np.ix_(at, at)] - (w - 1.0) * np.eye(int(at.sum())), y[at]))
             passed = self.config.gate_probability >= 1.0 or nis <= float(chi2.isf(FIX_FALSE_ALARM, at.sum()))
             keep[at] = passed
             if passed:

@@ -148,6 +148,8 @@ class ProblemLog(Checkpointed):
     fixes: dict[int, tuple[Array, Array, Array]] = field(default_factory=dict)
     """Absolute fixes of each pose that has some: (mean (f, 3), offset (f, 2), square-root information (f, 3, 3)),
     as :func:`~online_slam.models.fix.fix_factors` gives them."""
+    fix_widening: dict[int, Array] = field(default_factory=dict)
+    """How much each of them was widened for correlation in time (shape (f,); the gates judge by their own)."""
     _landmark_index: dict[LandmarkId, int] = field(init=False)
     """Index of each landmark id in ``landmark_ids``."""
     _cached_obs: int = field(init=False)
@@ -270,6 +272,7 @@ class ProblemLog(Checkpointed):
             raise ValueError(f"only the newest step can grow: {len(self.poses) - 1}, not {step.index}")
         if step.fixes and self.keep_factors:
             self.fixes[step.index] = fix_factors(step.fixes)
+            self.fix_widening[step.index] = np.array([fix.widened for fix in step.fixes])
         ids_now = step.landmarks[start:]
         if not ids_now:
             return
@@ -307,7 +310,8 @@ class ProblemLog(Checkpointed):
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.init}
         lists: dict[str, Any] = {name: list(v) for name, v in values.items() if isinstance(v, list)}
-        copy = replace(self, **lists, starts=dict(self.starts), seen=self.seen.frozen(), fixes=dict(self.fixes))
+        copy = replace(self, **lists, starts=dict(self.starts), seen=self.seen.frozen(), fixes=dict(self.fixes),
+                       fix_widening=dict(self.fix_widening))  # fmt: skip
         copy._cached_obs, copy._cat_obs = self._cached_obs, self._cat_obs
         copy._cached_odo, copy._cat_odo = self._cached_odo, self._cat_odo
         return copy
@@ -375,6 +379,11 @@ class ProblemLog(Checkpointed):
         pose = np.repeat(np.array(poses, dtype=np.int64), counts)
         mean, offset, W = (np.concatenate([p[k] for p in parts]) for k in range(3))
         return pose, mean, offset, W
+
+    def fix_widenings(self) -> Array:
+        """Each fix's widening for correlation in time, in :meth:`fix_arrays` order, shape (f,)."""
+        parts = [self.fix_widening.get(g, np.ones(len(self.fixes[g][0]))) for g in sorted(self.fixes)]
+        return np.concatenate(parts) if parts else np.zeros(0)
 
     def _priors(self) -> tuple[list[int], dict[str, Any]]:
         """The start poses held fixed, and the prior factors of the others (keyword arguments of the graph)."""

@@ -53,11 +53,12 @@ def fix_rows(graph: FactorGraph) -> NDArray[np.bool_]:
     return ~np.all(np.any(graph.prior_sqrt_info != 0.0, axis=2), axis=1)
 
 
-def fix_gate_ratio(graph: FactorGraph, poses: Array) -> Array:
+def fix_gate_ratio(graph: FactorGraph, poses: Array, widened: Array | None = None) -> Array:
     """Each prior's squared whitened residual at ``poses`` (n_poses, 3) over the fixes' gate
     (:data:`~online_slam.models.fix.FIX_FALSE_ALARM` at its degrees of freedom) for a fix, 0 for a start prior or a
-    fix switched off, shape (P,). At an estimate that used it, a good fix reads within its noise (below 1); a GPS
-    jump far above."""
+    fix switched off, shape (P,); ``widened``: each fix's widening for correlation in time (in the graph's fix
+    order), taken off (a fix is judged by its own covariance). At an estimate that used it, a good fix reads within
+    its noise (below 1); a GPS jump far above."""
     out = np.zeros(len(graph.prior_pose))
     fixes = fix_rows(graph)
     W = graph.prior_sqrt_info[fixes]
@@ -67,7 +68,8 @@ def fix_gate_ratio(graph: FactorGraph, poses: Array) -> Array:
     pose, offset, mean = poses[graph.prior_pose[fixes]], graph.prior_offset[fixes], graph.prior_mean[fixes]
     e = fix_residual_with_jacobians(pose, offset, mean)[0]  # its heading wrapped
     r = np.einsum("kij,kj->ki", W, e)
-    out[fixes] = np.where(dof > 0, np.sum(r * r, axis=1) / chi2.isf(FIX_FALSE_ALARM, np.maximum(dof, 1)), 0.0)
+    chi2_values = np.sum(r * r, axis=1) * (1.0 if widened is None else widened)
+    out[fixes] = np.where(dof > 0, chi2_values / chi2.isf(FIX_FALSE_ALARM, np.maximum(dof, 1)), 0.0)
     return out
 
 
@@ -85,7 +87,8 @@ def fix_gate(pose: ArrayLike, cov: ArrayLike, fixes: Sequence[Position | Heading
     heading), shape (f,)."""
     mean, offset, W = fix_factors(fixes)
     e, J = fix_residual_with_jacobians(np.broadcast_to(np.asarray(pose, dtype=float), (len(fixes), 3)), offset, mean)
-    y, H = np.einsum("kij,kj->ki", W, e), W @ J  # (f, 3), (f, 3, 3)
+    own = np.sqrt([fix.widened for fix in fixes])  # judged by their own covariance, not as widened for correlation
+    y, H = own[:, None] * np.einsum("kij,kj->ki", W, e), own[:, None, None] * (W @ J)  # (f, 3), (f, 3, 3)
     passed = np.zeros(len(fixes), dtype=bool)
     for k in range(len(fixes)):
         rows = np.any(H[k] != 0.0, axis=1)

@@ -55,8 +55,8 @@ def scaled_fix(fix: Position | Heading, scale: float) -> Position | Heading:
     if scale == 1.0:
         return fix
     if isinstance(fix, Heading):
-        return dataclasses.replace(fix, sigma=math.sqrt(scale) * fix.sigma)
-    return dataclasses.replace(fix, **_scaled_noise(fix.sigma, fix.cov, scale))
+        return dataclasses.replace(fix, sigma=math.sqrt(scale) * fix.sigma, widened=scale * fix.widened)
+    return dataclasses.replace(fix, **_scaled_noise(fix.sigma, fix.cov, scale), widened=scale * fix.widened)
 
 
 def _scaled_noise(sigma: Vector | None, cov: Matrix | None, scale: float) -> dict[str, Any]:

@@ -190,6 +190,8 @@ def notes(results: Results) -> list[str]:
                 else ""
             )
             out.append(f"{name}: {d['linearization']} linearization{several}{linear}")
+        if "fixes_rejected" in d:
+            out.append(f"{name}: fixes {d.get('fixes_used', 0)} used, {d['fixes_rejected']} refused by the gate")
         if d.get("global_failures"):
             failures = d["global_failures"]
             out.append(f"{name}: {counted(len(failures), 'background global solve')} failed, results kept without "

@@ -300,6 +300,9 @@ class Position:
     """``[dx, dy]`` of the fixed point (an antenna) in the robot frame, or None: the robot's centre."""
     robot: RobotId | None = None
     """The robot fixed, or None in a stream of one unnamed robot."""
+    widened: float = 1.0
+    """Never in a record: how much the front-end widened the covariance given, for the fixes' correlation in time
+    (``fix_correlation``); the gates judge a fix by its own covariance, this much narrower."""
 
     @property
     def covariance(self) -> NDArray[np.float64]:
@@ -326,6 +329,9 @@ class Heading:
     """Its standard deviation, radians (> 0)."""
     robot: RobotId | None = None
     """The robot fixed, or None in a stream of one unnamed robot."""
+    widened: float = 1.0
+    """Never in a record: how much the front-end widened the covariance given, for the fixes' correlation in time
+    (``fix_correlation``); the gates judge a fix by its own covariance, this much narrower."""
 
     def to_record(self) -> dict[str, Any]:
         """The JSON object of this event."""

@@ -333,6 +333,10 @@ class EventValidator(ScanRules, RobotRules):
         if "sensors" in meta:
             meta["sensors"] = self._sensors(meta["sensors"], line)
             self._pending.sensors = tuple(meta["sensors"])
+        tau = meta.get("fix_correlation_s")
+        if "fix_correlation_s" in meta and (isinstance(tau, bool) or not isinstance(tau, (int, float))
+                                            or not 0.0 <= tau < math.inf):  # fmt: skip
+            raise self.fail(line, "fix_correlation_s", f"expected seconds >= 0 (a finite number), got {show(tau)}")
         self._pending.seen_content = True
         return Header(name=name, meta=meta, version=VERSION)
 
