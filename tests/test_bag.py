@@ -23,6 +23,7 @@ from online_slam.importers.acfr.reader import read_acfr
 from online_slam.importers.bag import BagOptions
 from online_slam.importers.bag.reader import from_local_plane, local_plane, read_bag
 from online_slam.importers.laser import Detector, detect
+from online_slam.models.fix import GPS_CORRELATION_S
 from online_slam.pipeline import ReplayConfig
 from online_slam.sources.events import Header, Observation, Odometry, Position, Start, Truth
 from online_slam.sources.worlds import square_world
@@ -116,7 +117,10 @@ def test_bad_topics_and_options_are_one_line(options: dict, words: str) -> None:
 
 def test_fixes_are_position_records_in_the_local_plane() -> None:
     options = replace(BagOptions(**VP_OPTIONS), fix="/gps", fix_sigma=3.0)
-    fixes = [e for e in read_bag(BAGS[0], options) if isinstance(e, Position)]
+    events = list(read_bag(BAGS[0], options))
+    fixes = [e for e in events if isinstance(e, Position)]
+    header = next(e for e in events if isinstance(e, Header))  # a GPS's errors wander: declared for the front-end
+    assert header.meta["fix_correlation_s"] == GPS_CORRELATION_S
     gps = np.loadtxt(RAW / "gps.dat")
     assert len(fixes) == len(gps)
     assert np.allclose([f.xy for f in fixes], gps[:, 1:3], atol=1e-8) and fixes[0].sigma == (3.0, 3.0)

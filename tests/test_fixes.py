@@ -238,8 +238,8 @@ def test_the_gtsam_peer_refuses_fixes() -> None:
 def test_acfr_gps_fixes_leave_the_truth(tmp_path: Path) -> None:
     from test_acfr import _simulate
 
-    from online_slam.importers.acfr import GPS_CORRELATION_S
     from online_slam.importers.acfr.reader import read_acfr
+    from online_slam.models.fix import GPS_CORRELATION_S
 
     _simulate(tmp_path, seconds=30.0)
     plain = list(read_acfr(tmp_path))

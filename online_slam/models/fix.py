@@ -61,6 +61,13 @@ def fix_residual_with_jacobians(pose: ArrayLike, offset: ArrayLike, mean: ArrayL
     return e, J
 
 
+GPS_CORRELATION_S = 5.0
+"""Time constant (s) of a GPS receiver's errors, which the importers declare with GPS fixes (the header's
+``fix_correlation_s``: the raw Victoria Park log's, and a bag's NavSatFix): chosen on Victoria Park's first half with a
+fix every 2 s among 0, 5, 10, 20 and 40 s (EKF and smoother both best there), scored on its second half
+(benchmarks/RESULTS.md, "Victoria Park with GPS fixes"). The one GPS log we have: a guess for another receiver."""
+
+
 def fixed_point(pose: ArrayLike, offset: ArrayLike) -> Array:
     """The map position of the robot-frame point ``offset`` at ``pose``, shape (..., 2)."""
     pose = np.asarray(pose, dtype=float)

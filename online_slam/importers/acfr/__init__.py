@@ -15,10 +15,6 @@ FILES = ("inputs.dat", "measurements.dat", "gps.dat")
 GPS_ANTENNA = (4.0, 0.6)
 """The GPS antenna ``[forward, left]`` of the rear axle centre, metres, as measured on the log: (3.88, 0.67) on its
 first half, (4.11, 0.54) on its second (:mod:`.reader`, docs/datasets.md)."""
-GPS_CORRELATION_S = 5.0
-"""Time constant of the log's GPS errors (s), declared in the header with fixes (``fix_correlation_s``): chosen on the
-log's first half with a fix every 2 s among 0, 5, 10, 20 and 40 s (EKF and smoother both best there), scored on its
-second half (benchmarks/RESULTS.md, "Victoria Park with GPS fixes")."""
 
 
 @dataclass(frozen=True)

@@ -51,10 +51,10 @@ from numpy.typing import NDArray
 from online_slam.errors import InputError
 from online_slam.geometry.se2 import between
 from online_slam.importers._lines import numbered_lines, numbers
-from online_slam.importers.acfr import FILES, GPS_ANTENNA, GPS_CORRELATION_S
+from online_slam.importers.acfr import FILES, GPS_ANTENNA
 from online_slam.importers.laser import to_robot_frame
 from online_slam.importers.motion import ackermann, integrate, pose_times, start_from_positions, truth_at
-from online_slam.models.fix import fixed_point
+from online_slam.models.fix import GPS_CORRELATION_S, fixed_point
 from online_slam.sources.events import Event, Header, Observation, Odometry, Position, Start, Truth
 
 Array = NDArray[np.float64]

@@ -44,7 +44,7 @@ from online_slam.importers.bag import BagOptions
 from online_slam.importers.bag.messages import NAVSAT, POINT, TWIST, Bag, Table, read_topics
 from online_slam.importers.laser import Detector, to_robot_frame
 from online_slam.importers.motion import ackermann, integrate, pose_times, start_from_positions, truth_at, variances
-from online_slam.models.fix import fixed_point
+from online_slam.models.fix import GPS_CORRELATION_S, fixed_point
 from online_slam.sources.events import Event, Header, Observation, Odometry, Position, Start, Truth
 
 Array = NDArray[np.float64]
@@ -117,6 +117,8 @@ def _events(path: Path, bag: Bag, o: BagOptions) -> Iterator[Event]:
                             "messages": bag.messages, "poses": len(times), "before_first_pose": before}  # fmt: skip
     if sensors:
         meta["sensors"] = {name: {"pose": list(pose)} for name, pose in sensors.items()}
+    if (fixes := bag.tables.get("fix")) is not None and fixes.msgtype == NAVSAT:
+        meta["fix_correlation_s"] = GPS_CORRELATION_S  # a GPS's errors wander (docs/formats.md, absolute fixes)
     yield Header(name=f"ROS bag {path.name}", meta=meta)
     yield Start(t=float(first), pose=tuple(map(float, start)))
     timed: list[tuple[float, int, int, Event]] = []
