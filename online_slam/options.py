@@ -247,7 +247,7 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            field=("MapConfig", "path"), unset="none", lands=("map.path",), commands=("replay",)),
     Option("map_fixed", "--map's landmarks are known: held where the map puts them", "input", ("replay",),
            kind=bool, field=("MapConfig", "fixed"), lands=("map.fixed",), commands=("replay",)),
-    Option("map_only", "with --map: skip (and count) sightings of landmarks not in the map; needs ids", "input",
+    Option("map_only", "with --map: skip (and count) sightings of landmarks not in the map (no new landmarks)", "input",
            ("replay",), kind=bool, field=("MapConfig", "only"), lands=("map.only",), commands=("replay",)),
     # -- estimators -----------------------------------------------------------------------------------------
     Option("estimators", "comma-separated estimators to run (ekf, smoother, batch)", "estimators", ("replay",),

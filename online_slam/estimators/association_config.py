@@ -36,6 +36,9 @@ class AssociationConfig:
     reach: float = 2.0
     """Candidates: landmarks within the scan's longest range plus this margin (m) plus three sigmas of the
     pose's position and heading from the predicted pose."""
+    new_landmarks: bool = True
+    """False: a sighting no landmark takes is left out and counted (``not_in_map``), never a new landmark:
+    localisation on a map without ids (``--map-only``)."""
 
     def __post_init__(self) -> None:
         if self.method not in ASSOCIATION_CHOICES:

@@ -118,6 +118,8 @@ class LandmarkBook(Checkpointed):
     """Sightings kept out: no landmark took them, but one was too close for a new landmark."""
     unlikely: int = 0
     """Sightings JCBB paired that were likelier of an unmapped landmark (``new_density``): made new ones."""
+    not_in_map: int = 0
+    """Sightings no landmark took, left out because no new landmark may start (``new_landmarks`` False)."""
     _gate: float = field(init=False)
     """Individual gate on a sighting's chi-square (2 dof)."""
     _new_gate: float = field(init=False)
@@ -235,6 +237,9 @@ class LandmarkBook(Checkpointed):
                 new = pairing.landmark == -2  # less likely than an unmapped landmark: a new one, however near
                 self.ambiguous += int(np.sum(~paired & ~new & near))
                 free = (~paired & ~near) | new
+        if free.any() and not self.config.new_landmarks:  # localisation on a map: nothing new
+            self.not_in_map += int(free.sum())
+            free[:] = False
         if free.any():
             if self.inside:
                 for i in np.flatnonzero(free):
@@ -404,4 +409,5 @@ class LandmarkBook(Checkpointed):
             "tentative_left": self.tentative,
             "ambiguous_sightings": self.ambiguous,
             "unlikely_pairings": self.unlikely,
+            **({"not_in_map": self.not_in_map} if not self.config.new_landmarks else {}),
         }

@@ -96,9 +96,9 @@ class ReplayConfig:
         config = dataclasses.replace(
             self,
             association=method,
-            ekf=_associating(self.ekf, method),
-            smoother=_associating(self.smoother, method),
-            extra_smoothers=tuple(_associating(s, method) for s in self.extra_smoothers),
+            ekf=_associating(self.ekf, method, self.map.only),
+            smoother=_associating(self.smoother, method, self.map.only),
+            extra_smoothers=tuple(_associating(s, method, self.map.only) for s in self.extra_smoothers),
             batch=dataclasses.replace(self.batch, use_ids=method == "known"),
         )
         if method != "known" and "batch" in config.estimators:
@@ -111,9 +111,11 @@ class ReplayConfig:
         return config
 
 
-def _associating(config: Any, method: str) -> Any:
-    """An EKF or smoother configuration with its association method replaced."""
-    return dataclasses.replace(config, association=dataclasses.replace(config.association, method=method))
+def _associating(config: Any, method: str, map_only: bool = False) -> Any:
+    """An EKF or smoother configuration with its association method replaced; ``map_only`` (``--map-only``): the
+    sightings it associates start no landmark (with ids, the replay leaves out those of other landmarks itself)."""
+    association = dataclasses.replace(config.association, method=method, new_landmarks=not map_only)
+    return dataclasses.replace(config, association=association)
 
 
 def make_estimator(name: str, config: ReplayConfig) -> Estimator:

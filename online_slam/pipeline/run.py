@@ -169,7 +169,10 @@ class ReplayRun:
         """The map's landmarks are held (``--map-fixed``)."""
         self.map_path = config.map.path or ""
         """The map's file (empty: none, or a map given as an object)."""
-        self._map_only = frozenset(self.landmark_map.ids) if self.landmark_map and config.map.only else None
+        by_id = self.landmark_map is not None and config.map.only and opened.association == "known"
+        self._map_only = frozenset(self.landmark_map.ids) if by_id and self.landmark_map else None
+        """With ids, ``--map-only`` leaves out the sightings of other landmarks here (without ids, each estimator's
+        association starts no landmark instead: a stream's ids are never used then)."""
         frontend = dataclasses.replace(config.frontend, max_latency=opened.latency)
         self.engine = Engine([self.odometry, *self.estimators], frontend)
         """The engine: front-end, dead reckoning and estimators."""
@@ -358,16 +361,13 @@ def _load_map(config: ReplayConfig, association: str, estimators: list[Estimator
     """Read ``--map`` and start every estimator from it (None: no map).
 
     Raises:
-        InputError: A bad map file. ConfigError: ``--map-fixed``/``--map-only`` without a map; ``--map-only``
-            without ids.
+        InputError: A bad map file. ConfigError: ``--map-fixed``/``--map-only`` without a map.
     """
     settings = config.map
     if settings.path is None:
         if settings.fixed or settings.only:
             raise ConfigError(f"--map-{'fixed' if settings.fixed else 'only'} needs --map")
         return None
-    if settings.only and association != "known":
-        raise ConfigError(f"--map-only needs sightings with ids (association known, not {association})")
     landmark_map = read_map(settings.path)
     for estimator in estimators:
         estimator.load_map(landmark_map, settings.fixed)  # type: ignore[attr-defined]

@@ -290,9 +290,8 @@ class SlidingWindowSmoother(SeveralRobots):
         propagated = propagated_covariance(self.association.solved, self.window, self.prior, indices)
         if propagated is not None:
             return propagated
-        return window_covariance(
-            linearize(self.window, self.prior, self.config.robust.loss, self.config.fej), self.prior, indices
-        )
+        linearized = linearize(self.window, self.prior, self.config.robust.loss, self.config.fej)
+        return window_covariance(linearized, self.prior, indices, self.window.map_covariance)
 
     def landmark_joint(self) -> Array:
         """Joint covariance of every landmark, shape (2M, 2M), as :meth:`landmark_marginals` gives the blocks."""

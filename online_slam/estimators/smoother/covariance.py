@@ -10,6 +10,7 @@ the prior's conditional plus that part's uncertainty carried through the regress
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,13 +111,19 @@ def pose_marginals(solved: Solved, poses: list[int]) -> dict[int, Array]:
     return out
 
 
-def window_covariance(linearized: Linearized, prior: Prior | None, indices: Index) -> Array:
+def window_covariance(
+    linearized: Linearized,
+    prior: Prior | None,
+    indices: Index,
+    unheld: Callable[[Index], Array | None] | None = None,
+) -> Array:
     """Joint covariance of the newest pose and landmarks ``indices`` (c,) from a linearized window, shape
     (3 + 2c, 3 + 2c).
 
     Landmarks the window observes read the inverse information; landmarks only the prior holds are its
-    conditional given the part the window shares, propagated. A landmark nothing constrains (cannot happen with
-    a consistent state) gives a large diagonal.
+    conditional given the part the window shares, propagated; landmarks neither holds (a map's, not seen yet)
+    their own covariance, independent of the rest (``unheld`` gives it for some landmarks, or None). A landmark
+    nothing constrains (cannot happen with a consistent state) gives a large diagonal.
     """
     c = len(indices)
     active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
@@ -135,12 +142,18 @@ def window_covariance(linearized: Linearized, prior: Prior | None, indices: Inde
         column = sparse.landmark_column[position[k]]
         L[3 + 2 * k + np.arange(2), column + np.arange(2)] = 1.0
     passive_k = np.flatnonzero(~is_active)
-    if len(passive_k):
-        if prior is None or quadratic is None:
-            return fallback
+    slots, held = np.zeros(len(passive_k), dtype=np.int64), np.zeros(len(passive_k), dtype=bool)
+    if len(passive_k) and prior is not None and quadratic is not None:
         slots, held = locate(prior.landmarks, indices[passive_k])
-        if not held.all():
+    if not held.all():  # a map's landmarks not seen yet: their own prior, independent of the window's variables
+        block = None if unheld is None else unheld(indices[passive_k[~held]])
+        if block is None:
             return fallback
+        free_rows = (3 + 2 * passive_k[~held][:, None] + np.arange(2)).reshape(-1)
+        N[np.ix_(free_rows, free_rows)] = block
+        passive_k, slots = passive_k[held], slots[held]
+    if len(passive_k):
+        assert prior is not None and quadratic is not None  # held: the prior holds them
         s = split(prior, active)
         state_rows = (2 * slots[:, None] + np.arange(2)).reshape(-1)
         S_pa = prior.Sigma[np.ix_(state_rows, s.order)]

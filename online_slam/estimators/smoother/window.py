@@ -124,6 +124,17 @@ class Window:
             return None
         return self.landmarks[: self.map_size], self.map_xy, self.map_joint
 
+    def map_covariance(self, rows: Index) -> Array | None:
+        """The map's prior covariance of landmarks ``rows`` (k,), shape (2k, 2k) (joint when the map has one), or
+        None when one of them is no map landmark."""
+        if not len(rows) or rows.max() >= self.map_size:
+            return None
+        if len(self.map_joint):
+            return joint_of(self.map_joint, rows)
+        out = np.zeros((2 * len(rows), 2 * len(rows)))
+        out.reshape(len(rows), 2, len(rows), 2)[np.arange(len(rows)), :, np.arange(len(rows)), :] = self.map_cov[rows]
+        return out
+
     def values(self) -> Array:
         """The window poses' estimates, oldest first, shape (P, 3)."""
         return np.array([self.poses[g] for g in self.indices])
