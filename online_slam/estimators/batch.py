@@ -93,6 +93,13 @@ def trimmed(
     return result, rejected, rejected_robots, truncated_cost(graph, poses, landmarks, bound)
 
 
+def _fix_counts(fixes: NDArray[np.bool_], refused: NDArray[np.bool_]) -> dict[str, int]:
+    """Fixes used and refused, for the estimate's info (nothing without fixes)."""
+    if not fixes.any():
+        return {}
+    return {"fixes_used": int((fixes & ~refused).sum()), "fixes_rejected": int(refused.sum())}
+
+
 class BatchEstimator(LoggedEstimator):
     """Collects every step; solves the full problem once, at the end of the stream.
 
@@ -223,11 +230,7 @@ class BatchEstimator(LoggedEstimator):
             "initial": "odometry" if initial is None else initial.estimator,
             "robust_pass": robust_pass,
             "rejected": rejected,
-            **(
-                {"fixes_used": int((fix_rows(graph) & ~refused).sum()), "fixes_rejected": int(refused.sum())}
-                if fix_rows(graph).any()
-                else {}
-            ),  # fmt: skip
+            **_fix_counts(fix_rows(graph), refused),
         }
         if len(rejected_robots):
             info["robot_sightings"] = len(rejected_robots)

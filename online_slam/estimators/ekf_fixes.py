@@ -23,7 +23,7 @@ from scipy.stats import chi2
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_state import EkfState
 from online_slam.frontend.steps import Step
-from online_slam.models.fix import FIX_FALSE_ALARM, fix_factors, fix_residual_with_jacobians
+from online_slam.models.fix import FIX_FALSE_ALARM, fix_factors, fix_nis, fix_residual_with_jacobians
 
 Array = NDArray[np.float64]
 
@@ -49,18 +49,12 @@ class AbsoluteFixes:
         rows = np.any(H != 0.0, axis=1)  # what a fix does not measure: zero rows
         owner = np.repeat(np.arange(len(new)), 3)[rows]
         H, y = H[rows], y[rows]
-        S = H @ self.P[:3, :3] @ H.T + np.eye(len(H))
-        keep = np.zeros(len(H), dtype=bool)
-        for k in range(len(new)):  # each fix's own NIS (by its own covariance, not as widened), gated at its dof
-            at, w = owner == k, new[k].widened
-            nis = float(w * y[at] @ np.linalg.solve(w * S[np.ix_(at, at)] - (w - 1.0) * np.eye(int(at.sum())), y[at]))
-            passed = self.config.gate_probability >= 1.0 or nis <= float(chi2.isf(FIX_FALSE_ALARM, at.sum()))
-            keep[at] = passed
-            if passed:
-                self.state.fix_nis.append(nis)
-            else:
-                self.state.fixes_rejected += 1
+        nis, dof = fix_nis(self.x[:3, 0], self.P[:3, :3], new)  # each by its own covariance, not as widened
+        passed = (nis <= chi2.isf(FIX_FALSE_ALARM, dof)) | (self.config.gate_probability >= 1.0)
+        self.state.fix_nis.extend(nis[passed].tolist())
+        self.state.fixes_rejected += int(np.count_nonzero(~passed))
         self.state.fixes_used = len(step.fixes)
+        keep = passed[owner]
         if keep.any():
             H, y = H[keep], y[keep]
             PHt = self.P[:, :3] @ H.T

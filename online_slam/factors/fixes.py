@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
 from online_slam.factors.graph import FactorGraph
-from online_slam.models.fix import FIX_FALSE_ALARM, fix_factors, fix_residual_with_jacobians
+from online_slam.models.fix import FIX_FALSE_ALARM, fix_nis, fix_residual_with_jacobians
 
 if TYPE_CHECKING:
     from online_slam.sources.events import Heading, Position
@@ -81,18 +81,8 @@ def without_fixes(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
 
 
 def fix_gate(pose: ArrayLike, cov: ArrayLike, fixes: Sequence[Position | Heading]) -> NDArray[np.bool_]:
-    """Which fixes pass the gate against a pose estimate ``pose`` (3,) of covariance ``cov`` (3, 3): each fix's NIS
-    ``y^T (H P H^T + I)^-1 y`` over the rows it measures (whitened: unit noise) within the chi-square bound a good
-    fix exceeds with probability :data:`FIX_FALSE_ALARM` at its degrees of freedom (41.4 for a position, 37.3 for a
-    heading), shape (f,)."""
-    mean, offset, W = fix_factors(fixes)
-    e, J = fix_residual_with_jacobians(np.broadcast_to(np.asarray(pose, dtype=float), (len(fixes), 3)), offset, mean)
-    own = np.sqrt([fix.widened for fix in fixes])  # judged by their own covariance, not as widened for correlation
-    y, H = own[:, None] * np.einsum("kij,kj->ki", W, e), own[:, None, None] * (W @ J)  # (f, 3), (f, 3, 3)
-    passed = np.zeros(len(fixes), dtype=bool)
-    for k in range(len(fixes)):
-        rows = np.any(H[k] != 0.0, axis=1)
-        S = H[k][rows] @ np.asarray(cov, dtype=float) @ H[k][rows].T + np.eye(int(rows.sum()))
-        nis = float(y[k][rows] @ np.linalg.solve(S, y[k][rows]))
-        passed[k] = nis <= float(chi2.isf(FIX_FALSE_ALARM, int(rows.sum())))
-    return passed
+    """Which fixes pass the gate against a pose estimate ``pose`` (3,) of covariance ``cov`` (3, 3): their NIS
+    (:func:`~online_slam.models.fix.fix_nis`) within the chi-square bound a good fix exceeds with probability
+    :data:`FIX_FALSE_ALARM` at its degrees of freedom (41.4 for a position, 37.3 for a heading), shape (f,)."""
+    nis, dof = fix_nis(pose, cov, fixes)
+    return nis <= chi2.isf(FIX_FALSE_ALARM, dof)

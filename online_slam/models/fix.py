@@ -97,6 +97,22 @@ def fix_factors(fixes: Sequence[Position | Heading]) -> tuple[Array, Array, Arra
     return mean, offset, W
 
 
+def fix_nis(pose: ArrayLike, cov: ArrayLike, fixes: Sequence[Position | Heading]) -> tuple[Array, NDArray[np.int64]]:
+    """Each fix's NIS against a pose estimate ``pose`` (3,) of covariance ``cov`` (3, 3), by the fix's own covariance
+    (not as widened for correlation in time: ``widened`` taken off), over the rows it measures, and its degrees of
+    freedom (2 for a position, 1 for a heading); shapes (f,)."""
+    mean, offset, W = fix_factors(fixes)
+    e, J = fix_residual_with_jacobians(np.broadcast_to(np.asarray(pose, dtype=float), (len(fixes), 3)), offset, mean)
+    own = np.sqrt([fix.widened for fix in fixes])
+    y, H = own[:, None] * np.einsum("kij,kj->ki", W, e), own[:, None, None] * (W @ J)  # (f, 3), (f, 3, 3)
+    nis, dof = np.zeros(len(fixes)), np.zeros(len(fixes), dtype=np.int64)
+    for k in range(len(fixes)):  # a step's few fixes
+        rows = np.any(H[k] != 0.0, axis=1)  # what a fix does not measure: zero rows
+        S = H[k][rows] @ np.asarray(cov, dtype=float) @ H[k][rows].T + np.eye(int(rows.sum()))
+        nis[k], dof[k] = float(y[k][rows] @ np.linalg.solve(S, y[k][rows])), int(rows.sum())
+    return nis, dof
+
+
 def correlated_widening(dt: float, tau: float) -> float:
     """How much to widen a fix's covariance whose error is first-order Markov with time constant ``tau`` (s), taken
     ``dt`` (s) after the previous fix of its kind: ``(1 + rho) / (1 - rho)``, ``rho = exp(-dt / tau)``.

@@ -35,7 +35,7 @@ from online_slam.evaluation.scoring import (
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.run import ReplayRun
 from online_slam.sources.events import LandmarkId
-from online_slam.sources.landmark_map import LandmarkMap, diagonal_blocks, joint_of
+from online_slam.sources.landmark_map import LandmarkMap, block_diagonal, diagonal_blocks, joint_of
 
 Array = NDArray[np.float64]
 
@@ -125,7 +125,7 @@ def _joint(online: Estimate, ids: list[LandmarkId], covariances: Array) -> Array
     where = {lid: k for k, lid in enumerate(online.landmark_ids) if np.isfinite(blocks[k]).all()}
     have = np.array([i for i, lid in enumerate(ids) if lid in where], dtype=np.int64)
     source = np.array([where[ids[i]] for i in have], dtype=np.int64)
-    joint = LandmarkMap(tuple(ids), np.zeros((len(ids), 2)), covariances).covariance  # block-diagonal
+    joint = block_diagonal(covariances)
     to = (2 * have[:, None] + np.arange(2)).reshape(-1)
     joint[np.ix_(to, to)] = joint_of(online.landmark_joint, source)
     return joint if np.isfinite(joint).all() else None

@@ -108,12 +108,7 @@ class LandmarkMap:
     @property
     def covariance(self) -> Array:
         """The joint covariance (2M, 2M): ``joint``, or block-diagonal from ``cov`` when the map has none."""
-        if self.joint is not None:
-            return self.joint
-        m = len(self.ids)
-        out = np.zeros((2 * m, 2 * m))
-        out.reshape(m, 2, m, 2)[np.arange(m), :, np.arange(m), :] = self.cov
-        return out
+        return self.joint if self.joint is not None else block_diagonal(self.cov)
 
     def to_json(self) -> dict[str, Any]:
         """The file's content as a JSON object."""
@@ -146,6 +141,14 @@ def joint_of(joint: Array, rows: Any) -> Array:
     """The joint covariance (2k, 2k) of landmarks ``rows`` (k indices) from a (2M, 2M) one."""
     columns = (2 * np.asarray(rows, dtype=np.int64).reshape(-1, 1) + np.arange(2)).reshape(-1)
     return joint[np.ix_(columns, columns)]
+
+
+def block_diagonal(cov: Array) -> Array:
+    """The (2k, 2k) joint covariance of k independent landmarks of covariances ``cov`` (k, 2, 2)."""
+    k = len(cov)
+    out = np.zeros((2 * k, 2 * k))
+    out.reshape(k, 2, k, 2)[np.arange(k), :, np.arange(k), :] = cov
+    return out
 
 
 def diagonal_blocks(joint: Array) -> Array:

@@ -37,7 +37,7 @@ from online_slam.models.fix import fix_factors
 from online_slam.models.observation import landmark_from_sighting, tags
 from online_slam.solvers.least_squares import QuadraticPrior, SolverConfig, SolveResult, solve
 from online_slam.sources.events import LandmarkId, RobotId
-from online_slam.sources.landmark_map import joint_of
+from online_slam.sources.landmark_map import block_diagonal, joint_of
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -129,11 +129,7 @@ class Window:
         None when one of them is no map landmark."""
         if not len(rows) or rows.max() >= self.map_size:
             return None
-        if len(self.map_joint):
-            return joint_of(self.map_joint, rows)
-        out = np.zeros((2 * len(rows), 2 * len(rows)))
-        out.reshape(len(rows), 2, len(rows), 2)[np.arange(len(rows)), :, np.arange(len(rows)), :] = self.map_cov[rows]
-        return out
+        return joint_of(self.map_joint, rows) if len(self.map_joint) else block_diagonal(self.map_cov[rows])
 
     def values(self) -> Array:
         """The window poses' estimates, oldest first, shape (P, 3)."""
