@@ -40,7 +40,7 @@ ADVANCED = frozenset({
     "align", "first_observation_only", "keyframe_angle", "keyframe_time", "max_iterations", "gate_probability",
     "gate_persistence", "ekf_update", "ekf_linearization", "window_distance", "window_max", "relinearize_every",
     "global_every", "global_delay", "smoother_linearization", "global_information_max", "new_density", "convention",
-    "pose_covariance",
+    "pose_covariance", "rival",
 })  # fmt: skip
 """The research knobs, by option name: what a user seldom sets. ``--help`` leaves them out, ``--help-all`` shows
 them and docs/options.md marks them."""
@@ -183,7 +183,10 @@ def readable(value: Any, unit: str = "") -> str:
 
 
 def _estimator(name: str, help: str, group: str, owner: str, field: tuple[str, str], **kw: Any) -> Option:
-    """An estimator option read from a configuration field (its type is the field default's)."""
+    """An estimator option read from a configuration field (its type is the field default's); an association field
+    lands in the EKF's and the smoother's."""
+    if field[0] == "AssociationConfig":
+        kw.setdefault("lands", (f"ekf.association.{field[1]}", f"smoother.association.{field[1]}"))
     kind = type(field_default(field))
     return Option(name, help, group, (owner,), kind=kind, field=field, **kw)
 
@@ -331,8 +334,10 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            choices=("auto", *CHOICES["association"]), lands=("association",)),
     _estimator("new_density", "nn/jcbb: start a new landmark when a pairing is less likely than an unmapped "
                "landmark at this density (0 = off)", "association", "association",
-               ("AssociationConfig", "new_density"), metavar="D", unit="per m^2",
-               lands=("ekf.association.new_density", "smoother.association.new_density")),
+               ("AssociationConfig", "new_density"), metavar="D", unit="per m^2"),
+    _estimator("rival", "nn/jcbb: leave a scan out when a pairing that puts the robot elsewhere is at least F "
+               "times as likely as the one chosen (0 = off)", "association", "association",
+               ("AssociationConfig", "rival"), metavar="F"),
     # -- outliers -------------------------------------------------------------------------------------------
     Option("robust", "smoother and batch: auto (Cauchy tail beyond 5.3 sigmas in the window, batch robust pass "
            "when residuals show outliers), none (least squares), huber or cauchy (with --robust-scale)",
@@ -399,16 +404,9 @@ def check_value(option: Option, value: Any) -> None:
     Raises:
         ConfigError: Naming the option, what it expects and what it got.
     """
-    kind = option.kind
-    ok = (
-        isinstance(value, bool)
-        if kind is bool
-        else isinstance(value, int) and not isinstance(value, bool)
-        if kind is int
-        else isinstance(value, (int, float)) and not isinstance(value, bool) and not math.isnan(value)
-        if kind is float
-        else isinstance(value, str)
-    )
+    kind, number = option.kind, isinstance(value, (int, float)) and not isinstance(value, bool)
+    ok = {bool: isinstance(value, bool), int: number and isinstance(value, int),
+          float: number and not math.isnan(value)}.get(kind, isinstance(value, str))  # fmt: skip
     if not ok:
         raise ConfigError(
             f"option {option.name}: expected {kind.__name__}, got {value!r} ({for_command(option.help, 'Slam')})"

@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from online_slam.frontend.association import Belief, associate, individual_distances, jcbb, nearest_neighbour
+from online_slam.frontend.association import (
+    Belief,
+    associate,
+    individual_distances,
+    individual_log_likelihoods,
+    jcbb,
+    joint_log_likelihood,
+    nearest_neighbour,
+    rival_ratio,
+)
 from online_slam.geometry.angles import wrap
 from online_slam.models.range_bearing import range_bearing, range_bearing_with_jacobians
 
@@ -114,3 +123,47 @@ def test_jcbb_incremental_joint_distance_equals_the_explicit_one(rng) -> None:
         pairs = [(i, int(j)) for i, j in enumerate(result.landmark) if j >= 0]
         assert len(pairs) >= 4
         assert result.joint_distance == pytest.approx(_joint_distance(b, z, R, pairs), rel=1e-8)
+
+
+def test_joint_log_likelihood_is_the_stacked_innovations_density(rng) -> None:
+    landmarks = rng.uniform(-10, 10, (4, 2))
+    A = rng.normal(size=(11, 11))
+    b = Belief(np.array([0.3, -0.2, 0.4]), landmarks, A @ A.T * 0.01 + 1e-3 * np.eye(11))
+    z = np.array([[5.0, 0.3], [8.0, -1.0], [3.0, 2.0]])
+    R = np.stack([R1, 2 * R1, 3 * R1])
+    single = individual_log_likelihoods(b, z, R)[1]
+    for i in range(3):  # one sighting paired: its own density
+        pairing = np.full(3, -1)
+        pairing[i] = 2
+        assert joint_log_likelihood(b, z, R, pairing) == pytest.approx(single[i, 2], rel=1e-9)
+    pairing = np.array([1, -1, 3])
+    H, nu = np.zeros((4, 11)), np.zeros(4)
+    for a, (i, j) in enumerate(((0, 1), (2, 3))):
+        z_hat, J_p, J_l = range_bearing_with_jacobians(b.pose, landmarks[j])
+        H[2 * a : 2 * a + 2, :3], H[2 * a : 2 * a + 2, 3 + 2 * j : 5 + 2 * j] = J_p, J_l
+        nu[2 * a : 2 * a + 2] = [z[i, 0] - z_hat[0], wrap(z[i, 1] - z_hat[1])]
+    S = H @ b.covariance @ H.T
+    S[:2, :2] += R[0]
+    S[2:, 2:] += R[2]
+    expected = -0.5 * (nu @ np.linalg.solve(S, nu) + np.linalg.slogdet(2 * np.pi * S)[1])
+    assert joint_log_likelihood(b, z, R, pairing) == pytest.approx(expected, rel=1e-9)
+    assert joint_log_likelihood(b, z, R, np.full(3, -1)) == 0.0
+
+
+def test_a_rival_elsewhere_counts_and_a_neighbour_the_sensor_cannot_tell_apart_does_not() -> None:
+    """One sighting 7.5 m ahead; the heading known to 0.24 rad. Landmarks 3 m apart both pass the gate: the rival's
+    likelihood ratio is its density over the pairing's. A neighbour 0.05 m from the paired landmark (within the
+    sighting's own noise) is no rival; with the heading known to 0.01 rad the far landmark fails the gate."""
+    z, R = np.array([[7.5, 0.1]]), R1[None]
+    far = [[7.5, 0.0], [7.5 * np.cos(0.4), 7.5 * np.sin(0.4)]]
+    b = belief([0.0, 0.0, 0.3], far, [1e-4, 1e-4, 0.24**2])
+    pairing = jcbb(b, z, R)
+    assert pairing.landmark.tolist() == [1]  # the nearer, in the believed heading
+    log_l = individual_log_likelihoods(b, z, R)[1][0]
+    ratio = rival_ratio(b, z, R, pairing, distinct=18.42)
+    assert ratio == pytest.approx(np.exp(log_l[0] - log_l[1]), rel=1e-9)
+    assert 0.1 < ratio < 1.0
+    near = belief([0.0, 0.0, 0.3], [far[1], [far[1][0] + 0.05, far[1][1]]], [1e-4, 1e-4, 0.24**2])
+    assert rival_ratio(near, z, R, jcbb(near, z, R), distinct=18.42) == 0.0
+    sure = belief([0.0, 0.0, 0.3], far, [1e-4, 1e-4, 0.01**2])
+    assert rival_ratio(sure, z, R, jcbb(sure, z, R), distinct=18.42) == 0.0

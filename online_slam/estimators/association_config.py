@@ -36,6 +36,12 @@ class AssociationConfig:
     reach: float = 2.0
     """Candidates: landmarks within the scan's longest range plus this margin (m) plus three sigmas of the
     pose's position and heading from the predicted pose."""
+    rival: float = 0.01
+    """A scan is left out whole when a rival pairing (as many sightings, with landmarks the sensor alone tells
+    apart from the pairing's: another place for the robot) is at least this likely relative to the pairing
+    (:func:`~online_slam.frontend.association.rival_ratio`): after a blind stretch one sighting may fit two
+    look-alike places, and the wrong one locks the pose there; the next scans decide. 0: never. Why 0.01:
+    benchmarks/RESULTS.md "A rival place for the robot"."""
     new_landmarks: bool = True
     """False: a sighting no landmark takes is left out and counted (``not_in_map``), never a new landmark:
     localisation on a map without ids (``--map-only``)."""
@@ -45,6 +51,8 @@ class AssociationConfig:
             raise ValueError(f"association must be one of {', '.join(ASSOCIATION_CHOICES)}, not {self.method!r}")
         if not 0.0 < self.gate_probability < 1.0 or not self.gate_probability <= self.new_probability < 1.0:
             raise ValueError("need 0 < gate_probability <= new_probability < 1")
+        if not 0.0 <= self.rival < math.inf:
+            raise ValueError("rival must be finite and >= 0")
         if not 0.0 <= self.new_density < math.inf:
             raise ValueError("new_density must be finite and >= 0")
         if self.confirm < 1 or self.tentative_steps < 1:

@@ -38,7 +38,13 @@ from scipy.stats import chi2
 
 from online_slam.checkpoint import Checkpointed
 from online_slam.estimators.association_config import AssociationConfig
-from online_slam.frontend.association import Association, Belief, associate, individual_log_likelihoods
+from online_slam.frontend.association import (
+    Association,
+    Belief,
+    associate,
+    individual_log_likelihoods,
+    rival_ratio,
+)
 from online_slam.models.observation import (
     POSITION,
     RANGE_BEARING,
@@ -119,6 +125,8 @@ class LandmarkBook(Checkpointed):
     unlikely: int = 0
     """Sightings JCBB paired that were likelier of an unmapped landmark (``new_density``): made new ones."""
     not_in_map: int = 0
+    deferred: int = 0
+    """Sightings left out with their scan: a rival pairing put the robot elsewhere about as likely (``rival``)."""
     """Sightings no landmark took, left out because no new landmark may start (``new_landmarks`` False)."""
     _gate: float = field(init=False)
     """Individual gate on a sighting's chi-square (2 dof)."""
@@ -226,6 +234,14 @@ class LandmarkBook(Checkpointed):
                 pairing = associate(self.config.scan_method, belief, z, R, self.config.gate_probability, model)
                 if self.config.new_density > 0.0:
                     pairing = self._likely(pairing, belief, z, R, model)
+                if self.config.rival > 0.0 and (pairing.landmark >= 0).any():
+                    ratio = rival_ratio(
+                        belief, z, R, pairing, self._new_gate, self.config.gate_probability, model, self._gate
+                    )
+                    if ratio >= self.config.rival:
+                        self.deferred += k
+                        self._labels.extend(labels)
+                        return out
                 for i in np.flatnonzero(pairing.landmark >= 0):
                     lid = ids[int(candidates[pairing.landmark[i]])]
                     out[i] = labels[i] = lid
@@ -409,5 +425,6 @@ class LandmarkBook(Checkpointed):
             "tentative_left": self.tentative,
             "ambiguous_sightings": self.ambiguous,
             "unlikely_pairings": self.unlikely,
+            **({"rival_scans_sightings": self.deferred} if self.config.rival > 0 else {}),
             **({"not_in_map": self.not_in_map} if not self.config.new_landmarks else {}),
         }

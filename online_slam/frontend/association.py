@@ -25,7 +25,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-from online_slam.models.observation import RANGE_BEARING, as_models, predict_with_jacobians, wrap_bearings
+from online_slam.models.observation import (
+    RANGE_BEARING,
+    as_models,
+    landmark_from_sighting_with_jacobians,
+    predict_with_jacobians,
+    wrap_bearings,
+)
 
 Array = NDArray[np.float64]
 Index = NDArray[np.int64]
@@ -263,3 +269,76 @@ def associate(
     if method == "jcbb":
         return jcbb(belief, z, R, gate_probability, model=model)
     raise ValueError(f"association method must be one of {', '.join(METHODS)}, not {method!r}")
+
+
+def joint_log_likelihood(
+    belief: Belief, z: Array, R: Array, landmark: Index, model: ArrayLike = RANGE_BEARING
+) -> float:
+    """Log density of a scan's paired sightings under one pairing (``landmark``: index per sighting, -1 for
+    none), their innovations taken jointly: ``-(nu^T S^-1 nu + log det(2 pi S)) / 2`` with
+    ``S = H P H^T + blockdiag(R)`` over the paired sightings (0 when none is paired)."""
+    rows = np.flatnonzero(landmark >= 0)
+    if len(rows) == 0:
+        return 0.0
+    tags = as_models(model, len(z))[rows]
+    nu, p = _innovations(belief, z[rows], tags)
+    cols = landmark[rows]
+    m, n = len(rows), len(belief.covariance)
+    H = np.zeros((2 * m, n))
+    for a, (t, j) in enumerate(zip(p.row, cols)):
+        H[2 * a : 2 * a + 2, :3] = p.J_p[t, j]
+        H[2 * a : 2 * a + 2, 3 + 2 * j : 5 + 2 * j] = p.J_l[t, j]
+    S = H @ belief.covariance @ H.T
+    for a, i in enumerate(rows):
+        S[2 * a : 2 * a + 2, 2 * a : 2 * a + 2] += R[i]
+    e = nu[np.arange(m), cols].reshape(-1)
+    sign, log_det = np.linalg.slogdet(S)
+    if sign <= 0:
+        return -np.inf
+    return float(-0.5 * (e @ np.linalg.solve(S, e) + log_det + 2 * m * np.log(2.0 * np.pi)))
+
+
+def rival_ratio(
+    belief: Belief,
+    z: Array,
+    R: Array,
+    pairing: Association,
+    distinct: float,
+    gate_probability: float = 0.99,
+    model: ArrayLike = RANGE_BEARING,
+    gate: float | None = None,
+) -> float:
+    """How likely the best rival of a scan's pairing is, relative to it (0: none).
+
+    A rival pairs as many of the scan's sightings, jointly compatible, with none of the landmarks the sensor alone
+    cannot tell apart from the pairing's own: landmarks whose distance from a sighting's paired landmark, against
+    that sighting's world point covariance from its noise alone, is within ``distinct`` (a chi-square, 2 dof).
+    Such a rival differs from the pairing by where it puts the robot, not by the sensor's noise: both pass the
+    gates only because the pose is uncertain. ``gate``: the individual gate, if known (else from
+    ``gate_probability``).
+    """
+    paired = np.flatnonzero(pairing.landmark >= 0)
+    if len(paired) == 0:
+        return 0.0
+    gate = chi2.isf(1.0 - gate_probability, 2) if gate is None else gate
+    passing: NDArray[np.bool_] = np.asarray((pairing.distances[paired] <= gate).any(axis=0))  # in some one's gate
+    passing[pairing.landmark[paired]] = False
+    if not passing.any():
+        return 0.0
+    L = belief.landmarks
+    tags = as_models(model, len(z))[paired]
+    J = landmark_from_sighting_with_jacobians(belief.pose[None, :], z[paired], tags)[2]
+    points = J @ R[paired] @ np.swapaxes(J, 1, 2)  # (p, 2, 2): each sighting's world point, its noise alone
+    d = L[None, :, :] - L[pairing.landmark[paired]][:, None, :]  # (p, M, 2)
+    near = (np.einsum("pmi,pij,pmj->pm", d, np.linalg.inv(points), d) <= distinct).any(axis=0)
+    others = np.flatnonzero(~near & passing)  # rival candidates: elsewhere, and passing the gate
+    if len(others) == 0:
+        return 0.0
+    idx = np.r_[np.arange(3), (3 + 2 * others[:, None] + np.arange(2)).reshape(-1)]
+    sub = Belief(belief.pose, L[others], belief.covariance[np.ix_(idx, idx)])
+    rival = jcbb(sub, z, R, gate_probability, model=model)
+    if int(np.sum(rival.landmark >= 0)) < len(paired):
+        return 0.0
+    own = joint_log_likelihood(belief, z, R, pairing.landmark, model)
+    other = joint_log_likelihood(sub, z, R, rival.landmark, model)
+    return float(np.exp(min(other - own, 700.0)))
