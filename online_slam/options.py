@@ -335,8 +335,8 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("new_density", "nn/jcbb: start a new landmark when a pairing is less likely than an unmapped "
                "landmark at this density (0 = off)", "association", "association",
                ("AssociationConfig", "new_density"), metavar="D", unit="per m^2"),
-    _estimator("rival", "nn/jcbb: leave a scan out when a pairing that puts the robot elsewhere is at least F "
-               "times as likely as the one chosen (0 = off)", "association", "association",
+    _estimator("rival", "nn/jcbb: leave a scan out when another pairing, putting the robot elsewhere, has at least F "
+               "times the chosen one's likelihood (larger: fewer left out; 0 = off)", "association", "association",
                ("AssociationConfig", "rival"), metavar="F"),
     # -- outliers -------------------------------------------------------------------------------------------
     Option("robust", "smoother and batch: auto (Cauchy tail beyond 5.3 sigmas in the window, batch robust pass "

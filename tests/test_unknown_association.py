@@ -14,7 +14,9 @@ import pytest
 from online_slam import Slam
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
 from online_slam.evaluation.association import score_association, true_labels
+from online_slam.evaluation.results import Results
 from online_slam.pipeline import ReplayConfig, replay
+from online_slam.reports.table import notes
 from online_slam.sources.events import Observation, Odometry, Start
 from online_slam.sources.stream import read_stream, write_stream
 from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, without_ids
@@ -379,7 +381,7 @@ def test_g2o_drops_the_hidden_true_ids_and_refuses_sightings_without_ids(tmp_pat
     assert not (tmp_path / "none.g2o").exists()
 
 
-def _look_alike_return(rival: float) -> dict[str, np.ndarray]:
+def _look_alike_return(rival: float) -> tuple[dict[str, np.ndarray], Results]:
     """Two landmarks 7.5 m ahead, 0.4 rad apart, mapped from the start; then a turn on the spot whose odometry
     reads 0.3 rad too much (1.25 of its sigmas) without a sighting; back, one sighting of the first landmark, which
     the believed heading puts nearer the second; then both, every step. Final pose per estimator."""
@@ -415,14 +417,19 @@ def _look_alike_return(rival: float) -> dict[str, np.ndarray]:
         smoother=replace(config.smoother, association=replace(config.smoother.association, rival=rival)),
     )
     results = replay(events, config, name="look-alike")
-    return {name: results.estimates[name].poses[-1] for name in ("ekf", "smoother")}
+    return {name: results.estimates[name].poses[-1] for name in ("ekf", "smoother")}, results
 
 
 def test_a_sighting_a_rival_landmark_explains_after_a_blind_turn_waits_for_the_next_scan() -> None:
     """Robots 2 and 3 of MRCLAM without ids, in small: after a blind stretch one sighting passes the gates of two
     landmarks 3 m apart. Paired with the nearer (the wrong one) the heading locks 0.4 rad off; left out, the next
     scan's two sightings pair right and the heading comes back."""
-    for name, pose in _look_alike_return(rival=0.0).items():
+    poses, results = _look_alike_return(rival=0.0)
+    for name, pose in poses.items():
         assert abs(pose[2]) > 0.3, (name, pose)  # the failure: the wrong landmark, the wrong heading
-    for name, pose in _look_alike_return(rival=0.01).items():
+        assert "rival_scans_sightings" not in results.estimators[name].details["association"]
+    poses, results = _look_alike_return(rival=0.01)
+    for name, pose in poses.items():
         assert abs(pose[2]) < 0.02 and np.hypot(*pose[:2]) < 0.05, (name, pose)
+        assert results.estimators[name].details["association"]["rival_scans_sightings"] >= 1
+        assert any(line.startswith(f"{name}: ") and "scans left out with" in line for line in notes(results))

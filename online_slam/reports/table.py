@@ -150,6 +150,10 @@ def legend(results: Results, rows: Mapping[str, Row], closure: Closure | None) -
             f"{one_low:.2f}..{one_high:.2f}.",
             "NIS: median/mean over steps of their sightings' NIS, 2 if consistent.",
         ]
+    if any(r.association is not None for r in results.estimators.values()):
+        lines += ["association right: share of sightings paired with the mapped landmark most of whose sightings "
+                  "carry their id", "(a sighting left unused counts as wrong); mapped/true: landmarks mapped / true "
+                  "landmarks sighted."]  # fmt: skip
     if any(r.robots for r in results.estimators.values()):
         lines.append("robot N: that robot's poses, in the frame of the figures over all robots; the map is shared.")
     elif closure is None:
@@ -190,6 +194,9 @@ def notes(results: Results) -> list[str]:
                 else ""
             )
             out.append(f"{name}: {d['linearization']} linearization{several}{linear}")
+        if rival := (d.get("association") or {}).get("rival_scans_sightings"):
+            out.append(f"{name}: scans left out with {counted(rival, 'sighting')}: another pairing put the robot "
+                       "elsewhere about as likely (--rival)")  # fmt: skip
         if "fixes_rejected" in d:
             out.append(f"{name}: fixes {d.get('fixes_used', 0)} used, {d['fixes_rejected']} refused by the gate")
         if d.get("global_failures"):
