@@ -284,6 +284,24 @@ def _heldout(args: argparse.Namespace, world: GridConfig) -> None:
           "(target <= 1.05x)")  # fmt: skip
 
 
+def _unknown_ids(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.unknown_ids import TARGET, run_unknown_ids
+
+    pairs = run_unknown_ids(args.mrclam, args.workers)
+    print("MRCLAM Dataset 6 without ids (--association jcbb) beside the barcodes (RMSE vs Vicon, m; known -> jcbb)")
+    print(f"{'robot':<7}{'EKF online':>16}{'smoother final':>18}{'batch final':>16}{'ratio':>13}{'right':>7}"
+          f"{'left out':>10}")  # fmt: skip
+    met = 0
+    for known, jcbb in pairs:
+        ratio = max(jcbb.smoother_final / known.smoother_final, jcbb.batch_final / known.batch_final)
+        met += ratio <= TARGET
+        print(f"{known.robot!s:<7}{known.ekf_online:>7.3f} -> {jcbb.ekf_online:.3f}"
+              f"{known.smoother_final:>9.3f} -> {jcbb.smoother_final:.3f}{known.batch_final:>7.3f} -> "
+              f"{jcbb.batch_final:.3f}{ratio:>12.2f}x{jcbb.paired_right or 0.0:>7.3f}"
+              f"{jcbb.left_out or 0:>10}")  # fmt: skip
+    print(f"target: smoother and batch final within {TARGET}x the known-id figure: {met} of {len(pairs)} met")
+
+
 def _misdeclared(args: argparse.Namespace, world: GridConfig) -> None:
     from benchmarks.misdeclared import MODES, run_misdeclared, verdicts
 
@@ -439,13 +457,15 @@ SECTIONS: dict[str, Section] = {
     "mrclam": _mrclam,
     "heldout": _heldout,
     "misdeclared": _misdeclared,
+    "unknown-ids": _unknown_ids,
     "sweep": _sweep,
     "soak": _soak,
 }
 """Every section by name, in the order they run."""
-DEFAULT_SECTIONS = tuple(SECTIONS)[:-9]
+DEFAULT_SECTIONS = tuple(SECTIONS)[:-10]
 """The big and waypoint worlds (5000 poses beside iSAM2, minutes), the circle protocol (100 Monte Carlo runs,
 minutes), the sensor timing (seeded worlds, minutes), MRCLAM, its held-out figures, misdeclared noise (worlds and
-MRCLAM) and the sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for (``--only``)."""
-MRCLAM_SECTIONS = ("mrclam", "heldout", "sweep")
+MRCLAM), MRCLAM without ids, the sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for
+(``--only``)."""
+MRCLAM_SECTIONS = ("mrclam", "heldout", "unknown-ids", "sweep")
 """The sections that read the MRCLAM Dataset 6 folder (``--mrclam``)."""
