@@ -125,9 +125,9 @@ class LandmarkBook(Checkpointed):
     unlikely: int = 0
     """Sightings JCBB paired that were likelier of an unmapped landmark (``new_density``): made new ones."""
     not_in_map: int = 0
+    """Sightings no landmark took, left out because no new landmark may start (``new_landmarks`` False)."""
     deferred: int = 0
     """Sightings left out with their scan: a rival pairing put the robot elsewhere about as likely (``rival``)."""
-    """Sightings no landmark took, left out because no new landmark may start (``new_landmarks`` False)."""
     _gate: float = field(init=False)
     """Individual gate on a sighting's chi-square (2 dof)."""
     _new_gate: float = field(init=False)
