@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import itertools
+import re
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -213,7 +214,13 @@ class ReplayRun:
         if saved.source != self.source:
             raise InputError(str(where), 0, "", f"checkpoint of another source ({saved.source!r}, not {self.source!r})")
         if saved.settings != self.settings:
-            raise InputError(str(where), 0, "", "checkpoint made with other settings; give the same options")
+            raise InputError(
+                str(where),
+                0,
+                "",
+                f"checkpoint made with other settings ({_first_difference(self.settings, saved.settings)}); "
+                "give the same options (a version with other defaults reads as other settings too)",
+            )
         try:
             left = saved.engine.state.left  # estimators that left at a second robot's start
             self.estimators = [e for e in self.estimators if e.name not in left]
@@ -355,6 +362,20 @@ class ReplayRun:
             write_checkpoint(Path(checkpoint.directory) / CHECKPOINT_FILE, "replay", state)
         except OnlineSlamError as exc:  # stop here as at a bad line: report what was estimated
             raise _CheckpointFailure(str(exc)) from None
+
+
+def _first_difference(here: str, there: str) -> str:
+    """Where two settings' texts (``repr`` of a configuration) first differ: the field here and what stands there."""
+    at = next((i for i, (a, b) in enumerate(zip(here, there)) if a != b), min(len(here), len(there)))
+    begin = max(here.rfind(", ", 0, at + 1) + 2, here.rfind("(", 0, at + 1) + 1)  # the field holding ``at``
+
+    def field(text: str) -> str:
+        if at < len(text) and text[at] not in ",)":
+            return re.split(r"[,)]", text[begin:], maxsplit=1)[0]
+        rest = text[at:].lstrip(", ")  # the texts part at a field's end: here the next field, or none
+        return re.split(r"[,)]", rest, maxsplit=1)[0] or "nothing"
+
+    return f"here {field(here)}, there {field(there)}"
 
 
 def _load_map(config: ReplayConfig, association: str, estimators: list[Estimator]) -> LandmarkMap | None:
