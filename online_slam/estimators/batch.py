@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from online_slam.estimators.batch_config import BatchConfig
 from online_slam.estimators.problem import LoggedEstimator, ProblemLog
 from online_slam.estimators.protocol import Estimate
-from online_slam.factors.fixes import fix_gate_ratio, fix_rows, without_fixes
+from online_slam.factors.fixes import fix_gate_ratio, fix_report, fix_rows, without_fixes
 from online_slam.factors.graph import (
     FactorGraph,
     evaluate,
@@ -91,13 +91,6 @@ def trimmed(
             break
         rejected, rejected_robots = judged, judged_robots
     return result, rejected, rejected_robots, truncated_cost(graph, poses, landmarks, bound)
-
-
-def _fix_counts(fixes: NDArray[np.bool_], refused: NDArray[np.bool_]) -> dict[str, int]:
-    """Fixes used and refused, for the estimate's info (nothing without fixes)."""
-    if not fixes.any():
-        return {}
-    return {"fixes_used": int((fixes & ~refused).sum()), "fixes_rejected": int(refused.sum())}
 
 
 class BatchEstimator(LoggedEstimator):
@@ -230,7 +223,7 @@ class BatchEstimator(LoggedEstimator):
             "initial": "odometry" if initial is None else initial.estimator,
             "robust_pass": robust_pass,
             "rejected": rejected,
-            **_fix_counts(fix_rows(graph), refused),
+            **fix_report(int((fix_rows(graph) & ~refused).sum()), int(refused.sum())),
         }
         if len(rejected_robots):
             info["robot_sightings"] = len(rejected_robots)

@@ -8,8 +8,8 @@ function. A step that grows (``extend``) updates with its new fixes only: each e
 Each fix is gated first: its own NIS (against the state before the step's fixes) beyond the chi-square bound a
 good fix exceeds with probability :data:`~online_slam.models.fix.FIX_FALSE_ALARM` (41.4 for a position's 2 degrees
 of freedom, 37.3 for a heading's 1; ``gate_probability`` 1 turns it off, as for sightings) refuses it, and it is
-counted
-(``fixes_rejected``), so one GPS jump does not drag the estimate off; the rest update jointly.
+counted (``fixes_rejected``), so one GPS jump does not drag the estimate off; the rest update jointly
+(:func:`~online_slam.factors.fixes.fix_gate`, the smoother's gate too).
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_state import EkfState
+from online_slam.factors.fixes import fix_gate, fix_report
 from online_slam.frontend.steps import Step
-from online_slam.models.fix import FIX_FALSE_ALARM, fix_factors, fix_nis, fix_residual_with_jacobians
+from online_slam.models.fix import fix_factors, fix_residual_with_jacobians
 
 Array = NDArray[np.float64]
 
@@ -49,8 +49,8 @@ class AbsoluteFixes:
         rows = np.any(H != 0.0, axis=1)  # what a fix does not measure: zero rows
         owner = np.repeat(np.arange(len(new)), 3)[rows]
         H, y = H[rows], y[rows]
-        nis, dof = fix_nis(self.x[:3, 0], self.P[:3, :3], new)  # each by its own covariance, not as widened
-        passed = (nis <= chi2.isf(FIX_FALSE_ALARM, dof)) | (self.config.gate_probability >= 1.0)
+        passed, nis = fix_gate(self.x[:3, 0], self.P[:3, :3], new)  # each by its own covariance, not as widened
+        passed |= self.config.gate_probability >= 1.0
         self.state.fix_nis.extend(nis[passed].tolist())
         self.state.fixes_rejected += int(np.count_nonzero(~passed))
         self.state.fixes_used = len(step.fixes)
@@ -62,5 +62,4 @@ class AbsoluteFixes:
 
     def _fix_info(self) -> dict[str, int]:
         """Fixes used and refused so far (nothing when none came)."""
-        used, rejected = len(self.state.fix_nis), self.state.fixes_rejected
-        return {"fixes_used": used, "fixes_rejected": rejected} if used or rejected else {}
+        return fix_report(len(self.state.fix_nis), self.state.fixes_rejected)

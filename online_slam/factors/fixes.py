@@ -80,9 +80,14 @@ def without_fixes(graph: FactorGraph, drop: NDArray[np.bool_]) -> FactorGraph:
     return dataclasses.replace(graph, prior_sqrt_info=W)
 
 
-def fix_gate(pose: ArrayLike, cov: ArrayLike, fixes: Sequence[Position | Heading]) -> NDArray[np.bool_]:
-    """Which fixes pass the gate against a pose estimate ``pose`` (3,) of covariance ``cov`` (3, 3): their NIS
-    (:func:`~online_slam.models.fix.fix_nis`) within the chi-square bound a good fix exceeds with probability
-    :data:`FIX_FALSE_ALARM` at its degrees of freedom (41.4 for a position, 37.3 for a heading), shape (f,)."""
+def fix_gate(pose: ArrayLike, cov: ArrayLike, fixes: Sequence[Position | Heading]) -> tuple[NDArray[np.bool_], Array]:
+    """Which fixes pass the gate against a pose estimate ``pose`` (3,) of covariance ``cov`` (3, 3), and their NIS
+    (:func:`~online_slam.models.fix.fix_nis`), shapes (f,): passing is within the chi-square bound a good fix exceeds
+    with probability :data:`FIX_FALSE_ALARM` at its degrees of freedom (41.4 for a position, 37.3 for a heading)."""
     nis, dof = fix_nis(pose, cov, fixes)
-    return nis <= chi2.isf(FIX_FALSE_ALARM, dof)
+    return nis <= chi2.isf(FIX_FALSE_ALARM, dof), nis
+
+
+def fix_report(used: int, rejected: int) -> dict[str, int]:
+    """Fixes used and refused by the gate, for an estimate's info (nothing when none came)."""
+    return {"fixes_used": used, "fixes_rejected": rejected} if used or rejected else {}

@@ -162,7 +162,7 @@ class ReplayRun:
         """Dead reckoning, the baseline."""
         self.estimators = build_estimators(config.with_association(opened.association))
         """The estimators, in table order."""
-        self.landmark_map = _load_map(config, opened.association, self.estimators)
+        self.landmark_map = _load_map(config, self.estimators)
         """The map the estimators started from (``--map``), or None."""
         self.not_in_map = 0
         """Sightings ``--map-only`` skipped: of landmarks not in the map."""
@@ -378,7 +378,7 @@ def _first_difference(here: str, there: str) -> str:
     return f"here {field(here)}, there {field(there)}"
 
 
-def _load_map(config: ReplayConfig, association: str, estimators: list[Estimator]) -> LandmarkMap | None:
+def _load_map(config: ReplayConfig, estimators: list[Estimator]) -> LandmarkMap | None:
     """Read ``--map`` and start every estimator from it (None: no map).
 
     Raises:

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from online_slam.factors.fixes import fix_gate
+from online_slam.factors.fixes import fix_gate, fix_report
 from online_slam.frontend.steps import Step
 
 Array = NDArray[np.float64]
@@ -23,7 +23,7 @@ def gated(step: Step, decisions: dict[int, list[bool]], pose: Array, cov: Array)
         return step
     judged = decisions.setdefault(step.index, [])
     if len(judged) < len(step.fixes):
-        judged += fix_gate(pose, cov, step.fixes[len(judged) :]).tolist()
+        judged += fix_gate(pose, cov, step.fixes[len(judged) :])[0].tolist()
     if all(judged):
         return step
     return replace(step, fixes=tuple(f for f, ok in zip(step.fixes, judged, strict=True) if ok))
@@ -32,7 +32,5 @@ def gated(step: Step, decisions: dict[int, list[bool]], pose: Array, cov: Array)
 def fix_counts(decisions: dict[int, list[bool]]) -> dict[str, int]:
     """Fixes used and refused (nothing when none came), as the EKF reports them."""
     verdicts = [ok for judged in decisions.values() for ok in judged]
-    if not verdicts:
-        return {}
     used = int(np.count_nonzero(verdicts))
-    return {"fixes_used": used, "fixes_rejected": len(verdicts) - used}
+    return fix_report(used, len(verdicts) - used)
