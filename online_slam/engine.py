@@ -16,6 +16,7 @@ left, that is one :class:`~online_slam.errors.OnlineSlamError`.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -113,9 +114,10 @@ class Engine:
         """
         return self._drain(self.frontend.push(event))
 
-    def flush(self) -> list[StepRecord]:
-        """Give on every line the front-end's reorder buffer holds; the steps that completed (as :meth:`push`)."""
-        return self._drain(self.frontend.flush())
+    def flush(self, until: float = math.inf) -> list[StepRecord]:
+        """Give on every line the front-end's reorder buffer holds (or those older than ``until``); the steps that
+        completed (as :meth:`push`)."""
+        return self._drain(self.frontend.flush(until))
 
     def _drain(self, completed: Step | None) -> list[StepRecord]:
         """Complete this step and every other the front-end has complete, in index order."""

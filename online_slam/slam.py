@@ -19,7 +19,10 @@ estimator that does sets ``several_robots`` and gives each robot's newest pose b
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import math
+import sys
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -39,7 +42,7 @@ from online_slam.estimators.protocol import SlamEstimator, Snapshot
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig
 from online_slam.frontend.steps import TIME_TOLERANCE, FrontEndConfig, PendingStep, Step
 from online_slam.models.motion import Increment, predict_pose
-from online_slam.options import Option, check_value, estimator_options, replay_config
+from online_slam.slam_config import ESTIMATORS, NOT_ONLINE, OPTIONS, configs, typed_configs
 from online_slam.slam_estimate import (
     NewestPose,
     RobotEstimate,
@@ -47,10 +50,9 @@ from online_slam.slam_estimate import (
     _read_only,
     empty_estimate,
 )
-from online_slam.sources.events import Event, LandmarkId, Observation, RobotId, Start
+from online_slam.sources.events import Event, LandmarkId, Observation, Odometry, RobotId, Start, Truth
 from online_slam.sources.landmark_map import LandmarkMap, finite_joint, read_map, write_map
 from online_slam.sources.validate import EventValidator, ValidatorState, plain
-from online_slam.wording import did_you_mean
 
 __all__ = [
     "ESTIMATORS",
@@ -65,60 +67,7 @@ __all__ = [
 
 Array = NDArray[np.float64]
 
-ESTIMATORS = ("ekf", "smoother")
-"""Estimators a :class:`Slam` can run (names are case-insensitive)."""
-NOT_ONLINE = {
-    "batch": "the batch solver is not an online estimator: it solves the whole stream at its end. Run it with "
-    'online_slam.replay(events, online_slam.ReplayConfig(estimators=("batch",))) (events: a list of event objects '
-    "or stream-v1 records, a stream path or a world name) and read .estimates['batch']",
-}
-"""Estimators of a replay that a :class:`Slam` cannot run, and what to do instead."""
-
-OPTIONS: dict[str, Option] = estimator_options()
-"""Options of :class:`Slam`: the estimator options of :mod:`online_slam.options`, named as the CLI's flags
-(``--relinearize-every`` -> ``relinearize_every``); each estimator takes its own, the front-end's and the
-association's."""
 _CHECKPOINT_KIND = "slam"
-
-
-def _configs(estimator: str, options: dict[str, Any]) -> tuple[EkfConfig | SmootherConfig, FrontEndConfig]:
-    """Check the options and build the estimator's and the front-end's configurations (the CLI's translation)."""
-    if estimator in NOT_ONLINE:
-        raise ConfigError(f"Slam({estimator!r}): {NOT_ONLINE[estimator]}")
-    if estimator not in ESTIMATORS:
-        raise ConfigError(f"estimator must be one of {', '.join(ESTIMATORS)}, not {estimator!r}")
-    for key, value in options.items():
-        if key not in OPTIONS:
-            takes = sorted(name for name, o in OPTIONS.items() if o.fits(estimator))
-            raise ConfigError(
-                f"unknown option {key!r}{did_you_mean(key, takes)}; {estimator} options: {', '.join(takes)}"
-            )
-        option = OPTIONS[key]
-        check_value(option, value)
-        if not option.fits(estimator):
-            owners = " and the ".join(option.owners)
-            raise ConfigError(f"option {key} is for the {owners}, not the {estimator} (a Slam runs ekf or smoother)")
-    method = options.get("association", "auto")
-    config = replay_config({**options, "estimators": estimator}).with_association(
-        "known" if method == "auto" else method  # no stream to look ahead in: ids where given, else JCBB
-    )
-    return (config.ekf if estimator == "ekf" else config.smoother), config.frontend
-
-
-def _typed_configs(
-    estimator: str | None, config: EkfConfig | SmootherConfig | None, frontend: FrontEndConfig | None
-) -> tuple[str, EkfConfig | SmootherConfig, FrontEndConfig]:
-    """``Slam(config=..., frontend=...)``: the estimator named by ``estimator`` or by the config's type, checked."""
-    by_type: dict[type, str] = {EkfConfig: "ekf", SmootherConfig: "smoother"}
-    if config is not None and type(config) not in by_type:
-        raise ConfigError(f"Slam: config must be an EkfConfig or a SmootherConfig, not {type(config).__name__}")
-    if frontend is not None and not isinstance(frontend, FrontEndConfig):
-        raise ConfigError(f"Slam: frontend must be a FrontEndConfig, not {type(frontend).__name__}")
-    name = (estimator or (by_type[type(config)] if config is not None else "smoother")).strip().lower()
-    default, default_frontend = _configs(name, {})
-    if config is not None and by_type[type(config)] != name:
-        raise ConfigError(f"Slam({name!r}): config is a {type(config).__name__}, for the {by_type[type(config)]}")
-    return name, config if config is not None else default, frontend if frontend is not None else default_frontend
 
 
 class Slam:
@@ -163,11 +112,11 @@ class Slam:
         if config is None and frontend is None:
             name = "smoother" if estimator is None else estimator
             name = name.strip().lower() if isinstance(name, str) else name  # a non-string is refused by name
-            config, frontend = _configs(name, options)
+            config, frontend = configs(name, options)
         else:
             if options:
                 raise ConfigError(f"Slam: give options by name ({', '.join(options)}) or configs, not both")
-            name, config, frontend = _typed_configs(estimator, config, frontend)
+            name, config, frontend = typed_configs(estimator, config, frontend)
             self.typed = (config, frontend)
         self.estimator_name = name
         self.options: dict[str, Any] = dict(options)
@@ -434,7 +383,7 @@ class Slam:
                 raise self._validator.fail(0, "robot_seen", message)
 
     # -- queries -------------------------------------------------------------------------------------
-    def estimate(self, landmark_covs: bool = True, at: float | None = None) -> SlamEstimate:
+    def estimate(self, landmark_covs: bool = True, at: float | None = None, held: bool = True) -> SlamEstimate:
         """The current estimate, including every event added so far (sightings stamped after the newest pose wait
         for the odometry that spans their time).
 
@@ -447,6 +396,10 @@ class Slam:
                 request: one linearization of its window; pass False to skip).
             at: Predict the pose to this time (seconds, not before the newest pose) from the newest pose with the
                 odometry given so far, at constant twist past it; None: to the newest odometry's time.
+            held: Also use the sightings and fixes ``max_latency`` holds back (up to ``at``), each at its own time
+                (a pose of its own between two poses, or a sighting of one): a copy of the estimator takes them and
+                answers; the estimator itself takes them in time order once the budget has passed. False: the
+                newest pose predicted with the held odometry alone (no copy; the same when no sighting is held).
 
         Returns:
             The estimate; before any event an empty one (``index`` -1, no trajectory, no landmarks).
@@ -454,6 +407,9 @@ class Slam:
         Raises:
             InputError: ``at`` before the newest pose, or ``at`` with several robots.
         """
+        until = math.inf if at is None else at + TIME_TOLERANCE
+        if held and self._holds_sightings(until):
+            return self._preview(until).estimate(landmark_covs, at, held=False)
         engine = self._engine
         pending = engine.frontend.pending
         name = self._estimator.name
@@ -478,6 +434,28 @@ class Slam:
         times_array = _read_only(np.array(times[:n], dtype=float))
         robots = self._robot_poses(snapshot)
         return SlamEstimate(snapshot, covs, (frozen, tail), robots, self._step_robots, times_array)
+
+    def _holds_sightings(self, until: float) -> bool:
+        """Whether giving on the lines held back before ``until`` brings a sighting or fix to the estimator: one
+        held, or one waiting (``ahead``) for odometry held."""
+        frontend = self._engine.frontend
+        held = [line for t, _, line in frontend.held if t < until]
+        waiting = any(isinstance(line, Odometry) for line in held) and any(map(_sighting, frontend.ahead))
+        return waiting or any(map(_sighting, held))
+
+    def _preview(self, until: float) -> Slam:
+        """A copy with the lines held back before ``until`` given on, for a query (:meth:`estimate`): what the copy
+        shares, no one changes in place (the loaded map, the logs' arrays); the smoother's copy starts and hands
+        over no global solve (``preview``)."""
+        preview = copy.deepcopy(self, {id(self._loaded): self._loaded})
+        smoother = preview._estimator if isinstance(preview._estimator, SlidingWindowSmoother) else None
+        if smoother is not None:  # no global solve; the window solved once, when the query reads it
+            smoother.preview, config = True, smoother.config
+            smoother.config = dataclasses.replace(config, relinearize_every=sys.maxsize)
+        preview._engine.flush(until)
+        if smoother is not None:
+            smoother.config = config
+        return preview
 
     def _held_increments(self, pending: PendingStep, t: float) -> list[Increment]:
         """The odometry held back by ``max_latency`` after time ``t``, as increments (one robot)."""
@@ -569,6 +547,11 @@ class Slam:
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
+
+
+def _sighting(line: object) -> bool:
+    """Whether a held or waiting line is a sighting or a fix (not odometry, not truth)."""
+    return not isinstance(line, (Odometry, Truth))
 
 
 def _bare_step(engine: Engine) -> Step:

@@ -50,12 +50,12 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 from numpy.typing import NDArray
 from scipy.stats import chi2
-from threadpoolctl import ThreadpoolController
 
 from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
 from online_slam.estimators.adaptation import adapted_info, scaled, update_adaptation
+from online_slam.estimators.blas import OneThreadBlas
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_fixes import AbsoluteFixes
 from online_slam.estimators.ekf_map import PriorMap
@@ -114,7 +114,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         self._gate = (
             math.inf if self.config.gate_probability >= 1.0 else float(chi2.ppf(self.config.gate_probability, 2))
         )
-        self._blas = ThreadpoolController()
+        self._blas = OneThreadBlas()
 
     # filterpy's names for the state's mean and covariance, and the parts others read
     @property
@@ -181,7 +181,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
 
     def single_threaded(self) -> AbstractContextManager[Any]:
         """Context manager limiting BLAS to one thread, as every ``step`` runs (see the module docstring)."""
-        return self._blas.limit(limits=1, user_api="blas")
+        return self._blas.limit()
 
     # -- state size -----------------------------------------------------------------------------
     def _grow(self, rows: Array, cross: Array, block: Array) -> None:

@@ -306,6 +306,10 @@ class ProblemLog(Checkpointed):
         self._obs_cov.append(np.asarray(cov, dtype=float))
         self._obs_model.append(tags(model, len(ids)))
 
+    def __deepcopy__(self, memo: dict[int, Any]) -> ProblemLog:
+        """A copy (:meth:`frozen`): its arrays are shared, which no one changes in place."""
+        return self.frozen()
+
     def frozen(self) -> ProblemLog:
         """A copy that later steps do not change (the lists are copied; their arrays are never modified)."""
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.init}

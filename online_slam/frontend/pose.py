@@ -3,7 +3,7 @@ the front-end sets aside."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -86,6 +86,10 @@ class GroundTruth:
     offsets: dict[int, Array] = field(default_factory=dict)
     """Position-only truth of a robot-frame point ``[dx, dy]`` (a GPS antenna), by step: scoring compares that
     point of the estimated pose (:func:`online_slam.evaluation.scoring.scored_poses`)."""
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> GroundTruth:
+        """A copy sharing the arrays, which no one changes in place."""
+        return GroundTruth(*(dict(getattr(self, f.name)) for f in fields(self)))
 
 
 @dataclass

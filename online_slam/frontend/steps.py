@@ -241,10 +241,11 @@ class FrontEnd:
             self._take(event)
         return self._give_out()
 
-    def flush(self) -> Step | None:
-        """Give on every line held by the reorder buffer now (the end of a live run, or a pause); returns the
-        oldest step now complete, as :meth:`push` does. Lines older than those given on are late from then on."""
-        self._release(math.inf)
+    def flush(self, until: float = math.inf) -> Step | None:
+        """Give on every line held by the reorder buffer now (the end of a live run, or a pause), or those older
+        than ``until``; returns the oldest step now complete, as :meth:`push` does. Lines older than those given
+        on are late from then on."""
+        self._release(until)
         return self._give_out()
 
     def _release(self, due: float) -> None:

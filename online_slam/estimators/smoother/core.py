@@ -16,10 +16,10 @@ from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
-from threadpoolctl import ThreadpoolController
 
 from online_slam.checkpoint import from_tree, to_tree
 from online_slam.estimators.adaptation import GATE, adapt, adapted_info, scaled, sighting_statistics
+from online_slam.estimators.blas import OneThreadBlas
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate, Snapshot
@@ -85,7 +85,10 @@ class SlidingWindowSmoother(SeveralRobots):
             if self.config.robust.reject_false_alarm > 0
             else np.inf
         )
-        self._blas = ThreadpoolController()
+        self._blas = OneThreadBlas()
+        self.preview = False
+        """True in a copy a query makes (:meth:`online_slam.Slam.estimate`): no global relinearization starts or
+        is handed over, so that it costs a window's solve and never waits for the background."""
 
     @property
     def landmarks(self) -> Array:
@@ -140,7 +143,7 @@ class SlidingWindowSmoother(SeveralRobots):
     # -- protocol --------------------------------------------------------------------------------
     def step(self, step: Step) -> Snapshot:
         """Add the step; solve every K steps; marginalize beyond the window; relinearize globally on schedule."""
-        with self._blas.limit(limits=1, user_api="blas"):
+        with self._blas.limit():
             w = self.window
             step = scaled(step, self.state.adaptation)
             w.add_pose(step)
@@ -171,7 +174,7 @@ class SlidingWindowSmoother(SeveralRobots):
 
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
-        with self._blas.limit(limits=1, user_api="blas"):
+        with self._blas.limit():
             step = gated(scaled(step, self.state.adaptation), self.progress.fixes, self.window.poses[step.index],
                          self.window.pose_cov)  # fmt: skip
             step, start = self._resolve(step, start)
@@ -196,10 +199,8 @@ class SlidingWindowSmoother(SeveralRobots):
         return self.window.history.view(), self.window.values().reshape(-1, 3)
 
     def state_dict(self) -> Any:
-        """Everything needed to continue exactly where the smoother is: the tree of :class:`~.state.SmootherState`.
-
-        A pending global solve is finished first: its result is part of the state.
-        """
+        """Everything needed to continue exactly where the smoother is: the tree of :class:`~.state.SmootherState`
+        (a pending global solve is finished first: its result is part of the state)."""
         finish_job(self.relinearization.job)
         return to_tree(self.state)
 
@@ -244,7 +245,7 @@ class SlidingWindowSmoother(SeveralRobots):
         if w.sightings_waiting:
             self._link_robot_sightings(final=True)
         if w.indices:
-            with self._blas.limit(limits=1, user_api="blas"):
+            with self._blas.limit():
                 self.solve(final=True)
                 if self.config.global_solve.every:  # end on every factor re-solved: a diverged window recovers
                     self.relinearize_globally(final=True)
@@ -309,7 +310,7 @@ class SlidingWindowSmoother(SeveralRobots):
         count = len(self.window.landmark_ids)
         if not self.window.indices:
             return np.full(empty(count), np.nan)
-        with self._blas.limit(limits=1, user_api="blas"):
+        with self._blas.limit():
             linearized = linearize(self.window, self.prior, self.config.robust.loss, self.config.fej)
             return covariance(linearized, self.prior, count)
 
@@ -529,7 +530,7 @@ class SlidingWindowSmoother(SeveralRobots):
         r.since += 1
         p.steps += 1
         job = r.job
-        if job is not None and p.steps >= job.handover:
+        if job is not None and p.steps >= job.handover and not self.preview:
             started = time.perf_counter()
             finish_job(job)
             r.job = None
@@ -542,7 +543,7 @@ class SlidingWindowSmoother(SeveralRobots):
                 else:
                     report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
                     report["global_s"] = time.perf_counter() - started
-        if is_due(self.config, r, p.steps, self.window):
+        if is_due(self.config, r, p.steps, self.window) and not self.preview:
             if self.config.global_solve.delay:
                 inputs = global_inputs(r, self.window)
                 r.since = 0

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -85,6 +86,13 @@ class Relinearization:
     """The robot sightings judged outliers when they left the window (left out of global solves)."""
     failures: list[str] = field(default_factory=list)
     """The errors of background solves that raised, in order (the smoother went on without their results)."""
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Relinearization:
+        """A copy sharing what never changes in place: the log's arrays, the decisions' arrays, and the job (a
+        copy that finishes it joins the same thread and reads the same result)."""
+        folded, rejected = list(self.robot_folded), list(self.robot_rejected)
+        return replace(self, log=self.log.frozen(), decisions=list(self.decisions), robot_folded=folded,
+                       robot_rejected=rejected, failures=list(self.failures))  # fmt: skip
 
 
 @dataclass(frozen=True)
