@@ -28,7 +28,7 @@ from online_slam.options import (
 from online_slam.pipeline import ReplayConfig
 from online_slam.sinks.recording.writer import RerunConfig
 from online_slam.slam import OPTIONS as SLAM_OPTIONS
-from online_slam.slam import _configs
+from online_slam.slam_config import configs
 from online_slam.solvers.least_squares import SolverConfig
 from online_slam.sources.meet import MeetConfig
 from online_slam.sources.worlds import GridConfig
@@ -121,7 +121,7 @@ def test_cli_slam_and_sweep_take_every_estimator_option_the_same_way(name: str) 
             with pytest.raises(ConfigError, match=f"is for the {option.owners[0]}"):
                 Slam(estimator, **{name: value})
             continue
-        config, frontend = _configs(estimator, {name: value})
+        config, frontend = configs(estimator, {name: value})
         assert config == (expected.ekf if estimator == "ekf" else expected.smoother)
         assert frontend == expected.frontend
 
@@ -136,7 +136,7 @@ def test_cli_slam_and_sweep_accept_the_same_set_of_estimator_options() -> None:
 
 
 def test_slam_takes_new_density_and_refuses_bad_values() -> None:
-    config, _ = _configs("smoother", {"new_density": 0.002, "association": "jcbb"})
+    config, _ = configs("smoother", {"new_density": 0.002, "association": "jcbb"})
     assert config.association.new_density == 0.002 and config.association.method == "jcbb"
     with pytest.raises(ConfigError, match="for the batch"):
         Slam("smoother", max_iterations=5)
