@@ -23,7 +23,7 @@ import numpy as np
 from online_slam import Slam, replay
 from online_slam.evaluation.results import Results
 from online_slam.options import replay_config
-from online_slam.sources.events import Event, Header, Observation, Odometry, Start
+from online_slam.sources.events import Event, Header, Observation, Odometry, Start, Truth
 from online_slam.sources.timing import TimingConfig, timing_world
 from online_slam.sources.worlds import GridConfig, grid_world
 
@@ -155,11 +155,65 @@ def _slam_gap(ordered: list[Event], arriving: list[Event], budget: float) -> tup
             slam.add(event)
             if isinstance(event, Odometry):
                 slam.estimate(landmark_covs=False)  # a robot's loop queries as it goes
-        estimates.append((slam.estimate(landmark_covs=False), slam.estimate(landmark_covs=False, at=last)))
+        estimates.append((slam.estimate(landmark_covs=False, held=False), slam.estimate(landmark_covs=False, at=last)))
     (whole, now), (held, held_now) = estimates
     n = len(held.trajectory)
     gap = float(np.max(np.linalg.norm(whole.trajectory[:n, :2] - held.trajectory[:, :2], axis=1)))
     return gap, len(whole.trajectory) - n, float(np.linalg.norm(now.pose[:2] - held_now.pose[:2]))
+
+
+@dataclass(frozen=True)
+class LiveRow:
+    """What a robot's loop reads: ``Slam.estimate(at=t)`` at each odometry line's arrival, against the truth at t
+    (position RMSE over the queries, metres; one estimator, means over the seeds)."""
+
+    estimator: str
+    """The estimator."""
+    ordered_m: float
+    """Every line in time order, no budget (nothing late: the best a query can do)."""
+    predicted_m: float
+    """Sightings 0-``delay`` s late, ``--max-latency`` budget, ``held=False``: the held odometry predicted."""
+    held_m: float
+    """The same with ``held=True`` (the default): the held lines given to a copy at their times."""
+    worst: tuple[float, float]
+    """Worst ratio over the seeds to the ordered feed, predicted and held."""
+    query_ms: tuple[float, float, float]
+    """Median milliseconds per odometry line of the lines added and the query: ordered, predicted, held."""
+
+
+def _live_rmse(events: list[Event], estimator: str, budget: float, held: bool) -> tuple[float, float]:
+    """Position RMSE of the queries at each odometry line's arrival, and the median milliseconds from one query to
+    the end of the next (the lines added between and the query: what the loop pays per odometry line)."""
+    truth = {round(e.t, 6): np.array(e.pose[:2]) for e in events if isinstance(e, Truth)}
+    slam = Slam(estimator, max_latency=budget)
+    errors, seconds, started = [], [], time.perf_counter()
+    for event in events:
+        slam.add(event)
+        if isinstance(event, Odometry):
+            estimate = slam.estimate(landmark_covs=False, at=event.t, held=held)
+            seconds.append(time.perf_counter() - started)
+            errors.append(float(np.linalg.norm(estimate.pose[:2] - truth[round(event.t, 6)])))
+            started = time.perf_counter()
+    return math.sqrt(float(np.mean(np.square(errors)))), 1e3 * float(np.median(seconds))
+
+
+def live_rows(seeds: Sequence[int], duration: float = 60.0, delay: float = 0.15, budget: float = 0.2) -> list[LiveRow]:
+    """Queries in a robot's loop with sightings arriving late, beside the same lines in time order."""
+    rows = []
+    for estimator in ("ekf", "smoother"):
+        figures = []
+        for seed in seeds:
+            c = TimingConfig(seed=seed, duration=duration)
+            arriving = list(timing_world(dataclasses.replace(c, delay=delay)))
+            ordered = _live_rmse(list(timing_world(c)), estimator, 0.0, True)
+            predicted = _live_rmse(arriving, estimator, budget, False)
+            figures.append((ordered, predicted, _live_rmse(arriving, estimator, budget, True)))
+        f = np.array(figures)  # (seeds, 3 feeds, rmse / ms)
+        mean = f[:, :, 0].mean(axis=0)
+        worst = (float((f[:, 1, 0] / f[:, 0, 0]).max()), float((f[:, 2, 0] / f[:, 0, 0]).max()))
+        ms = np.median(f[:, :, 1], axis=0)
+        rows.append(LiveRow(estimator, float(mean[0]), float(mean[1]), float(mean[2]), worst, tuple(map(float, ms))))
+    return rows
 
 
 def same_time_change(seed: int = 5, duration: float = 60.0) -> float:

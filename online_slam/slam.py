@@ -445,9 +445,11 @@ class Slam:
 
     def _preview(self, until: float) -> Slam:
         """A copy with the lines held back before ``until`` given on, for a query (:meth:`estimate`): what the copy
-        shares, no one changes in place (the loaded map, the logs' arrays); the smoother's copy starts and hands
-        over no global solve (``preview``)."""
-        preview = copy.deepcopy(self, {id(self._loaded): self._loaded})
+        shares, no one changes in place (the loaded map, the lines, the logs' arrays); the smoother's copy starts
+        and hands over no global solve (``preview``) and solves its window once, when the query reads it."""
+        frontend = self._engine.frontend
+        shared = [self._loaded, *(line for _, _, line in frontend.held), *frontend.ahead]  # frozen, or never changed
+        preview = copy.deepcopy(self, {id(obj): obj for obj in shared})
         smoother = preview._estimator if isinstance(preview._estimator, SlidingWindowSmoother) else None
         if smoother is not None:  # no global solve; the window solved once, when the query reads it
             smoother.preview, config = True, smoother.config

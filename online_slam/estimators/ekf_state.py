@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import copy
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -113,3 +114,11 @@ class EkfState:
         if n != 3 * len(self.robots) + 2 * m or self.P.shape != (n, n) or any(size != m for size in sizes):
             raise ValueError("x, P, landmark_ids and the per-landmark arrays disagree in size")
         self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> EkfState:
+        """A copy sharing the arrays of ``rejected`` (one per update, never changed in place)."""
+        memo.update((id(a), a) for a in self.rejected)
+        clone = copy.copy(self)
+        for f in fields(self):
+            setattr(clone, f.name, copy.deepcopy(getattr(self, f.name), memo))
+        return clone
