@@ -504,11 +504,13 @@ class Slam:
     def map(self) -> LandmarkMap:
         """The current map: every landmark's position, 2x2 marginal covariance and (EKF, smoother) their joint
         covariance (write it with :func:`~online_slam.sources.landmark_map.write_map`, or :meth:`save_map`);
-        before the first pose, the map it started from."""
-        estimate = self.estimate()
+        before the first pose, the map it started from. Lines ``max_latency`` holds back are in it, as in
+        :meth:`estimate`."""
+        source = self._preview(math.inf) if self._holds_sightings(math.inf) else self
+        estimate = source.estimate(held=False)
         if estimate.index < 0 and self._loaded is not None:
             return self._loaded
-        ids, joint = estimate.landmark_ids, getattr(self._estimator, "landmark_joint", lambda: None)()
+        ids, joint = estimate.landmark_ids, getattr(source._estimator, "landmark_joint", lambda: None)()
         return LandmarkMap.of(
             ids, estimate.landmark_array, estimate.landmark_cov_array, "Slam", finite_joint(joint, len(ids))
         )

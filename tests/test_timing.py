@@ -146,8 +146,8 @@ def test_a_query_sees_a_late_sighting_at_its_time_at_once(estimator: str) -> Non
                 slam.add_odometry(t, value, sigma=sigma)
             else:
                 slam.add_observation(t, landmark=value, range=2.0, bearing=-0.3, sigma=[0.1, 0.02])
-        estimates.append((slam.estimate(), slam.estimate(held=False)))
-    (late, predicted), (ordered, _) = estimates
+        estimates.append((slam.estimate(), slam.estimate(held=False), slam.map()))
+    (late, predicted, late_map), (ordered, _, ordered_map) = estimates
     np.testing.assert_array_equal(late.trajectory_times, [0.0, 1.0, 1.5, 2.0])
     np.testing.assert_array_equal(ordered.trajectory_times, late.trajectory_times)
     assert late.landmark_ids == ordered.landmark_ids == (3, 7)
@@ -156,6 +156,8 @@ def test_a_query_sees_a_late_sighting_at_its_time_at_once(estimator: str) -> Non
     np.testing.assert_allclose(late.landmark_array, ordered.landmark_array, atol=1e-8)
     assert predicted.landmark_ids == (3,) and predicted.t == 2.0  # the odometry to 2 s predicted, 7 not yet seen
     np.testing.assert_array_equal(predicted.trajectory_times, [0.0, 1.0])
+    assert late_map.ids == ordered_map.ids == (3, 7)  # the map too, with its joint covariance
+    np.testing.assert_allclose(late_map.joint, ordered_map.joint, atol=1e-8)
 
 
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])

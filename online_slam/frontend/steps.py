@@ -137,7 +137,8 @@ TIMED = (Odometry, Observation, Scan, Truth, Start, Position, Heading)
 STDIN_LATENCY = 0.5
 """Seconds a line of a live source (standard input, TCP) may arrive late (``--max-latency`` not given): a camera
 and its detector lag the odometry by tens to a few hundred milliseconds; half a second holds them with a margin and
-delays a live estimate by as much (the newest pose is still predicted with the held odometry: ``Slam.estimate``)."""
+delays a replay's steps (``--emit`` lines, recordings) by as much; ``Slam.estimate`` answers at once from a copy
+that takes the held lines."""
 
 TIME_TOLERANCE = 1e-6
 """Seconds within which two times are the same pose's: a sighting this close to a pose attaches to it, a later one
