@@ -27,7 +27,7 @@ import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
+from types import FrameType, MappingProxyType
 from typing import Any, cast
 
 import numpy as np
@@ -364,7 +364,7 @@ class Slam:
         """A line beyond ``max_latency``: skipped and counted in :attr:`late`, with one warning."""
         self.late += 1
         if self.late == 1:
-            warnings.warn(f"{error}; skipped (Slam.late counts them)", stacklevel=3)
+            warnings.warn(f"{error}; skipped (Slam.late counts them)", stacklevel=_caller_level())
 
     def _check_robots(self, event: Event) -> None:
         """Refuse what the estimator could not take: a second robot for one of one robot, a robot sighting of a
@@ -408,7 +408,7 @@ class Slam:
             InputError: ``at`` before the newest pose, or ``at`` with several robots.
         """
         until = math.inf if at is None else at + TIME_TOLERANCE
-        if held and self._holds_sightings(until):
+        if held and any(not isinstance(line, Truth) for t, _, line in self._engine.frontend.held if t < until):
             return self._preview(until).estimate(landmark_covs, at, held=False)
         engine = self._engine
         pending = engine.frontend.pending
@@ -446,7 +446,8 @@ class Slam:
     def _preview(self, until: float) -> Slam:
         """A copy with the lines held back before ``until`` given on, for a query (:meth:`estimate`): what the copy
         shares, no one changes in place (the loaded map, the lines, the logs' arrays); the smoother's copy starts
-        and hands over no global solve (``preview``) and solves its window once, when the query reads it."""
+        and hands over no global solve (``preview``) and solves its window once, when the query reads it (not at
+        all when only odometry was held: poses at the end of a chain of odometry alone are its composition)."""
         frontend = self._engine.frontend
         shared = [self._loaded, *(line for _, _, line in frontend.held), *frontend.ahead]  # frozen, or never changed
         preview = copy.deepcopy(self, {id(obj): obj for obj in shared})
@@ -454,8 +455,9 @@ class Slam:
         if smoother is not None:  # no global solve; the window solved once, when the query reads it
             smoother.preview, config = True, smoother.config
             smoother.config = dataclasses.replace(config, relinearize_every=sys.maxsize)
+        news = self._holds_sightings(until)
         preview._engine.flush(until)
-        if smoother is not None:
+        if smoother is not None and news:  # odometry alone moves no pose it follows: its poses need no solve
             smoother.config = config
         return preview
 
@@ -551,6 +553,16 @@ class Slam:
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
         return slam
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` of the first frame outside this module, for a warning raised by its caller: the user's
+    call, whichever ``add`` method led there."""
+    frame: FrameType | None = sys._getframe(1)
+    level = 1
+    while frame is not None and frame.f_code.co_filename == __file__:
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def _sighting(line: object) -> bool:

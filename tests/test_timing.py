@@ -119,14 +119,17 @@ def test_slam_fed_in_arrival_order_matches_the_ordered_feed() -> None:
         slam = Slam("smoother", max_latency=latency)
         for event in events:
             slam.add(event)
-        estimates.append((slam.estimate(landmark_covs=False), slam.estimate(landmark_covs=False, at=last)))
-    (whole, now), (held, held_now) = estimates
+        estimates.append(tuple(slam.estimate(landmark_covs=False, at=at, held=h) for at, h in
+                               ((None, False), (last, False), (None, True))))  # fmt: skip
+    (whole, now, _), (held, held_now, seen) = estimates
     n = len(held.trajectory)
-    assert 0 < len(whole.trajectory) - n <= 3  # the held feed is 0.2 s behind: 2 ticks
+    assert 0 < len(whole.trajectory) - n <= 3  # the estimator is 0.2 s behind: 2 ticks
     np.testing.assert_allclose(held.trajectory, whole.trajectory[:n], atol=1e-6)
     np.testing.assert_array_equal(held.trajectory_times, whole.trajectory_times[:n])
     assert held_now.t == now.t == last
     np.testing.assert_allclose(held_now.pose, now.pose, atol=1e-6)  # predicted with the held odometry
+    np.testing.assert_array_equal(seen.trajectory_times, whole.trajectory_times)  # a copy took the held lines
+    np.testing.assert_allclose(seen.trajectory, whole.trajectory, atol=1e-6)
 
 
 @pytest.mark.parametrize("estimator", ["ekf", "smoother"])
@@ -169,7 +172,7 @@ def test_queries_that_see_held_lines_change_nothing(estimator: str) -> None:
     for event in timing_world(SMALL):
         ordered.add(event)
     whole = ordered.estimate(landmark_covs=False)
-    finals, previews = [], {True: 0, False: 0}
+    finals, previews, sizes = [], {True: 0, False: 0}, []
     for held in (True, False):
         slam = Slam(estimator, max_latency=0.2, **({"global_every": 20} if estimator == "smoother" else {}))
         for event in arriving:
@@ -177,9 +180,13 @@ def test_queries_that_see_held_lines_change_nothing(estimator: str) -> None:
             if isinstance(event, Odometry):
                 estimate = slam.estimate(landmark_covs=False, held=held)
                 previews[held] += len(estimate.trajectory_times) > slam.poses  # poses the Slam has not made yet
+                if held:
+                    assert estimate.trajectory_times[-1] == event.t  # the newest pose is the newest odometry's
+                    sizes.append(len(estimate.trajectory_times))
         slam.flush()
         finals.append(slam.estimate())
     assert previews[True] > 20 and previews[False] == 0  # held sightings seen at once by many queries
+    assert all(np.diff(sizes) >= 1)  # the trajectory only grows
     np.testing.assert_array_equal(finals[0].trajectory, finals[1].trajectory)
     np.testing.assert_array_equal(finals[0].landmark_array, finals[1].landmark_array)
     np.testing.assert_allclose(finals[0].trajectory, whole.trajectory, atol=1e-6)
@@ -251,18 +258,23 @@ def test_slam_with_a_budget_shows_its_start_flushes_and_keeps_its_late_count(tmp
     slam = Slam("ekf", max_latency=0.3)
     slam.start(0.0, [1.0, 2.0, 0.0])
     slam.add_odometry(0.1, [0.1, 0.0, 0.0], sigma=[0.01, 0.01, 0.001])
-    early = slam.estimate()
+    early, seen = slam.estimate(held=False), slam.estimate()
     assert early.index == 0 and early.t == 0.1  # the start, predicted with the held odometry
+    assert seen.index == 1 and seen.t == 0.1  # the held odometry's pose, made in a copy
     np.testing.assert_allclose(early.pose, [1.1, 2.0, 0.0])
+    np.testing.assert_allclose(seen.pose, early.pose)
+    assert slam.poses == 1
     for k in range(2, 8):
         slam.add_odometry(0.1 * k, [0.1, 0.0, 0.0], sigma=[0.01, 0.01, 0.001])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         slam.add_observation(0.05, 3, range=2.0, bearing=0.1, sigma=[0.05, 0.01])  # 0.65 s late
     assert slam.late == 1 and "beyond max_latency 0.3 s" in str(caught[0].message)
-    held = len(slam.estimate().trajectory)
-    slam.flush()
+    assert caught[0].filename == __file__  # the warning points at the user's call
+    held = len(slam.estimate(held=False).trajectory)
     assert len(slam.estimate().trajectory) == 8 > held
+    slam.flush()
+    assert len(slam.estimate(held=False).trajectory) == 8
     slam.add_observation(0.65, 3, range=2.0, bearing=0.1, sigma=[0.05, 0.01])  # older than what was given on
     assert slam.late == 2
     slam.save(tmp_path / "late.ckpt")
