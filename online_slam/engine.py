@@ -25,7 +25,7 @@ from typing import Any
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.protocol import Estimator, Snapshot
 from online_slam.frontend.steps import FrontEnd, FrontEndConfig, Step
-from online_slam.sources.events import Event, Scan
+from online_slam.sources.events import Event, RobotId, Scan
 
 
 @dataclass(frozen=True)
@@ -58,6 +58,8 @@ class EngineState:
     """Estimators that left when a second robot began (they take one robot at a time)."""
     times: list[float] = field(default_factory=list)
     """Time of every complete step, in index order."""
+    robots: list[RobotId | None] = field(default_factory=list)
+    """Robot of every complete step, in index order (None: the stream names none)."""
 
 
 @dataclass(eq=False)
@@ -185,6 +187,7 @@ class Engine:
         self.state.steps += 1
         self.state.observations += len(step.landmarks)
         self.state.times.append(step.t)
+        self.state.robots.append(step.robot)
         if not self.records:
             self.state.given, self.state.given_fixes, self._latest = -1, 0, {}
             return None

@@ -25,7 +25,7 @@ import math
 import sys
 import warnings
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, MappingProxyType
 from typing import Any, cast
@@ -131,7 +131,6 @@ class Slam:
         self._validator.latency_name = "max_latency"
         self.late: int = 0
         """Lines skipped as later than ``max_latency`` (a warning the first time; never an error)."""
-        self._step_robots: list[RobotId] = []
 
     # -- events --------------------------------------------------------------------------------------
     def start(self, t: float, pose: Any, sigma: Any = None, cov: Any = None, robot: RobotId | None = None) -> None:
@@ -349,9 +348,6 @@ class Slam:
             self._validator.state = before
             raise
         self._engine.push(event)
-        robot = getattr(event, "robot", None)
-        if robot is not None and len(self._step_robots) < self.poses:  # a robot's pose began
-            self._step_robots.append(robot)
 
     def flush(self) -> None:
         """Give the estimator every line ``max_latency`` holds back, now (the end of a run, or before a final
@@ -433,7 +429,7 @@ class Slam:
         n = len(frozen) + len(tail)
         times_array = _read_only(np.array(times[:n], dtype=float))
         robots = self._robot_poses(snapshot)
-        return SlamEstimate(snapshot, covs, (frozen, tail), robots, self._step_robots, times_array)
+        return SlamEstimate(snapshot, covs, (frozen, tail), robots, self._pose_robots(), times_array)
 
     def _holds_sightings(self, until: float) -> bool:
         """Whether giving on the lines held back before ``until`` brings a sighting or fix to the estimator: one
@@ -486,14 +482,22 @@ class Slam:
         pose, cov = predict_pose(snapshot.pose, snapshot.pose_cov, snapshot.t, increments, to, motion)
         return dataclasses.replace(snapshot, t=float(to), pose=pose, pose_cov=cov)
 
+    def _pose_robots(self) -> list[RobotId]:
+        """The robot of every pose so far, in index order (empty when no line names one)."""
+        frontend = self._engine.frontend
+        begun = ([] if frontend.pending is None else [frontend.pending]) + frontend.later
+        robots = self._engine.state.robots + [pose.robot for pose in begun]
+        return [] if all(robot is None for robot in robots) else cast("list[RobotId]", robots)
+
     def _robot_poses(self, snapshot: Snapshot) -> Mapping[RobotId, NewestPose]:
         """Each named robot's newest pose: the snapshot's with one robot, the estimator's with several."""
-        if not self._step_robots:
+        step_robots = self._pose_robots()
+        if not step_robots:
             return MappingProxyType({})
         if len(self._validator.state.robots) == 1:
             pose = snapshot.pose.copy()
             cov = snapshot.pose_cov.copy() if snapshot.pose_cov is not None else np.full((3, 3), np.nan)
-            return MappingProxyType({self._step_robots[0]: (snapshot.index, snapshot.t, pose, cov)})
+            return MappingProxyType({step_robots[0]: (snapshot.index, snapshot.t, pose, cov)})
         newest: dict[RobotId | None, NewestPose] = self._estimator.robot_poses()
         return MappingProxyType({robot: newest[robot] for robot in self._validator.state.robots if robot in newest})
 
@@ -529,7 +533,6 @@ class Slam:
             dict(self.options),
             self._validator.state,
             self._engine.checkpoint(),
-            self._step_robots,
             *self.typed,
             self.late,
         )
@@ -548,7 +551,6 @@ class Slam:
             slam = cls(saved.estimator, **typed, **saved.options)
             slam._validator.state = saved.validator
             slam._engine.restore(saved.engine)
-            slam._step_robots = saved.step_robots
             slam.late = saved.late
         except (KeyError, TypeError, ValueError, IndexError, ConfigError) as exc:
             raise InputError(str(path), 0, "", f"not a usable checkpoint: inconsistent state ({exc})") from None
@@ -588,8 +590,6 @@ class SlamCheckpoint:
     """What the input checks remember (time, first pose)."""
     engine: EngineCheckpoint
     """The engine's, the front-end's and the estimator's state."""
-    step_robots: list[RobotId] = field(default_factory=list)
-    """The robot of every pose so far, in index order (empty when the events name no robot)."""
     config: EkfConfig | SmootherConfig | None = None
     """The estimator's configuration when given as one (``Slam(config=...)``), else None."""
     frontend: FrontEndConfig | None = None

@@ -77,6 +77,25 @@ def test_each_robot_has_its_pose_covariance_and_trajectory(estimator: str) -> No
     np.testing.assert_array_equal(estimate.robots[1].pose_cov, estimate.pose_cov)
 
 
+@pytest.mark.parametrize("estimator", SEVERAL)
+def test_each_robot_keeps_its_poses_behind_a_latency_budget(estimator: str) -> None:
+    """With ``max_latency`` the lines reach the front-end in bursts, starting poses of robots other than the line's
+    own: every pose is still its robot's, whether a query reads what the estimator took or the held lines too."""
+    events = list(meet_world(SMALL_MEET))
+    plain, held = Slam(estimator), Slam(estimator, max_latency=0.3)
+    for event in events:
+        plain.add(event)
+        held.add(event)
+    whole = plain.estimate(landmark_covs=False)
+    seen, taken = held.estimate(landmark_covs=False), held.estimate(landmark_covs=False, held=False)
+    assert len(taken.trajectory) < len(seen.trajectory) == len(whole.trajectory)
+    for robot, mine in whole.robots.items():
+        np.testing.assert_array_equal(seen.robots[robot].steps, mine.steps)
+        np.testing.assert_allclose(seen.robots[robot].trajectory, mine.trajectory, atol=1e-9)
+        n = len(taken.robots[robot].steps)
+        np.testing.assert_array_equal(taken.robots[robot].steps, mine.steps[:n])
+
+
 def test_one_named_robot_and_no_robot() -> None:
     named, unnamed = Slam("smoother"), Slam("smoother")
     named.start(0.0, [0.0, 0.0, 0.0], robot="r")
