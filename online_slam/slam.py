@@ -392,10 +392,11 @@ class Slam:
                 request: one linearization of its window; pass False to skip).
             at: Predict the pose to this time (seconds, not before the newest pose) from the newest pose with the
                 odometry given so far, at constant twist past it; None: to the newest odometry's time.
-            held: Also use the sightings and fixes ``max_latency`` holds back (up to ``at``), each at its own time
-                (a pose of its own between two poses, or a sighting of one): a copy of the estimator takes them and
-                answers; the estimator itself takes them in time order once the budget has passed. False: the
-                newest pose predicted with the held odometry alone (no copy; the same when no sighting is held).
+            held: Also use the lines ``max_latency`` holds back (up to ``at``), each at its own time (a sighting
+                between two poses gets a pose of its own there): a copy of the estimator takes them and answers, so
+                the newest pose is the newest odometry's; the estimator itself takes them in time order once the
+                budget has passed. False: what the estimator has taken, its newest pose predicted with the held
+                odometry (no copy: cheaper, blind to held sightings).
 
         Returns:
             The estimate; before any event an empty one (``index`` -1, no trajectory, no landmarks).
