@@ -254,6 +254,28 @@ def test_cli_reads_late_lines_with_a_budget_and_stdin_has_one_by_default(tmp_pat
     )
 
 
+def test_simulate_writes_the_timing_world_with_late_lines(tmp_path: Path) -> None:
+    """``simulate timing --delay`` writes lines in arrival order; replayed with a budget they give the figures of the
+    ``timing`` world in time order; other worlds refuse ``--delay``; a time going back is shown without float noise."""
+    late = tmp_path / "late.jsonl"
+    wrote = _cli("simulate", "timing", "--delay", "0.15", "-o", str(late))
+    assert wrote.returncode == 0, wrote.stderr
+    lines = [json.loads(line) for line in late.read_text().splitlines()]
+    times = [line["t"] for line in lines if "t" in line]
+    assert times != sorted(times)  # some sightings come after later odometry
+    figures = []
+    for source, budget in ((str(late), "0.2"), ("timing", "0")):
+        run = _cli("replay", source, "--estimators", "ekf", "--max-latency", budget, "--json", "-")
+        assert run.returncode == 0, run.stderr
+        figures.append(json.loads(run.stdout)["estimators"]["ekf"])
+    assert_close(figures[0]["online_rmse_m"], figures[1]["online_rmse_m"], rtol=1e-9)
+    assert_close(figures[0]["nees_mean"], figures[1]["nees_mean"], rtol=1e-9)
+    refused = _cli("simulate", "grid", "--delay", "0.1")
+    assert refused.returncode == 2 and "--delay is the timing world's" in refused.stderr
+    backwards = _cli("replay", str(late), "--estimators", "ekf")
+    assert backwards.returncode == 2 and "0.6000000000000001" not in backwards.stderr
+
+
 def test_slam_with_a_budget_shows_its_start_flushes_and_keeps_its_late_count(tmp_path: Path) -> None:
     slam = Slam("ekf", max_latency=0.3)
     slam.start(0.0, [1.0, 2.0, 0.0])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import sys
 from dataclasses import replace
 from typing import Any
@@ -14,6 +15,7 @@ from online_slam.errors import OnlineSlamError
 from online_slam.models.observation import MODEL_NAMES
 from online_slam.options import add_options, readable
 from online_slam.sources.stream import write_stream
+from online_slam.sources.timing import TimingConfig, timing_world
 from online_slam.sources.worlds import (
     CIRCLE_WORLDS,
     WORLDS,
@@ -79,6 +81,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-ids", action="store_true", help="write sightings without landmark ids (unknown data association)"
     )
+    p.add_argument("--delay", type=float, default=0.0, metavar="S",
+                   help="timing: each sighting line arrives up to S seconds late (uniform): lines in arrival order, "
+                   "to replay with --max-latency")  # fmt: skip
     add_options(p, "simulate")
 
 
@@ -94,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
     output = args.output or "-"
     if args.world == "circle" and args.model is not None:
         args = argparse.Namespace(**{**vars(args), "world": CIRCLE_WORLDS[args.model], "model": None})
+    if args.delay and args.world != "timing" or not 0.0 <= args.delay < math.inf:
+        raise OnlineSlamError("simulate: --delay is the timing world's, seconds >= 0")
     if args.world not in ("grid", "waypoint"):
         shaped = ("poses", "landmarks", "step", "sensor_range", "odometry_sigma", "sensor_sigma", "model")
         given = [name for name in shaped if getattr(args, name) is not None]
@@ -102,6 +109,9 @@ def run(args: argparse.Namespace) -> int:
             fixed = "the article's fixed world" if args.world == "square" else "a fixed world"
             raise OnlineSlamError(f"simulate: {flag} shapes the grid and waypoint worlds; {args.world} is {fixed}")
         events = WORLDS[args.world].events(args.seed)
+        if args.delay:
+            seed = TimingConfig.seed if args.seed is None else args.seed
+            events = timing_world(TimingConfig(seed=seed, delay=args.delay))
     else:
         base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
         shape: dict[str, Any] = {

@@ -283,10 +283,10 @@ class EventValidator(ScanRules, RobotRules):
         if t < last and not t >= max(last - self.max_latency, self._pending.floor):
             if self.max_latency > 0.0:
                 budget = f"{self.latency_name} {self.max_latency:g} s"
-                message = f"late by {last - t:.9g} s (at {t} after {last}): beyond {budget}"
+                message = f"late by {last - t:.9g} s (at {t:.15g} after {last:.15g}): beyond {budget}"
                 raise LateInput(self.name, line, "t", message)
             everyone = " over all robots (one clock)" if self._pending.robots else ""
-            message = f"time goes backwards ({t} after {last}); expected non-decreasing{everyone}"
+            message = f"time goes backwards ({t:.15g} after {last:.15g}); expected non-decreasing{everyone}"
             raise self.fail(line, "t", f"{message} (for late lines give a latency budget: --max-latency, max_latency)")
         self._pending.last_t = max(t, last)
         if self._pending.first_pose_t is None:

@@ -37,6 +37,7 @@ from online_slam.sources.events import (
     Truth,
 )
 from online_slam.sources.meet import MeetConfig, meet_world
+from online_slam.sources.timing import TimingConfig, timing_world
 
 Array = NDArray[np.float64]
 
@@ -528,6 +529,10 @@ def _meet(seed: int) -> Iterator[Event]:
     return meet_world(MeetConfig(seed=seed))
 
 
+def _timing(seed: int) -> Iterator[Event]:
+    return timing_world(TimingConfig(seed=seed))
+
+
 def _meet_apart(seed: int) -> Iterator[Event]:
     return meet_world(MeetConfig(robots=2, share_landmarks=False, seed=seed))
 
@@ -563,6 +568,13 @@ WORLDS: dict[str, World] = {
     ),
     "meet-apart": World(
         _meet_apart, MeetConfig.seed, "2 robots on crossing loops sharing no landmark: only robot sightings link them"
+    ),
+    "timing": World(
+        _timing,
+        TimingConfig.seed,
+        f"sensors off the odometry clock: {TimingConfig.duration:g} s at {TimingConfig.speed:g} m/s, odometry at "
+        f"{TimingConfig.odometry_rate:g} Hz, sighting scans at {TimingConfig.sighting_rate:g} Hz "
+        f"{TimingConfig.offset * 1e3:g} ms after a tick",
     ),
 }
 """The built-in worlds by name: ``simulate``, ``replay``, ``compare`` and ``sweep`` all read this registry."""
