@@ -429,8 +429,9 @@ class Slam:
         times = engine.state.times + ([pending.t] if pending is not None and engine.state.given >= 0 else [])
         n = len(frozen) + len(tail)
         times_array = _read_only(np.array(times[:n], dtype=float))
-        robots = self._robot_poses(snapshot)
-        return SlamEstimate(snapshot, covs, (frozen, tail), robots, self._pose_robots(), times_array)
+        step_robots = self._pose_robots()
+        return SlamEstimate(snapshot, covs, (frozen, tail), self._robot_poses(snapshot, step_robots), step_robots,
+                            times_array)  # fmt: skip
 
     def _holds_sightings(self, until: float) -> bool:
         """Whether giving on the lines held back before ``until`` brings a sighting or fix to the estimator: one
@@ -485,14 +486,14 @@ class Slam:
 
     def _pose_robots(self) -> list[RobotId]:
         """The robot of every pose so far, in index order (empty when no line names one)."""
-        frontend = self._engine.frontend
-        begun = ([] if frontend.pending is None else [frontend.pending]) + frontend.later
-        robots = self._engine.state.robots + [pose.robot for pose in begun]
+        if not self._validator.state.robots:  # one unnamed robot: no list to build at each query
+            return []
+        pending, later = self._engine.frontend.pending, self._engine.frontend.later
+        robots = self._engine.state.robots + [pose.robot for pose in ([pending] if pending is not None else []) + later]
         return [] if all(robot is None for robot in robots) else cast("list[RobotId]", robots)
 
-    def _robot_poses(self, snapshot: Snapshot) -> Mapping[RobotId, NewestPose]:
+    def _robot_poses(self, snapshot: Snapshot, step_robots: list[RobotId]) -> Mapping[RobotId, NewestPose]:
         """Each named robot's newest pose: the snapshot's with one robot, the estimator's with several."""
-        step_robots = self._pose_robots()
         if not step_robots:
             return MappingProxyType({})
         if len(self._validator.state.robots) == 1:

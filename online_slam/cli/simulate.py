@@ -108,10 +108,11 @@ def run(args: argparse.Namespace) -> int:
             flag = "--" + given[0].replace("_", "-")
             fixed = "the article's fixed world" if args.world == "square" else "a fixed world"
             raise OnlineSlamError(f"simulate: {flag} shapes the grid and waypoint worlds; {args.world} is {fixed}")
-        events = WORLDS[args.world].events(args.seed)
         if args.delay:
-            seed = TimingConfig.seed if args.seed is None else args.seed
-            events = timing_world(TimingConfig(seed=seed, delay=args.delay))
+            events = timing_world(TimingConfig(seed=WORLDS["timing"].seed if args.seed is None else args.seed,
+                                               delay=args.delay))  # fmt: skip
+        else:
+            events = WORLDS[args.world].events(args.seed)
     else:
         base: GridConfig | WaypointConfig = GridConfig() if args.world == "grid" else WaypointConfig()
         shape: dict[str, Any] = {
