@@ -306,8 +306,8 @@ def _misdeclared(args: argparse.Namespace, world: GridConfig) -> None:
     from benchmarks.misdeclared import MODES, run_misdeclared, verdicts
 
     rows = run_misdeclared(args.mrclam, args.workers)
-    print("declared noise that is wrong (the data unchanged, sigmas declared 0.3x or 3x), --adapt-noise off (the "
-          "default), inflate, both; RMSE m")  # fmt: skip
+    print("declared noise that is wrong (the data unchanged, sigmas declared 0.3x or 3x), --adapt-noise off and on "
+          "(the default); RMSE m")  # fmt: skip
     print(f"{'stream':<16}{'declared':<16}{'adapt':<7}{'EKF on':>8}{'sm. on':>8}{'sm. fin':>8}{'batch':>8}"
           f"{'EKF NEES':>10}{'sm. NEES':>10}")  # fmt: skip
     for r in rows:

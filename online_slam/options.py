@@ -295,8 +295,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            "correlation implies; linear, as linearized. The estimates are the same", "estimators",
            ("ekf", "smoother"), field=("EkfConfig", "pose_covariance"), choices=CHOICES["pose_covariance"],
            lands=("ekf.pose_covariance", "smoother.pose_covariance")),
-    Option("adapt_noise", "EKF and smoother: inflate the declared odometry and sensor covariances while their "
-           "innovations show them too small for a sustained stretch (never below what was declared)", "estimators",
+    Option("adapt_noise", "EKF and smoother: the declared covariances inflated while the innovations show them too "
+           "small, the sensor's shrunk while too wide unless the source declares it widened for correlation "
+           "(--no-adapt-noise: as declared)", "estimators",
            ("ekf", "smoother"), kind=bool, field=("AdaptationConfig", "enabled"),
            lands=("ekf.adaptation.enabled", "smoother.adaptation.enabled")),
     # -- smoother -------------------------------------------------------------------------------------------
@@ -553,8 +554,9 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> argpar
     if option.kind is bool:
         if listed:
             kw.update(action="store_const", const=(True,))
-        else:
-            kw.update(action="store_true", default=option.default)
+        else:  # on by default: --no-NAME turns it off
+            flag = argparse.BooleanOptionalAction if option.value is True else "store_true"
+            kw.update(action=flag, default=option.default)
     elif listed:
         values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
         kw.update(type=_list_of(option), metavar=f"{values}[,...]")

@@ -181,6 +181,7 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
         "outliers",
         "linearization",
         "pose_covariance",
+        "adapted_noise",
     )
     assert set(ekf.robots["1"].to_json()) == {k for k in ekf.to_json() if not k.startswith(whole_run)}
 

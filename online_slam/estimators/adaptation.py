@@ -1,5 +1,5 @@
 """Noise adaptation: the declared odometry and sensor covariances scaled when the innovations show a sustained
-mismatch (``--adapt-noise``).
+mismatch (on by default; ``--no-adapt-noise``).
 
 Each update's innovations ``y`` (m,) are modelled as ``N(0, a A + b B)``: ``A = H P H^T`` the part the predicted
 state gives (too small when the odometry is declared too sure: the pose error shows in every sighting of a step
@@ -7,16 +7,23 @@ alike), ``B = blockdiag(R)`` the sightings' own (too small when the sensor is: i
 declared times the scales already applied, so ``a = b = 1`` when they fit. The unbiased quadratic estimate of
 ``(a, b)`` (MINQUE; variance components as in ``--noise self``, here on innovations) is ``F^-1 q`` with
 ``F_ij = tr(S^-1 V_i S^-1 V_j)``, ``q_i = y^T S^-1 V_i S^-1 y``, ``S = a_w A + b_w B`` at a working point
-``(a_w, b_w)``: the estimate so far. It is unbiased at any working point; its covariance, ``2 F^-1`` there, is
-smallest near the truth, which matters where one part is far from declared (MRCLAM's sightings are declared wider
-than their innovations, for their errors are correlated in time, and at (1, 1) that wide part drowns the other).
-``F`` and ``q`` are summed over the recent updates with exponential forgetting. A scale moves, by a fraction of its
-estimate's log each update, only while that estimate is beyond ``threshold`` standard errors from 1, and never
-below 1: a declaration too cautious costs some accuracy, and deflating proved unsafe (the EKF diverged on a grid
-whose sightings were declared 3x too wide, with the right scales found; MRCLAM's sighting sigmas, widened on purpose
-for errors correlated in time, were deflated to overconfidence: benchmarks/RESULTS.md, "Declared noise that is
-wrong"). The EKF and the
-smoother each keep their own (:class:`Adaptation`).
+``(a_w, b_w)``: the estimate so far. ``F`` and ``q`` are summed over the recent updates with exponential
+forgetting. A scale moves by a fraction of its estimate's log per update while that estimate is beyond
+``threshold`` standard errors from 1:
+
+- up, on the standard error independent Gaussian innovations give (``2 F^-1``): a declaration too sure diverges
+  the estimator, and inflating wrongly costs little. When the odometry scale rises, the estimator's covariance
+  built with the odometry too sure rises with it (the EKF's ``P``, the smoother's marginal prior), as the steps to
+  come do;
+- down, on the larger of that and the scores' own dispersion (a sandwich with lags, Newey & West 1987: errors
+  correlated in time, or heavy-tailed, are weaker evidence), and only the sensor's (to ``sensor_floor``), only
+  while the predicted part is not too small (then the split between the parts is not to be trusted), and never for
+  a source that declares its sightings widened for correlation (MRCLAM: its sigmas allow for errors correlated in
+  time, which innovations do not show, so they read too wide). The odometry's never goes below 1: ``A`` holds the
+  map's covariance too, and an odometry shrunk on it made the EKF diverge (benchmarks/RESULTS.md, "Declared noise
+  that is wrong").
+
+The EKF and the smoother each keep their own (:class:`Adaptation`).
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg import cho_factor, cho_solve
 
 from online_slam.estimators.adaptation_config import AdaptationConfig
 from online_slam.estimators.kalman import stacked_jacobian
@@ -38,6 +46,8 @@ WORKING_RANGE = (0.02, 100.0)
 """Bounds of the working point (:attr:`Adaptation.working`)."""
 WORKING_AFTER = 20
 """Updates before the working point follows the estimate (the first few say little)."""
+LAG_DECAY = 0.95
+"""Weight per update of a lag in the scores' long-run covariance (an exponential kernel of ~20 updates)."""
 GATE = -2.0 * math.log(1e-4)
 """A sighting whose NIS exceeds this (18.4: the chi-square bound, 2 dof, an inlier exceeds with probability 1e-4,
 the EKF's default gate) is an outlier and tells nothing of the noise."""
@@ -60,6 +70,14 @@ class Adaptation:
     working: Array = field(default_factory=lambda: np.ones(2))
     """``(a_w, b_w)``: where the next update's statistics are taken (the estimate so far, within
     :data:`WORKING_RANGE`)."""
+    dispersion: Array = field(default_factory=lambda: np.zeros((2, 2)))
+    """``Omega``: the scores' ``g = q - F theta`` long-run covariance, summed with forgetting (lags weighted
+    ``LAG_DECAY ** l``), shape (2, 2)."""
+    widened: bool = False
+    """The newest step's sightings are declared widened for correlation (:attr:`Step.z_widened`): the sensor scale
+    does not go below 1."""
+    recent: Array = field(default_factory=lambda: np.zeros(2))
+    """The recent scores, summed with ``LAG_DECAY`` (the lags' side of :attr:`dispersion`), shape (2,)."""
 
 
 def innovation_statistics(y: Array, A: Array, B: Array, working: Array | None = None) -> tuple[Array, Array]:
@@ -67,49 +85,69 @@ def innovation_statistics(y: Array, A: Array, B: Array, working: Array | None = 
     (m, m) of their covariance, taken at ``working`` (2,) (None: (1, 1))."""
     S = A + B if working is None else working[0] * A + working[1] * B
     try:
-        L = np.linalg.cholesky(S)
+        factor = cho_factor(S, lower=True, check_finite=False)
     except np.linalg.LinAlgError:
         return np.zeros((2, 2)), np.zeros(2)
-    solve = np.linalg.solve
-    MA = solve(L.T, solve(L, A))  # S^-1 A
-    MB = solve(L.T, solve(L, B))
-    w = solve(L.T, solve(L, y))  # S^-1 y
+    m = len(y)
+    solved = cho_solve(factor, np.hstack([A, B, y[:, None]]), check_finite=False)  # S^-1 [A, B, y]
+    MA, MB, w = solved[:, :m], solved[:, m : 2 * m], solved[:, -1]
     F = np.array([[np.sum(MA * MA.T), np.sum(MA * MB.T)], [0.0, np.sum(MB * MB.T)]])
     F[1, 0] = F[0, 1]
     return F, np.array([w @ A @ w, w @ B @ w])
 
 
-def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> None:
-    """Fold one update's statistics in and move the scales (in place)."""
+def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> float:
+    """Fold one update's statistics in and move the scales (in place); the factor the odometry scale rose by (1: it
+    did not rise), for the estimator to apply to the state's covariance built with it."""
     keep = 1.0 - 1.0 / config.memory
     state.information = keep * state.information + F
     state.quadratic = keep * state.quadratic + q
     state.updates += 1
     info = state.information
-    if np.linalg.cond(info) > 1e12 or info[0, 0] <= 0.0 or info[1, 1] <= 0.0:
-        return
-    inverse = np.linalg.inv(info)
+    a, b, d = info[0, 0], info[0, 1], info[1, 1]
+    det = a * d - b * b
+    if a <= 0.0 or d <= 0.0 or det <= 1e-12 * (a + d) ** 2:  # one part not seen yet: nothing to say of it
+        return 1.0
+    inverse = np.array([[d, -b], [-b, a]]) / det
     estimate = inverse @ state.quadratic
-    error = np.sqrt(np.maximum(2.0 * np.diag(inverse), 0.0))
+    g = q - F @ estimate
+    state.dispersion = keep * state.dispersion + np.outer(g, g) + np.outer(g, state.recent) + np.outer(state.recent, g)
+    state.recent = LAG_DECAY * state.recent + g
+    # rises on the independent Gaussian standard error, shrinks on the larger of it and the sandwich (module docs)
+    independent = np.sqrt(2.0 * np.diag(inverse))
+    robust = np.sqrt(np.maximum(np.maximum(2.0 * np.diag(inverse), np.diag(inverse @ state.dispersion @ inverse)), 0.0))
     before = np.array([state.odometry_scale, state.sensor_scale])
     scales = before.copy()
     for i in range(2):
-        if abs(estimate[i] - 1.0) > config.threshold * error[i]:
-            step = config.gain * math.log(max(estimate[i], 1e-3))
-            scales[i] = min(config.max_scale, max(1.0, scales[i] * math.exp(step)))
+        # before the statistics span their memory they say too little (a 2000-pose grid declared right moved both
+        # scales by 4% in its first 40 updates), and a variance estimate below zero says only that it is uncertain
+        if state.updates < config.memory or estimate[i] <= 0.0:
+            continue
+        rises = estimate[i] > 1.0
+        if not rises and i == 1 and estimate[0] - 1.0 > config.threshold * independent[0]:
+            continue  # while the predicted part is too small, the split between the parts is not to be trusted
+        if abs(estimate[i] - 1.0) > config.threshold * (independent[i] if rises else robust[i]):
+            floor = 1.0 if i == 0 or state.widened else config.sensor_floor
+            scales[i] = min(config.max_scale, max(floor, scales[i] * math.exp(config.gain * math.log(estimate[i]))))
     # The remembered updates were judged under the scales before: what they say of the new ones is their estimate
     # over the change (without this the scales wind up past the truth while the memory lags).
     now = estimate * before / scales
     state.quadratic = info @ now
+    if (scales != before).any():  # the scores' dispersion in the new units: theta' = D theta, so Omega' = M Omega M^T
+        M = info @ np.diag(before / scales) @ inverse
+        state.dispersion = M @ state.dispersion @ M.T
+        state.recent = M @ state.recent
     state.odometry_scale, state.sensor_scale = float(scales[0]), float(scales[1])
     if state.updates >= WORKING_AFTER:
         state.working = np.clip(now, *WORKING_RANGE)
+    return max(1.0, state.odometry_scale / float(before[0]))
 
 
-def update_adaptation(state: Adaptation, S: Array, R: Array, y: Array, config: AdaptationConfig) -> None:
-    """Fold an EKF update in: innovations y (a, 2) with covariance S (2a, 2a), R (a, 2, 2) of it the sightings'."""
+def update_adaptation(state: Adaptation, S: Array, R: Array, y: Array, config: AdaptationConfig) -> float:
+    """Fold an EKF update in: innovations y (a, 2) with covariance S (2a, 2a), R (a, 2, 2) of it the sightings'.
+    Returns the factor the odometry scale rose by (:func:`adapt`)."""
     B = _block_diagonal(R)
-    adapt(state, *innovation_statistics(y.reshape(-1), S - B, B, state.working), config)
+    return adapt(state, *innovation_statistics(y.reshape(-1), S - B, B, state.working), config)
 
 
 def _block_diagonal(R: Array) -> Array:
@@ -151,9 +189,11 @@ def sighting_statistics(
     return innovation_statistics(y.reshape(-1)[keep], A[np.ix_(keep, keep)], B[np.ix_(keep, keep)], working)
 
 
-def scaled(step: Step, state: Adaptation) -> Step:
-    """The step with its odometry and sightings' covariances times the adapted scales (itself while both are 1:
-    always, when not adapting)."""
+def entering(step: Step, state: Adaptation) -> Step:
+    """A step as an estimator takes it: its sightings' declaration noted (:attr:`Adaptation.widened`), its odometry
+    and sightings' covariances times the adapted scales (the step itself while both are 1: always, when not
+    adapting)."""
+    state.widened = step.z_widened
     if state.odometry_scale == 1.0 and state.sensor_scale == 1.0:
         return step
     odometry_cov = None if step.odometry_cov is None else step.odometry_cov * state.odometry_scale

@@ -54,7 +54,7 @@ from scipy.stats import chi2
 from online_slam.checkpoint import from_tree, to_tree
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
-from online_slam.estimators.adaptation import adapted_info, scaled, update_adaptation
+from online_slam.estimators.adaptation import adapted_info, entering, update_adaptation
 from online_slam.estimators.blas import OneThreadBlas
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_fixes import AbsoluteFixes
@@ -354,13 +354,16 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         if not accepted.all():
             keep = np.repeat(accepted, 2)
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
+        rise = 1.0
         if len(y) and self.config.adaptation.enabled:
-            update_adaptation(self.state.adaptation, S, R[accepted], y, self.config.adaptation)
+            rise = update_adaptation(self.state.adaptation, S, R[accepted], y, self.config.adaptation)
         if len(y):
             try:
                 self._apply(PHt, S, y.reshape(-1))
             except np.linalg.LinAlgError:  # S not positive definite in floating point: the update is not made
                 accepted[:] = False
+        if rise > 1.0:  # the state's covariance was built with the odometry too sure, as the future's would be
+            self.P *= rise
         for i in np.flatnonzero(reanchor):
             self.reanchor_landmark(int(indices[i]), z[i], R[i], model[i])
         return nis, accepted | reanchor
@@ -421,12 +424,12 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
     def step(self, step: Step) -> Snapshot:
         """Predict with the step's odometry, update with its observations, add new landmarks."""
         with self.single_threaded():
-            return self._step(scaled(step, self.state.adaptation))
+            return self._step(entering(step, self.state.adaptation))
 
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: update with its observations ``start:`` (no prediction)."""
         with self.single_threaded():
-            step = scaled(step, self.state.adaptation)
+            step = entering(step, self.state.adaptation)
             self._observe(step, start)
             self._fix(step, self.state.fixes_used)
             return self.snapshot(step)

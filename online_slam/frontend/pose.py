@@ -65,6 +65,9 @@ class Step:
     declares sensors; empty when it declares none (every sighting is then the centre's)."""
     fixes: tuple[Position | Heading, ...] = ()
     """Absolute fixes of this pose (``position`` and ``heading`` lines at its time), in stream order."""
+    z_widened: bool = False
+    """The source declares (header ``sightings_correlated``) the sightings' covariances widened for errors
+    correlated in time: their innovations read smaller than declared, and no adaptation shrinks them."""
 
     def __post_init__(self) -> None:
         if self.z_model is None:
@@ -111,6 +114,7 @@ class PendingStep:
     z_mount: list[tuple[float, ...]] = field(default_factory=list)  # per sighting: its sensor's pose, if ``mounted``
     z_sensor: list[str | None] = field(default_factory=list)  # per sighting: its sensor's name, if ``mounted``
     mounted: bool = False  # the stream declares sensors: the step's models carry each sighting's mounting
+    widened: bool = False  # the stream declares its sighting covariances widened for correlation (Step.z_widened)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
     full_covariance: bool = False  # some sighting gave a full covariance (not sigma)
     robot: RobotId | None = None
@@ -164,6 +168,7 @@ class PendingStep:
             z_model=self._models(),
             sensors=tuple(self.z_sensor),
             fixes=tuple(self.fixes),
+            z_widened=self.widened,
         )
 
     def _models(self) -> NDArray[Any]:

@@ -292,6 +292,10 @@ class FrontEnd:
             declared = event.meta.get("sensors") or {}
             self.sensors = {name: tuple(float(v) for v in spec["pose"]) for name, spec in declared.items()}
 
+    def _widened(self) -> bool:
+        """The header says the sightings' covariances are widened for errors correlated in time."""
+        return self.header is not None and bool(self.header.meta.get("sightings_correlated"))
+
     def _decorrelated(self, fix: Position | Heading) -> Position | Heading:
         """The fix with its covariance widened for its correlation with the robot's previous one of its kind
         (``fix_correlation``; the fix itself when that is 0)."""
@@ -409,7 +413,7 @@ class FrontEnd:
     ) -> PendingStep:
         """Begin a pose after the newest of all robots."""
         pose = PendingStep(index=self._tail().index + 1, t=t, t_begin=t_begin, odometry=delta, odometry_cov=cov,
-                           robot=robot, closed=closed, mounted=bool(self.sensors))  # fmt: skip
+                           robot=robot, closed=closed, mounted=bool(self.sensors), widened=self._widened())  # fmt: skip
         self.later.append(pose)
         return pose
 
@@ -492,6 +496,7 @@ class FrontEnd:
             prior_cov=prior_cov,
             robot=robot,
             mounted=bool(self.sensors),
+            widened=self._widened(),
         )
         if self.pending is None:
             self.pending = begun

@@ -209,10 +209,10 @@ def notes(results: Results) -> list[str]:
                 f"{name}: {state} in {counted(d['iterations'], 'iteration')} "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
-        if "adapted_noise" in d:
+        if "adapted_noise" in d and tuple(d["adapted_noise"]) != (1.0, 1.0):
             odometry, sensor = d["adapted_noise"]
-            out.append(f"{name}: noise adapted to its innovations (--adapt-noise): odometry covariance "
-                       f"x{odometry:.3g}, sensor x{sensor:.3g} (1: as declared)")  # fmt: skip
+            out.append(f"{name}: noise adapted to its innovations: odometry covariance x{odometry:.3g}, sensor "
+                       f"x{sensor:.3g} (1: as declared; --no-adapt-noise: as declared throughout)")  # fmt: skip
         o = result.outliers
         if o is not None and (o.rejected or o.true_outliers):
             scored = (

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.checkpoint import from_tree, to_tree
-from online_slam.estimators.adaptation import GATE, adapt, adapted_info, scaled, sighting_statistics
+from online_slam.estimators.adaptation import GATE, adapt, adapted_info, entering, sighting_statistics
 from online_slam.estimators.blas import OneThreadBlas
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.problem import ProblemLog
@@ -145,7 +145,7 @@ class SlidingWindowSmoother(SeveralRobots):
         """Add the step; solve every K steps; marginalize beyond the window; relinearize globally on schedule."""
         with self._blas.limit():
             w = self.window
-            step = scaled(step, self.state.adaptation)
+            step = entering(step, self.state.adaptation)
             w.add_pose(step)
             step = gated(step, self.progress.fixes, w.poses[step.index], w.pose_cov)
             step, _ = self._resolve(step, 0)
@@ -175,7 +175,7 @@ class SlidingWindowSmoother(SeveralRobots):
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
         with self._blas.limit():
-            step = gated(scaled(step, self.state.adaptation), self.progress.fixes, self.window.poses[step.index],
+            step = gated(entering(step, self.state.adaptation), self.progress.fixes, self.window.poses[step.index],
                          self.window.pose_cov)  # fmt: skip
             step, start = self._resolve(step, start)
             self._adapt(step, start)
@@ -367,7 +367,8 @@ class SlidingWindowSmoother(SeveralRobots):
         at = start + np.array(rows)
         pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
         F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, self.state.adaptation.working)
-        adapt(self.state.adaptation, F, q, self.config.adaptation)
+        if (rise := adapt(self.state.adaptation, F, q, self.config.adaptation)) > 1.0 and self.prior is not None:
+            self.prior.Sigma *= rise  # its fold-ins took the odometry too sure, as the EKF's covariance did
 
     def _add_retro(self) -> None:
         """Earlier sightings of the landmarks association confirmed just now, at poses still in the window."""
