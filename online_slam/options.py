@@ -297,7 +297,7 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            lands=("ekf.pose_covariance", "smoother.pose_covariance")),
     Option("adapt_noise", "EKF and smoother: the declared covariances inflated while the innovations show them too "
            "small, the sensor's shrunk while too wide unless the source declares it widened for correlation "
-           "(--no-adapt-noise: as declared)", "estimators",
+           "(on by default; --no-adapt-noise: as declared)", "estimators",
            ("ekf", "smoother"), kind=bool, field=("AdaptationConfig", "enabled"),
            lands=("ekf.adaptation.enabled", "smoother.adaptation.enabled")),
     # -- smoother -------------------------------------------------------------------------------------------
