@@ -191,3 +191,20 @@ def test_save_load_continue_equals_uninterrupted(tmp_path: Path, estimator: str)
     for robot in theirs.robots:
         np.testing.assert_array_equal(mine.robots[robot].pose_cov, theirs.robots[robot].pose_cov)
         np.testing.assert_array_equal(mine.robots[robot].steps, theirs.robots[robot].steps)
+
+
+def test_a_robot_start_right_after_a_solve_has_no_increment_to_carry() -> None:
+    """The smoother's association covariance carries the last solve's newest pose through the newest increment; a
+    second robot's start pose has none (the noise adaptation asked for it and met a KeyError on held-out MRCLAM, all
+    five robots): the solve does not apply, and the window is linearized instead."""
+    from types import SimpleNamespace
+
+    from online_slam.estimators.smoother.covariance import _carry
+
+    solved = SimpleNamespace(window=[0, 1, 2])
+    window = SimpleNamespace(indices=[0, 1, 2, 3], unsolved={3}, observations={}, previous={}, odometry={},
+                             poses={2: np.zeros(3), 3: np.ones(3)})  # fmt: skip
+    assert _carry(solved, window) == (False, None)  # type: ignore[arg-type]
+    window.odometry[3] = (np.array([0.5, 0.0, 0.0]), np.eye(3) * 0.01, None)
+    applies, carried = _carry(solved, window)  # type: ignore[arg-type]
+    assert applies and carried is not None and carried[0].shape == (3, 3)

@@ -223,7 +223,11 @@ def _carry(solved: Solved | None, window: Window) -> tuple[bool, tuple[Array, Ar
     if newest == solved.window[-1] and not window.unsolved:
         return True, None
     if len(window.indices) > 1 and window.indices[-2] == solved.window[-1] and window.unsolved == {newest}:
-        if newest in window.observations or window.previous.get(newest, solved.window[-1]) != solved.window[-1]:
+        if (
+            newest in window.observations
+            or newest not in window.odometry  # another robot's start: no increment from the solved pose
+            or window.previous.get(newest, solved.window[-1]) != solved.window[-1]
+        ):
             return False, None
         delta, Q, _ = window.odometry[newest]
         _, F, G = compose_with_jacobians(window.poses[solved.window[-1]], delta)
