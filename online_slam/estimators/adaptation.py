@@ -115,7 +115,7 @@ def adapt(state: Adaptation, F: Array, q: Array, config: AdaptationConfig) -> fl
     state.recent = LAG_DECAY * state.recent + g
     # rises on the independent Gaussian standard error, shrinks on the larger of it and the sandwich (module docs)
     independent = np.sqrt(2.0 * np.diag(inverse))
-    robust = np.sqrt(np.maximum(np.maximum(2.0 * np.diag(inverse), np.diag(inverse @ state.dispersion @ inverse)), 0.0))
+    robust = np.maximum(independent, np.sqrt(np.maximum(np.diag(inverse @ state.dispersion @ inverse), 0.0)))
     before = np.array([state.odometry_scale, state.sensor_scale])
     scales = before.copy()
     for i in range(2):
