@@ -337,9 +337,9 @@ def test_association_covariance_from_the_last_solve_equals_relinearizing_the_win
     compared: list[tuple[float, bool]] = []
 
     class Checked(SlidingWindowSmoother):
-        def association_covariance(self, indices: np.ndarray) -> np.ndarray:
+        def association_covariance(self, indices: np.ndarray, exact: bool = True) -> np.ndarray:
             solved = self.association.solved
-            fast = propagated_covariance(solved, self.window, self.prior, indices)
+            fast = propagated_covariance(solved, self.window, self.prior, indices, exact)
             full = window_covariance(linearize(self.window, self.prior, self.config.robust.loss), self.prior, indices)
             if fast is not None:
                 passive = bool(np.any(~np.isin(indices, solved.active)))

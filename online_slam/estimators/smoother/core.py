@@ -281,14 +281,12 @@ class SlidingWindowSmoother(SeveralRobots):
         )
 
     # -- covariances -----------------------------------------------------------------------------
-    def association_covariance(self, indices: Index) -> Array:
-        """Joint covariance of the newest pose and landmarks ``indices`` (c,), shape (3 + 2c, 3 + 2c).
-
-        Usually the last solve's factored information, carried through the newest odometry
-        (:func:`~.covariance.propagated_covariance`); otherwise the window (without the newest pose's sightings,
-        still being associated) linearized at the current estimate (:func:`~.covariance.window_covariance`).
-        """
-        propagated = propagated_covariance(self.association.solved, self.window, self.prior, indices)
+    def association_covariance(self, indices: Index, exact: bool = True) -> Array:
+        """Joint covariance of the newest pose and landmarks ``indices`` (c,), shape (3 + 2c, 3 + 2c): usually the
+        last solve's information carried through the newest odometry (:func:`~.covariance.propagated_covariance`,
+        which says when, ``exact`` or not); else the window (without the newest pose's sightings, being associated)
+        linearized at the current estimate (:func:`~.covariance.window_covariance`)."""
+        propagated = propagated_covariance(self.association.solved, self.window, self.prior, indices, exact)
         if propagated is not None:
             return propagated
         linearized = linearize(self.window, self.prior, self.config.robust.loss, self.config.fej)
@@ -363,7 +361,7 @@ class SlidingWindowSmoother(SeveralRobots):
         indices = np.array([w.index[cast(LandmarkId, ids[k])] for k in rows], dtype=np.int64)
         unique, inverse = np.unique(indices, return_inverse=True)
         columns = np.r_[np.arange(3), 3 + (2 * inverse[:, None] + np.arange(2)).reshape(-1)]
-        joint = self.association_covariance(unique)[np.ix_(columns, columns)]
+        joint = self.association_covariance(unique, exact=False)[np.ix_(columns, columns)]
         at = start + np.array(rows)
         pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
         F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, self.state.adaptation.working)
@@ -517,8 +515,9 @@ class SlidingWindowSmoother(SeveralRobots):
         if sightings is not None:
             keep = ~judge(w, o, self._reject_bound)
             self.relinearization.decisions.append((o, ~keep))
-            if not keep.all():  # judged outliers are never folded into the prior
-                self.association.solved = None  # the solved information holds them
+            if not keep.all():  # judged outliers are never folded into the prior; the solved information holds them
+                if self.association.solved is not None:
+                    self.association.solved = replace(self.association.solved, exact=False)
                 # Cast: the same five columns, without the outliers.
                 sightings = cast(Sightings, tuple(a[keep] for a in sightings)) if keep.any() else None
         return sightings

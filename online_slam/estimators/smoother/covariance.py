@@ -49,6 +49,10 @@ class Solved:
     """Column of each active landmark, shape (A,)."""
     factor: Array
     """``scipy.linalg.cho_factor`` of its information (upper triangle), shape (n, n)."""
+    exact: bool = True
+    """False once judged outliers it holds were dropped from a marginalized pose: its information then holds
+    sightings the state no longer does (robust-weighted: near enough for the noise adaptation's statistics,
+    not for association, which linearizes the window then)."""
 
     def columns(self, landmarks: Index) -> Index:
         """The columns of these solved landmarks (k,), shape (2k,)."""
@@ -169,7 +173,9 @@ def window_covariance(
     return 0.5 * (joint + joint.T)
 
 
-def propagated_covariance(solved: Solved | None, window: Window, prior: Prior | None, indices: Index) -> Array | None:
+def propagated_covariance(
+    solved: Solved | None, window: Window, prior: Prior | None, indices: Index, exact: bool = True
+) -> Array | None:
     """The joint covariance of :func:`window_covariance` from the last solve's factored information, or None if
     it does not apply.
 
@@ -181,10 +187,11 @@ def propagated_covariance(solved: Solved | None, window: Window, prior: Prior | 
     holds is, given the prior's part that the solve saw (its pose and solved landmarks), independent of the
     rest: its covariance is the prior's conditional plus that part's solved covariance carried through the
     regression. None when the state moved otherwise (the owner drops ``solved`` then: a sighting was added, a
-    global solve handed over, judged outliers dropped from a marginalized pose, a landmark released).
+    global solve handed over, a landmark released), and, when ``exact``, after judged outliers were dropped from a
+    marginalized pose (:attr:`Solved.exact`).
     """
     applies, carry = _carry(solved, window)
-    if solved is None or not applies:
+    if solved is None or not applies or (exact and not solved.exact):
         return None
     s, c = solved, len(indices)
     _, is_solved = locate(s.active, indices)

@@ -527,9 +527,11 @@ def consensus(
         return [], []
     ids = active[graph.obs_landmark]
     moves, stale = [], []
-    for j in np.unique(ids[outlying]):
+    examined = np.unique(ids[outlying])
+    for j, in_prior in zip(examined, np.isin(examined, held).tolist()):
         mine = ids == j
-        in_prior = bool(np.isin(j, held))
+        if np.count_nonzero(mine) < 2:  # fewer than any cluster needs
+            continue
         supporters = int(np.count_nonzero(~outlying[mine])) + (3 if outside is None else outside(int(j)))
         need = max(2, min(3, supporters + 1))
         if mine.sum() < need or (in_prior and outlying[mine].mean() < 2.0 / 3.0):
