@@ -1,11 +1,8 @@
-"""The sliding-window smoother: the estimator that drives the window, its prior, covariance recovery and the
-global relinearization (see :mod:`online_slam.estimators.smoother`).
-
-Its state is one dataclass (:class:`~.state.SmootherState`) of a few groups: the window
-(:class:`~.window.Window`), the marginal prior (:class:`~.prior.Prior`), progress (:class:`~.state.Progress`),
-the global relinearization (:class:`~.global_solve.Relinearization`) and association
-(:class:`~.state.AssociationState`); a checkpoint is its tree (:func:`~online_slam.checkpoint.to_tree`).
-"""
+"""The sliding-window smoother: drives the window, its prior, covariance recovery and the global relinearization
+(see :mod:`online_slam.estimators.smoother`). Its state is one dataclass (:class:`~.state.SmootherState`): the window
+(:class:`~.window.Window`), the marginal prior (:class:`~.prior.Prior`), progress (:class:`~.state.Progress`), the
+global relinearization (:class:`~.global_solve.Relinearization`) and association (:class:`~.state.AssociationState`);
+a checkpoint is its tree (:func:`~online_slam.checkpoint.to_tree`)."""
 
 from __future__ import annotations
 
@@ -47,11 +44,28 @@ from online_slam.estimators.smoother.global_solve import (
     solve_now,
     start_job,
 )
-from online_slam.estimators.smoother.prior import Prior, Sightings, fold_map, initial_prior, marginalize, release
+from online_slam.estimators.smoother.prior import (
+    Prior,
+    Sightings,
+    carried,
+    fold_map,
+    initial_prior,
+    marginalize,
+    release,
+)
 from online_slam.estimators.smoother.relinearize import rejudged, solve_all
 from online_slam.estimators.smoother.robots import SeveralRobots
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
-from online_slam.estimators.smoother.window import Linearized, Window, active, consensus, judge, linearize, solve_window
+from online_slam.estimators.smoother.window import (
+    Linearized,
+    Window,
+    active,
+    consensus,
+    judge,
+    linearize,
+    sightings_outside,
+    solve_window,
+)
 from online_slam.factors.graph import FactorGraph, observation_chi2
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
@@ -378,14 +392,8 @@ class SlidingWindowSmoother(SeveralRobots):
 
     # -- solving ---------------------------------------------------------------------------------
     def solve(self, final: bool = False) -> dict[str, float]:
-        """Relinearize the window and solve; solve again (at most twice) when consensus moved landmarks.
-
-        Args:
-            final: Use the final solver settings (the end of the stream).
-
-        Returns:
-            The last solve's report (iterations, costs before and after).
-        """
+        """Relinearize the window and solve (``final``: with the final solver settings, at the end of the stream);
+        solve again (at most twice) when consensus moved landmarks. The last solve's report (iterations, costs)."""
         for depth in range(3):
             report, graph, observed = self._solve_once(final)
             if depth == 2 or not self._consensus(graph, observed):
@@ -404,7 +412,13 @@ class SlidingWindowSmoother(SeveralRobots):
         if s.recover is not None:
             passive, positions = s.recover(result.poses[s.prior_poses], result.landmarks)
             w.landmarks[passive] = positions
-        information = factored(result.information, w.indices, s.layout, observed)
+        layout, info, p = s.layout, result.information, self.prior
+        invariant = self.config.linearization == "invariant"
+        turned = carried(p, w.landmarks, w.poses[p.pose]) if invariant and p is not None else None
+        if turned is not None:  # the information at the solution, with the prior carried there
+            self.prior, lin = turned, linearize(w, turned, self.config.robust.loss)
+            layout, info = lin.layout, lin.information
+        information = factored(info, w.indices, layout, observed)
         self.association.solved = None
         if information is not None:
             w.pose_cov, self.association.solved = information
@@ -423,7 +437,7 @@ class SlidingWindowSmoother(SeveralRobots):
             return False
         held = self.prior.landmarks if self.prior is not None else np.zeros(0, dtype=np.int64)
         w = self.window
-        outside = None if w.several else self._sightings_outside()
+        outside = None if w.several else sightings_outside(self.relinearization.log, w)
         moves, stale = consensus(graph, observed, w.values(), w.landmarks, held, self._reject_bound, outside)
         for j, position in moves:
             w.landmarks[j] = position
@@ -433,22 +447,6 @@ class SlidingWindowSmoother(SeveralRobots):
             self.progress.released += count
             self.association.solved = None
         return bool(moves)
-
-    def _sightings_outside(self) -> Callable[[int], int]:
-        """Sightings of window landmark j at poses older than the window (one robot), counted over the log once, when
-        first asked."""
-        log, w = self.relinearization.log, self.window
-        counts: list[Index] = []
-
-        def outside(j: int) -> int:
-            if not counts:
-                pose, landmark = log.sightings()[:2]
-                older = landmark[(pose < w.indices[0]) & (landmark >= 0)]
-                counts.append(np.bincount(older, minlength=len(log.landmark_ids)))
-            (k,) = log.landmark_indices([w.landmark_ids[j]])
-            return int(counts[0][k]) if k >= 0 else 0
-
-        return outside
 
     def _rejudged_solve(
         self, result: SolveResult, n_poses: int, at_once: bool

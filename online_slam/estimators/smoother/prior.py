@@ -202,6 +202,31 @@ def carry(Sigma: Array, x_from: Array, x_to: Array) -> None:
     transport(Sigma, column, heading=n - 1)
 
 
+CARRY_TURN = 1e-3
+"""A window solve that turns the prior's pose by more than this (rad) carries the prior there (:func:`carried`)."""
+
+
+def carried(prior: Prior, landmarks: Array, pose: Array) -> Prior | None:
+    """A one-pose prior re-centred at the current estimate of its variables (``landmarks`` (M, 2), its ``pose``
+    (3,)), its covariance carried there (:func:`carry`; the invariant linearization after a window solve); None when
+    its pose turned by at most :data:`CARRY_TURN`.
+
+    A solve that turns the prior's pose reads the covariance, built at the old heading, at the new one: the tight
+    relative directions then constrain the turn itself and the newest pose's covariance collapses (MRCLAM robot
+    4's second half: a 0.16 rad turn took it from 0.73 m to 0.10 m at 1.1 m error). Its mean stays where it is.
+    """
+    if len(prior.others):
+        return None
+    current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
+    shift = current - prior.x_lin
+    shift[-1] = wrap(shift[-1])
+    if abs(shift[-1]) <= CARRY_TURN:
+        return None
+    Sigma = prior.Sigma.copy()
+    carry(Sigma, prior.x_lin, current)
+    return Prior(prior.pose, prior.landmarks, current, prior.mu - shift, Sigma, prior.others)
+
+
 def split(prior: Prior, active: Index) -> PriorSplit:
     """The prior's state split by the landmarks a window solve sees (``active``, sorted)."""
     n = len(prior.mu)

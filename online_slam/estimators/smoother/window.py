@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.estimators.history import PoseHistory
+from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.smoother.config import WindowConfig
 from online_slam.estimators.smoother.prior import Prior, Sightings, reduced
 from online_slam.factors.fixes import with_fixes
@@ -548,3 +549,19 @@ def consensus(
             if in_prior:
                 stale.append(int(j))
     return moves, stale
+
+
+def sightings_outside(log: ProblemLog, window: Window) -> Callable[[int], int]:
+    """Sightings of window landmark j at poses older than the window (one robot), counted over the log once, when
+    first asked."""
+    counts: list[Index] = []
+
+    def outside(j: int) -> int:
+        if not counts:
+            pose, landmark = log.sightings()[:2]
+            older = landmark[(pose < window.indices[0]) & (landmark >= 0)]
+            counts.append(np.bincount(older, minlength=len(log.landmark_ids)))
+        (k,) = log.landmark_indices([window.landmark_ids[j]])
+        return int(counts[0][k]) if k >= 0 else 0
+
+    return outside
