@@ -28,7 +28,8 @@ def test_a_window_solve_that_turns_the_prior_keeps_the_smoothers_covariance_hone
     """Robot 4's second half: back from a blind stretch about 1 m off, window solves turned the marginal prior's
     pose; its covariance, built at the old heading and read at the new one, then held the turn itself (with the
     model fitted on the other robots: a 0.16 rad turn took the newest pose's sigma from 0.73 m to 0.10 m at 1.1 m
-    error). Here, built-in model: mean NEES 8.22 (the EKF's 3.72); with the prior carried to the solution, 4.06."""
+    error). Here, built-in model: mean NEES 8.22 (the EKF's 3.72); the information read with the prior carried to the
+    solution, 4.06."""
     results = replay(MRCLAM, ReplayConfig(estimators=("smoother",), dataset={"robot": 4, "half": "second"}))
     assert results.estimators["smoother"].nees_mean <= 6.0, results.estimators["smoother"].nees_mean
 

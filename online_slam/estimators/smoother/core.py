@@ -415,8 +415,8 @@ class SlidingWindowSmoother(SeveralRobots):
         layout, info, p = s.layout, result.information, self.prior
         invariant = self.config.linearization == "invariant"
         turned = carried(p, w.landmarks, w.poses[p.pose]) if invariant and p is not None else None
-        if turned is not None:  # the information at the solution, with the prior carried there
-            self.prior, lin = turned, linearize(w, turned, self.config.robust.loss)
+        if turned is not None:  # the information read with the prior carried to the solution (the solve's own kept)
+            lin = linearize(w, turned, self.config.robust.loss)
             layout, info = lin.layout, lin.information
         information = factored(info, w.indices, layout, observed)
         self.association.solved = None

@@ -208,12 +208,12 @@ CARRY_TURN = 1e-3
 
 def carried(prior: Prior, landmarks: Array, pose: Array) -> Prior | None:
     """A one-pose prior re-centred at the current estimate of its variables (``landmarks`` (M, 2), its ``pose``
-    (3,)), its covariance carried there (:func:`carry`; the invariant linearization after a window solve); None when
-    its pose turned by at most :data:`CARRY_TURN`.
+    (3,)), its covariance carried there (:func:`carry`); None when its pose turned by at most :data:`CARRY_TURN`.
 
     A solve that turns the prior's pose reads the covariance, built at the old heading, at the new one: the tight
     relative directions then constrain the turn itself and the newest pose's covariance collapses (MRCLAM robot
-    4's second half: a 0.16 rad turn took it from 0.73 m to 0.10 m at 1.1 m error). Its mean stays where it is.
+    4's second half: a 0.16 rad turn took it from 0.73 m to 0.10 m at 1.1 m error). The invariant smoother reads
+    a solve's information with this prior; its mean stays where it is.
     """
     if len(prior.others):
         return None
