@@ -217,14 +217,22 @@ def carried(prior: Prior, landmarks: Array, pose: Array) -> Prior | None:
     """
     if len(prior.others):
         return None
-    current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
-    shift = current - prior.x_lin
-    shift[-1] = wrap(shift[-1])
+    current, shift = _recentring(prior, landmarks, pose)
     if abs(shift[-1]) <= CARRY_TURN:
         return None
     Sigma = prior.Sigma.copy()
     carry(Sigma, prior.x_lin, current)
     return Prior(prior.pose, prior.landmarks, current, prior.mu - shift, Sigma, prior.others)
+
+
+def _recentring(prior: Prior, landmarks: Array, pose: Array) -> tuple[Array, Array]:
+    """The current estimate of the prior's variables (``landmarks`` (M, 2), the poses it holds (3 R + 3,)) and its
+    shift from the prior's linearization point, headings wrapped; each of shape (2 L + 3 R + 3,)."""
+    current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
+    shift = current - prior.x_lin
+    headings = slice(2 * len(prior.landmarks) + 2, None, 3)
+    shift[headings] = wrap(shift[headings])
+    return current, shift
 
 
 def split(prior: Prior, active: Index) -> PriorSplit:
@@ -321,14 +329,9 @@ def marginalize(
     x_lin, mu, Sigma = prior.x_lin, prior.mu, prior.Sigma
     n = len(mu)
     if linearization != "fej":
-        current = np.r_[landmarks[prior.landmarks].reshape(-1), pose]
-        shift = current - x_lin
-        if len(prior.others):
-            shift[2 * len(prior.landmarks) + 2 :: 3] = wrap(shift[2 * len(prior.landmarks) + 2 :: 3])
-        else:
-            shift[-1] = wrap(shift[-1])
-            if linearization == "invariant":
-                carry(Sigma, x_lin, current)
+        current, shift = _recentring(prior, landmarks, pose)
+        if linearization == "invariant" and not len(prior.others):
+            carry(Sigma, x_lin, current)
         x_lin, mu = current, mu - shift
     lin_o = x_lin[n - 3 :]
     held = list(prior.landmarks)
