@@ -62,12 +62,10 @@ def test_mrclam_fit_half_refits_on_that_half_only() -> None:
     from online_slam.importers.mrclam.reader import half_span
 
     halves = [fit_mrclam_noise(MRCLAM, span=half_span(MRCLAM, h)) for h in ("first", "second")]
-    whole = fit_mrclam_noise(MRCLAM)
-    assert halves[0].increments + halves[1].increments <= whole.increments
     assert halves[0].noise != halves[1].noise
     config = ReplayConfig(estimators=("ekf",), dataset={"robot": 3, "half": "second", "fit_half": "first"})
     held_out = replay(MRCLAM, config)
-    assert held_out.poses < replay(MRCLAM, ReplayConfig(estimators=("ekf",), dataset={"robot": 3})).poses
+    assert held_out.step_times[0] >= half_span(MRCLAM, "second")[0]  # the second half alone
     assert held_out.estimators["ekf"].final_rmse_m < held_out.odometry.rmse_m
 
 
