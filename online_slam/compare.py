@@ -223,7 +223,9 @@ def _truth(results: Results) -> GroundTruth:
     """The replay's ground truth (poses with a finite truth, landmarks)."""
     poses = {} if results.truth_poses is None else dict(enumerate(results.truth_poses))
     return GroundTruth(
-        poses={i: p for i, p in poses.items() if np.isfinite(p).all()}, landmarks=results.truth_landmarks
+        poses={i: p for i, p in poses.items() if np.isfinite(p).all()},
+        landmarks=results.truth_landmarks,
+        starts=results.truth_starts,
     )
 
 

@@ -48,6 +48,41 @@ def test_evaluate_anchors_at_first_pose_with_truth_and_moves_landmarks_too() -> 
     assert evaluate(estimate, GroundTruth(), "anchor").rmse_m is None
 
 
+def test_anchor_puts_the_truth_where_the_start_prior_is_not_where_the_estimate_revised_its_first_pose() -> None:
+    """A MAP revises its first pose within the start prior; anchored at that revised pose, a 0.05 rad turn of it
+    turned the whole path and map in the score (issue 48 item 2's "MAP worse than the filter")."""
+    truth_poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.5], [3.0, 1.0, 1.0]])
+    landmarks = np.array([[4.0, 4.0], [0.0, 5.0]])
+    revised = truth_poses.copy()
+    revised[0, 2] = 0.05  # only the first pose's heading: every position exact
+    estimate = Estimate("map", revised, ("a", "b"), landmarks)
+    poses = dict(enumerate(truth_poses))
+    truth = GroundTruth(poses, {"a": landmarks[0], "b": landmarks[1]}, starts={0: truth_poses[0]})
+    errors = evaluate(estimate, truth, "anchor")
+    assert errors.rmse_m < 1e-12 and errors.landmark_rmse_m < 1e-12
+    own = evaluate(estimate, GroundTruth(poses, {"a": landmarks[0], "b": landmarks[1]}), "anchor")
+    assert own.rmse_m > 0.05 and own.landmark_rmse_m > 0.1  # anchored at its own first pose: turned by 0.05 rad
+    # the start prior in another frame (a stream starting at the origin, its truth elsewhere): moved onto the truth
+    T = np.array([-3.0, 4.0, 1.2])
+    moved = GroundTruth(dict(enumerate(apply_transform(T, truth_poses))), starts={0: truth_poses[0]})
+    assert evaluate(Estimate("map", truth_poses, (), np.zeros((0, 2))), moved, "anchor").rmse_m < 1e-12
+
+
+def test_the_front_end_keeps_each_robots_start_where_scoring_anchors() -> None:
+    from online_slam.frontend import FrontEnd
+    from online_slam.sources.events import Start
+    from online_slam.sources.meet import MeetConfig, meet_world
+
+    events = list(meet_world(MeetConfig()))
+    frontend = FrontEnd()
+    steps = list(frontend.steps(events))
+    starts = {step.index: step.prior for step in steps if step.prior is not None}
+    assert len(starts) == sum(isinstance(e, Start) for e in events) >= 2
+    assert frontend.truth.starts.keys() == starts.keys()
+    for index, pose in starts.items():
+        np.testing.assert_array_equal(frontend.truth.starts[index], pose)
+
+
 def _ar1_chi_square(rng: np.random.Generator, steps: int, phi: float) -> np.ndarray:
     """A NEES-like series: chi-square on 3 dof, mean 3, its Gaussian components AR(1) with coefficient phi."""
     from scipy.signal import lfilter

@@ -379,6 +379,8 @@ class Results:
     """True poses by step (NaN rows where the stream had none), shape (N, 3), or None without truth."""
     truth_offsets: dict[int, Array] = field(default_factory=dict, repr=False)
     """Steps whose position-only truth is of a robot-frame point (a GPS antenna): that point ``[dx, dy]``."""
+    truth_starts: dict[int, Array] = field(default_factory=dict, repr=False)
+    """Start priors' poses by step: where ``anchor`` puts the truth (``GroundTruth.starts``)."""
     truth_landmarks: dict[Any, Array] = field(default_factory=dict, repr=False)
     """True landmark positions by id."""
     error: str | None = None

@@ -89,6 +89,9 @@ class GroundTruth:
     offsets: dict[int, Array] = field(default_factory=dict)
     """Position-only truth of a robot-frame point ``[dx, dy]`` (a GPS antenna), by step: scoring compares that
     point of the estimated pose (:func:`online_slam.evaluation.scoring.scored_poses`)."""
+    starts: dict[int, Array] = field(default_factory=dict)
+    """The start prior's pose ``[x, y, theta]`` of a robot's first step, by step: the frame the stream gives every
+    estimator, where scoring anchors (:func:`online_slam.evaluation.scoring.evaluate`)."""
 
     def __deepcopy__(self, memo: dict[int, Any]) -> GroundTruth:
         """A copy sharing the arrays, which no one changes in place."""

@@ -502,6 +502,7 @@ class FrontEnd:
             self.pending = begun
         else:
             self.later.append(begun)
+        self.truth.starts[index] = pose
         return begun
 
     def mergeable(self, pending: PendingStep) -> bool:

@@ -75,6 +75,7 @@ def score_run(run: ReplayRun, config: ReplayConfig) -> Results:
         series=series,
         truth_poses=truth_array(truth, steps),
         truth_offsets=dict(truth.offsets),
+        truth_starts=dict(truth.starts),
         truth_landmarks=dict(truth.landmarks),
         error=run.error,
         input=InputReport(

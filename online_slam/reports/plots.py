@@ -219,7 +219,7 @@ def draw_final_error(ax: Any, r: Results, look: dict[str, Look]) -> list[Array]:
     """
     drawn: list[Array] = []
     for name, estimate in r.estimates.items():
-        error = position_errors(estimate.poses, r.truth_poses, r.alignment, r.truth_offsets)
+        error = position_errors(estimate.poses, r.truth_poses, r.alignment, r.truth_offsets, r.truth_starts)
         error[error < _EXACT_M] = np.nan  # the pose the alignment anchors on
         s = look[name]
         ax.plot(np.arange(len(error)), error, color=s.color, ls=s.dashes, lw=s.width)
