@@ -255,9 +255,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     # -- estimators -----------------------------------------------------------------------------------------
     Option("estimators", "comma-separated estimators to run (ekf, smoother, batch)", "estimators", ("replay",),
            field=("ReplayConfig", "estimators"), metavar="NAMES", lands=("estimators",)),
-    Option("align", "frame of the errors: first pose with truth, or least-squares SE(2) fit", "estimators",
-           ("replay",), field=("ReplayConfig", "alignment"), choices=("anchor", "se2"), lands=("alignment",),
-           commands=("replay", "compare")),
+    Option("align", "frame of the errors: first pose's truth at its start prior, or least-squares SE(2) fit",
+           "estimators", ("replay",), field=("ReplayConfig", "alignment"), choices=("anchor", "se2"),
+           lands=("alignment",), commands=("replay", "compare")),
     _estimator("first_observation_only", "keep only the first sighting of each landmark (the article's ablation)",
                "estimators", "front-end", ("FrontEndConfig", "first_observation_only"),
                lands=("frontend.first_observation_only",)),

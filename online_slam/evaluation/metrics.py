@@ -2,8 +2,9 @@
 
 Position RMSE is the article's: the square root of the mean squared 2D distance between estimated and true
 positions, compared in one frame. By default that frame is anchored at the first pose that has truth (the
-estimate is moved rigidly so that this pose coincides with its truth; with the article's fixed origin the move
-is the identity); an SE(2) least-squares alignment is available for data whose frame differs.
+estimate is moved rigidly so that this pose's start prior, or its estimate where it has none, coincides with its
+truth; with the article's fixed origin the move is the identity); an SE(2) least-squares alignment is available
+for data whose frame differs.
 """
 
 from __future__ import annotations
