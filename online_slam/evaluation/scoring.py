@@ -93,13 +93,10 @@ def anchored_pose(scored: Array, truth: GroundTruth, index: int) -> Array:
 
     Anchoring at the estimate's own first pose scored an estimator that revises it (a smoother, the batch) in a
     frame turned by the revision: on MRCLAM's five robots with 0.1 start priors the batch read 0.110 m anchored
-    there against 0.030 m in the start's frame (benchmarks/RESULTS.md, "Errors in the frame the start gives")."""
+    there against 0.030 m in the start's frame (benchmarks/RESULTS.md, "Errors in the frame the start gives").
+    (An antenna's truth has no heading: :func:`evaluate` aligns such streams by SE(2), never here.)"""
     start = truth.starts.get(index)
-    if start is None:
-        return scored
-    if index in truth.offsets:  # the start's pose of the point the truth is of
-        return np.array([*fixed_point(start[None, :], truth.offsets[index][None, :])[0], start[2]])
-    return np.asarray(start, dtype=float)
+    return scored if start is None else np.asarray(start, dtype=float)
 
 
 def scored_poses(poses: Array, truth: GroundTruth, indices: NDArray[np.int64]) -> Array:

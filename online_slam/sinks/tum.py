@@ -75,7 +75,6 @@ def _trajectories(results: Results, times: Array) -> dict[str, Trajectory]:
     truth = GroundTruth(
         poses={i: p for i, p in enumerate(results.truth_poses)} if results.truth_poses is not None else {},
         landmarks=dict(results.truth_landmarks),
-        offsets=dict(results.truth_offsets),
         starts=dict(results.truth_starts),
     )
     truth.poses = {i: p for i, p in truth.poses.items() if np.all(np.isfinite(p))}
