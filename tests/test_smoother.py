@@ -453,6 +453,26 @@ def test_carrying_the_prior_maps_a_turn_at_the_old_point_onto_a_turn_at_the_new(
     assert np.abs(turn(x_from) - turn(x_to)).max() > 0.1
 
 
+def test_a_solve_that_turns_the_oldest_window_pose_relinearizes_the_history_at_once() -> None:
+    """Back from 30 blind steps whose odometry slipped 0.3 rad, the first solve turns the window's oldest pose by
+    more than ``GLOBAL_JUMP_TURN``: the history is re-solved at that step (``global_jump``), not at the next
+    scheduled global relinearization; the same world without the slip never jumps."""
+
+    def slipped(events):
+        for e in events:
+            if isinstance(e, Observation) and 150 <= e.t < 180:
+                continue
+            if isinstance(e, Odometry) and 150 < e.t <= 180:
+                e = dataclasses.replace(e, delta=(e.delta[0], e.delta[1], e.delta[2] + 0.01))
+            yield e
+
+    for events, expected in ((slipped, [180]), (lambda e: e, [])):
+        *_, snapshots = run(events(grid_world(GridConfig(poses=300, seed=5))), SmootherConfig())
+        jumps = [s.index for s in snapshots if s.info.get("global_jump")]
+        assert jumps == expected
+        assert all("global_iterations" in snapshots[i].info for i in jumps)
+
+
 def test_invariant_reanchoring_carries_the_covariance_it_does_not_relinearize() -> None:
     """Re-anchoring that keeps the fold-in covariance (``global_information_max`` 0) carries it to the new point
     with the invariant prior; the window's prior is left as it was until the revision is taken."""

@@ -22,6 +22,11 @@ while a step's does not, so a fixed delay would make the hand-over wait for it o
 GLOBAL_FALSE_ALARM = 1e-3
 """A global relinearization is kept unless the history's pull on the re-anchored prior exceeds the chi-square
 bound a consistent history exceeds with this probability."""
+GLOBAL_JUMP_TURN = 0.05
+"""A window solve that turns the window's oldest pose (the prior's) by more than this (rad) has revised the past
+by more than the history and the prior's linearization can follow (back from a blind stretch, or a landmark seen
+again far from where it was mapped): the global relinearization runs at once (benchmarks/RESULTS.md, "A global
+solve after a jump")."""
 
 
 @dataclass(frozen=True)

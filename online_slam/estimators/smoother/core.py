@@ -31,7 +31,6 @@ from online_slam.estimators.smoother.covariance import (
 )
 from online_slam.estimators.smoother.fixes import fix_counts, gated
 from online_slam.estimators.smoother.global_solve import (
-    Decisions,
     Relinearization,
     Revision,
     finish_job,
@@ -39,7 +38,8 @@ from online_slam.estimators.smoother.global_solve import (
     global_inputs,
     global_solver,
     is_due,
-    log_matches,
+    jumped,
+    rejudged_solve,
     revise,
     solve_now,
     start_job,
@@ -53,7 +53,6 @@ from online_slam.estimators.smoother.prior import (
     marginalize,
     release,
 )
-from online_slam.estimators.smoother.relinearize import rejudged, solve_all
 from online_slam.estimators.smoother.robots import SeveralRobots
 from online_slam.estimators.smoother.state import AssociationState, Progress, SmootherState
 from online_slam.estimators.smoother.window import (
@@ -66,9 +65,10 @@ from online_slam.estimators.smoother.window import (
     sightings_outside,
     solve_window,
 )
-from online_slam.factors.graph import FactorGraph, observation_chi2
+from online_slam.factors.graph import FactorGraph
 from online_slam.factors.robust import outlier_threshold
 from online_slam.frontend.steps import Step
+from online_slam.geometry.angles import wrap
 from online_slam.geometry.pose_moments import reported
 from online_slam.solvers.least_squares import SolveResult
 from online_slam.sources.events import LandmarkId
@@ -172,8 +172,11 @@ class SlidingWindowSmoother(SeveralRobots):
             self._add_retro()
             w.since_solve += 1
             report: dict[str, float] = {}
+            jump = False
             if w.since_solve >= self.config.relinearize_every:
+                oldest = float(w.poses[w.indices[0]][2])
                 report = self.solve()
+                jump = jumped(self.config, float(wrap(w.poses[w.indices[0]][2] - oldest)))
             marginalized: list[int] = []
             while w.several and w.is_full(self.config.window) and self._marginalize_several(marginalized):
                 pass
@@ -182,7 +185,7 @@ class SlidingWindowSmoother(SeveralRobots):
                     report = self.solve()
                 marginalized.append(w.indices[0])
                 self.marginalize_oldest()
-            report = self._global_schedule(report)
+            report = self._global_schedule(report, jump)
             self.progress.step_report, self.progress.step_marginalized = report, marginalized
             return self.snapshot(step)
 
@@ -448,29 +451,6 @@ class SlidingWindowSmoother(SeveralRobots):
             self.association.solved = None
         return bool(moves)
 
-    def _rejudged_solve(
-        self, result: SolveResult, n_poses: int, at_once: bool
-    ) -> tuple[SolveResult, Revision, Decisions] | None:
-        """A global solution that does not reconcile the history, tried once more: the history's sightings judged
-        again at it (a sighting judged an outlier when its pose left the window, at an estimate a wrong association
-        had pulled, comes back if the solution agrees with it; one folded in goes out if it does not), and every
-        factor solved now with those decisions. None when no decision changes, without a robust loss, with several
-        robots (not tried yet), or when that solution does not reconcile the history either."""
-        r, w, loss = self.relinearization, self.window, self.config.robust.loss
-        if loss is None or not np.isfinite(self._reject_bound) or not r.decisions or w.several:
-            return None
-        if not log_matches(r.log, w):
-            return None
-        history, _, landmarks = followed(result, n_poses, at_once, w)
-        values = np.vstack([history, result.poses[len(history) :] if at_once else w.values()])
-        graph = r.log.graph()
-        judged = rejudged(graph, r.decisions, observation_chi2(graph, values, landmarks) > self._reject_bound)
-        if all(np.array_equal(a, b) for (_, a), (_, b) in zip(r.decisions, judged)):
-            return None
-        again = solve_all(r.log, judged, values, landmarks, global_solver(self.config), loss)
-        revision = revise(again, len(values), True, w, self.prior, r, self.config, judged)
-        return None if revision is None else (again, revision, judged)
-
     # -- marginalization -------------------------------------------------------------------------
     def marginalize_oldest(self) -> None:
         """Fold the oldest window pose's factors into the prior (:func:`~.prior.marginalize`) and drop the pose.
@@ -521,13 +501,20 @@ class SlidingWindowSmoother(SeveralRobots):
         return sightings
 
     # -- global relinearization ------------------------------------------------------------------
-    def _global_schedule(self, report: dict[str, float]) -> dict[str, float]:
-        """After a step: hand a finished background solve over, start the next one when due; the step's report
+    def _global_schedule(self, report: dict[str, float], jump: bool = False) -> dict[str, float]:
+        """After a step: hand a finished background solve over, start the next one when due, or after a ``jump``
+        (:func:`~.global_solve.jumped`) solve at once, a pending job's older result dropped; the step's report
         with theirs."""
         r, p = self.relinearization, self.progress
         r.since += 1
         p.steps += 1
         job = r.job
+        if jump and len(self.window.history) and not self.preview:
+            if job is not None:
+                finish_job(job)
+                r.job = None
+            r.since = 0
+            return {**report, **self.relinearize_globally(), "global_jump": 1.0}
         if job is not None and p.steps >= job.handover and not self.preview:
             started = time.perf_counter()
             finish_job(job)
@@ -572,7 +559,7 @@ class SlidingWindowSmoother(SeveralRobots):
         r, w = self.relinearization, self.window
         revision = revise(result, n_poses, at_once, w, self.prior, r, self.config)
         if revision is None:
-            retried = self._rejudged_solve(result, n_poses, at_once)
+            retried = rejudged_solve(result, n_poses, at_once, w, self.prior, r, self.config, self._reject_bound)
             if retried is None and final and not w.several and result.final_cost < result.initial_cost:
                 history, _, landmarks = followed(result, n_poses, at_once, w)
                 retried = (result, Revision(history, landmarks, None), r.decisions)

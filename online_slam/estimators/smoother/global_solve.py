@@ -21,18 +21,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.estimators.problem import ProblemLog
-from online_slam.estimators.smoother.config import GLOBAL_DELAY_GROWTH, GLOBAL_GROWTH, SmootherConfig
+from online_slam.estimators.smoother.config import (
+    GLOBAL_DELAY_GROWTH,
+    GLOBAL_GROWTH,
+    GLOBAL_JUMP_TURN,
+    SmootherConfig,
+)
 from online_slam.estimators.smoother.prior import Prior, reanchored
 from online_slam.estimators.smoother.relinearize import (
     history_graph,
     inlier_graph,
     refine_recent,
+    rejudged,
     robot_rows,
     several_history_graph,
     solve_all,
 )
 from online_slam.estimators.smoother.window import Window
-from online_slam.factors.graph import FactorGraph
+from online_slam.factors.graph import FactorGraph, observation_chi2
 from online_slam.factors.robust import RobustLoss
 from online_slam.geometry.se2 import between, compose, rotation
 from online_slam.solvers.least_squares import SolverConfig, SolveResult
@@ -133,6 +139,12 @@ def is_due(config: SmootherConfig, state: Relinearization, steps: int, window: W
     every = config.global_solve.every and max(config.global_solve.every, steps // GLOBAL_GROWTH)
     due = every and state.since >= every and len(window.history) and not window.unsolved
     return bool(due) and state.job is None
+
+
+def jumped(config: SmootherConfig, turn: float) -> bool:
+    """Whether a window solve that turned the window's oldest pose by ``turn`` (rad) jumped
+    (:data:`~.config.GLOBAL_JUMP_TURN`); never with global relinearization off."""
+    return bool(config.global_solve.every) and abs(turn) > GLOBAL_JUMP_TURN
 
 
 def log_matches(log: ProblemLog, window: Window) -> bool:
@@ -319,3 +331,35 @@ def revise_several(
     graph = inlier_graph(log, state.decisions, state.robot_rejected)
     past = several_history_graph(graph, left, kept, robot_rows(log.seen, state.robot_folded))
     return _revision(values[left], landmarks, prior, past, values, at_once, window, config)
+
+
+def rejudged_solve(
+    result: SolveResult,
+    n_poses: int,
+    at_once: bool,
+    window: Window,
+    prior: Prior | None,
+    r: Relinearization,
+    config: SmootherConfig,
+    reject_bound: float,
+) -> tuple[SolveResult, Revision, Decisions] | None:
+    """A global solution that does not reconcile the history, tried once more: the history's sightings judged
+    again at it (a sighting judged an outlier when its pose left the window, at an estimate a wrong association
+    had pulled, comes back if the solution agrees with it; one folded in goes out if it does not; chi-square
+    ``reject_bound``), and every factor solved now with those decisions. None when no decision changes, without a
+    robust loss, with several robots (not tried yet), or when that solution does not reconcile the history
+    either."""
+    w, loss = window, config.robust.loss
+    if loss is None or not np.isfinite(reject_bound) or not r.decisions or w.several:
+        return None
+    if not log_matches(r.log, w):
+        return None
+    history, _, landmarks = followed(result, n_poses, at_once, w)
+    values = np.vstack([history, result.poses[len(history) :] if at_once else w.values()])
+    graph = r.log.graph()
+    judged = rejudged(graph, r.decisions, observation_chi2(graph, values, landmarks) > reject_bound)
+    if all(np.array_equal(a, b) for (_, a), (_, b) in zip(r.decisions, judged)):
+        return None
+    again = solve_all(r.log, judged, values, landmarks, global_solver(config), loss)
+    revision = revise(again, len(values), True, w, prior, r, config, judged)
+    return None if revision is None else (again, revision, judged)
