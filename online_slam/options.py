@@ -310,9 +310,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                ("WindowConfig", "max_poses"), metavar="N", lands=("smoother.window.max_poses",)),
     _estimator("relinearize_every", "K: relinearize and solve every K steps (compare: a list)", "smoother",
                "smoother", ("SmootherConfig", "relinearize_every"), metavar="K", lands=("smoother.relinearize_every",)),
-    _estimator("global_every", "re-solve the whole history every N steps and re-anchor the prior (0 = never)",
-               "smoother", "smoother", ("GlobalConfig", "every"), metavar="N",
-               lands=("smoother.global_solve.every",)),
+    _estimator("global_every", "re-solve the whole history every N steps, and at once after a window solve turns "
+               "its oldest pose by over 0.05 rad; re-anchor the prior (0 = never)", "smoother", "smoother",
+               ("GlobalConfig", "every"), metavar="N", lands=("smoother.global_solve.every",)),
     _estimator("global_delay", "hand each global solve (a background thread) over D steps later, or N/50 after "
                "step N if longer (0 = at once)", "smoother", "smoother", ("GlobalConfig", "delay"),
                metavar="D", lands=("smoother.global_solve.delay",)),

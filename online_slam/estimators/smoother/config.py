@@ -83,8 +83,9 @@ class GlobalConfig:
     """Relinearize globally every this many steps, or every N / 20 steps after N steps if that is longer (0:
     never): re-solve every factor seen so far from the current estimate (``iterations`` Levenberg-Marquardt
     iterations), write the revised poses into the history and move the prior to them (see
-    :mod:`~online_slam.estimators.smoother.relinearize`). Keeps every factor. Default 200, chosen on the
-    simulated worlds and the real datasets: it brings the final estimate to the batch's."""
+    :mod:`~online_slam.estimators.smoother.relinearize`); at once after a window solve that turns the window's
+    oldest pose by more than :data:`GLOBAL_JUMP_TURN`. Keeps every factor. Default 200, chosen on the simulated
+    worlds and the real datasets: it brings the final estimate to the batch's."""
     iterations: int = 3
     """Levenberg-Marquardt iterations of each global relinearization (warm-started: few are needed)."""
     delay: int = 50
