@@ -509,25 +509,22 @@ class SlidingWindowSmoother(SeveralRobots):
         r.since += 1
         p.steps += 1
         job = r.job
-        if jump and len(self.window.history) and not self.preview:
-            if job is not None:
-                finish_job(job)
-                r.job = None
-            r.since = 0
-            return {**report, **self.relinearize_globally(), "global_jump": 1.0}
-        if job is not None and p.steps >= job.handover and not self.preview:
+        if job is not None and (jump or p.steps >= job.handover) and not self.preview:
             started = time.perf_counter()
             finish_job(job)
             r.job = None
             if job.error is not None:  # told in this step's report and in the estimate's details
                 r.failures.append(job.error)
                 report = {**report, "global_failed": 1.0}
-            if job.result is not None:
+            if job.result is not None and not jump:  # after a jump its older result is dropped: solved below
                 if job.released != p.released:  # consensus corrected the map since it started
                     report = {**report, **self.relinearize_globally(), "global_stale": 1.0}
                 else:
                     report = {**report, **self._apply_global(job.result, job.n_poses, at_once=False)}
                     report["global_s"] = time.perf_counter() - started
+        if jump and len(self.window.history) and not self.preview:
+            r.since = 0
+            return {**report, **self.relinearize_globally(), "global_jump": 1.0}
         if is_due(self.config, r, p.steps, self.window) and not self.preview:
             if self.config.global_solve.delay:
                 inputs = global_inputs(r, self.window)

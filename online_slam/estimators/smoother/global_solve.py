@@ -349,17 +349,17 @@ def rejudged_solve(
     ``reject_bound``), and every factor solved now with those decisions. None when no decision changes, without a
     robust loss, with several robots (not tried yet), or when that solution does not reconcile the history
     either."""
-    w, loss = window, config.robust.loss
-    if loss is None or not np.isfinite(reject_bound) or not r.decisions or w.several:
+    loss = config.robust.loss
+    if loss is None or not np.isfinite(reject_bound) or not r.decisions or window.several:
         return None
-    if not log_matches(r.log, w):
+    if not log_matches(r.log, window):
         return None
-    history, _, landmarks = followed(result, n_poses, at_once, w)
-    values = np.vstack([history, result.poses[len(history) :] if at_once else w.values()])
+    history, _, landmarks = followed(result, n_poses, at_once, window)
+    values = np.vstack([history, result.poses[len(history) :] if at_once else window.values()])
     graph = r.log.graph()
     judged = rejudged(graph, r.decisions, observation_chi2(graph, values, landmarks) > reject_bound)
     if all(np.array_equal(a, b) for (_, a), (_, b) in zip(r.decisions, judged)):
         return None
     again = solve_all(r.log, judged, values, landmarks, global_solver(config), loss)
-    revision = revise(again, len(values), True, w, prior, r, config, judged)
+    revision = revise(again, len(values), True, window, prior, r, config, judged)
     return None if revision is None else (again, revision, judged)
