@@ -150,7 +150,8 @@ class BatchEstimator(LoggedEstimator):
         return replace(estimate, info={**estimate.info, "rejected": rejected, "labels": labels})
 
     def _finish_associated(self, initial: Estimate | None, started: float) -> Estimate:
-        """Solve with the associations (and values) of another estimate."""
+        """Solve with the associations (and values) of another estimate, then pair every sighting again: first those
+        it used, then, after a solve with that pairing, all (:func:`~online_slam.solvers.pairing.repair`)."""
         labels = None if initial is None else initial.info.get("labels")
         n_sightings = len(self.log.sightings()[0])
         if initial is None or labels is None or len(labels) != n_sightings:
@@ -162,6 +163,23 @@ class BatchEstimator(LoggedEstimator):
         landmarks = initial.landmarks.copy()
         plain = Estimate(initial.estimator, initial.poses, ids, landmarks)
         estimate = self._solve(graph, initial.poses.copy(), landmarks, ids, plain, started)
+        bound = outlier_threshold(self.config.reject_false_alarm)
+        used = np.flatnonzero(index >= 0)  # first the sightings the estimate used, then every one
+        for only in (used, None) if len(used) else ():
+            ids = estimate.landmark_ids
+            again = self.log.pair_again(estimate.poses, estimate.landmarks, bound, self.config.solver, only)
+            if again is None or (only is None and len(again[0]) != n_sightings):  # (each recorded once, in order)
+                break
+            paired = again[1]
+            likeliest = np.full(n_sightings, -1, dtype=np.int64)
+            likeliest[used if only is not None else np.arange(n_sightings)] = paired.likeliest
+            labels = [ids[k] if k >= 0 else None for k in likeliest]
+            if only is None:
+                estimate = replace(estimate, poses=paired.poses, landmarks=paired.landmarks)
+                break
+            graph = self.log.graph(labels=likeliest, n_landmarks=len(ids), ids=ids)
+            start = Estimate(initial.estimator, paired.poses, ids, paired.landmarks)
+            estimate = self._solve(graph, paired.poses.copy(), paired.landmarks.copy(), ids, start, started)
         return replace(estimate, info={**estimate.info, "labels": list(labels)})
 
     def _solve(

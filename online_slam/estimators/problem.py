@@ -15,12 +15,14 @@ from numpy.typing import NDArray
 
 from online_slam.checkpoint import Checkpointed
 from online_slam.estimators.protocol import Snapshot
-from online_slam.factors.fixes import with_fixes
-from online_slam.factors.graph import FactorGraph, sqrt_information
+from online_slam.factors.fixes import fix_gate_ratio, with_fixes, without_fixes
+from online_slam.factors.graph import FactorGraph, robot_sighting_chi2, sqrt_information, without_robot_sightings
 from online_slam.frontend.steps import Step
 from online_slam.geometry.se2 import compose
 from online_slam.models.fix import fix_factors
 from online_slam.models.observation import landmark_from_sighting, tags
+from online_slam.solvers.config import SolverConfig
+from online_slam.solvers.pairing import Pairing, Sightings, repair
 from online_slam.sources.events import LandmarkId, RobotId
 from online_slam.sources.landmark_map import FIXED_STD, LandmarkMap, joint_of
 
@@ -325,6 +327,25 @@ class ProblemLog(Checkpointed):
         model tag (k,))."""
         pose, landmark, z, cov, _, model = self._observation_arrays()
         return pose, landmark, z, cov, model
+
+    def pair_again(
+        self, poses: Array, landmarks: Array, bound: float, solver: SolverConfig, only: Index | None = None
+    ) -> tuple[Array, Pairing] | None:
+        """Every sighting recorded paired again from an estimate (:func:`~online_slam.solvers.pairing.repair`; one
+        recorded again at its pose, as a smoother's tentative landmark's earlier sightings are, counts once): each
+        one's ``[pose, range or x, bearing or y]`` (k, 3), in the order first recorded, and the pairing. Robot
+        sightings and fixes far off the estimate (outliers, as it judged them) are left out. None without factors,
+        sightings or landmarks. ``only``: these rows of the record instead (k,)."""
+        pose, _, z, _, sqrt_info, model = self._observation_arrays()
+        if not self.keep_factors or not len(pose) or not len(landmarks):
+            return None
+        keys = np.column_stack([pose.astype(float), z])
+        rows = np.sort(np.unique(keys, axis=0, return_index=True)[1]) if only is None else only
+        base = self.graph(labels=np.full(len(pose), -1, dtype=np.int64), n_landmarks=0, ids=())
+        base = without_fixes(base, fix_gate_ratio(base, poses, self.fix_widenings()) > 1.0)  # as judged at the start
+        base = without_robot_sightings(base, robot_sighting_chi2(base, poses) > bound)
+        sightings = Sightings(pose[rows], z[rows], sqrt_info[rows], model[rows])
+        return keys[rows], repair(base, sightings, poses, landmarks, bound, solver)
 
     def graph(
         self,
