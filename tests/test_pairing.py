@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import SHARED_DATA, needs_data
 
 from online_slam.factors.graph import FactorGraph
 from online_slam.geometry.se2 import between, compose
@@ -90,11 +88,11 @@ def test_a_sighting_two_landmarks_explain_alike_is_weighed_not_paired() -> None:
     assert _agreement(paired.index[:-1], true_label) > 0.97
 
 
-MRCLAM = Path(os.environ.get("ONLINE_SLAM_MRCLAM", Path(__file__).parents[2] / "shared/data/MRCLAM_Dataset6"))
+MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not MRCLAM.is_dir(), reason="MRCLAM Dataset 6 not here")
+@needs_data("MRCLAM_Dataset6")
 def test_mrclam_batch_without_ids_ends_near_its_known_id_figure() -> None:
     """The batch without ids ends near its figure with the barcodes (robot 1's was 1.64x before it paired the run
     again)."""

@@ -165,14 +165,13 @@ class BatchEstimator(LoggedEstimator):
         estimate = self._solve(graph, initial.poses.copy(), landmarks, ids, plain, started)
         bound = outlier_threshold(self.config.reject_false_alarm)
         used = np.flatnonzero(index >= 0)  # first the sightings the estimate used, then every one
-        for only in (used, None) if len(used) else ():
+        for only in (used, None) if len(used) else ():  # (the log holds each sighting once, in the stream's order)
             ids = estimate.landmark_ids
-            again = self.log.pair_again(estimate.poses, estimate.landmarks, bound, self.config.solver, only)
-            if again is None or (only is None and len(again[0]) != n_sightings):  # (each recorded once, in order)
+            paired = self.log.pair_again(estimate.poses, estimate.landmarks, bound, self.config.solver, only)
+            if paired is None:
                 break
-            paired = again[1]
             likeliest = np.full(n_sightings, -1, dtype=np.int64)
-            likeliest[used if only is not None else np.arange(n_sightings)] = paired.likeliest
+            likeliest[used if only is not None else slice(None)] = paired.likeliest
             labels = [ids[k] if k >= 0 else None for k in likeliest]
             if only is None:
                 estimate = replace(estimate, poses=paired.poses, landmarks=paired.landmarks)

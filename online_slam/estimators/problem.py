@@ -330,22 +330,19 @@ class ProblemLog(Checkpointed):
 
     def pair_again(
         self, poses: Array, landmarks: Array, bound: float, solver: SolverConfig, only: Index | None = None
-    ) -> tuple[Array, Pairing] | None:
-        """Every sighting recorded paired again from an estimate (:func:`~online_slam.solvers.pairing.repair`; one
-        recorded again at its pose, as a smoother's tentative landmark's earlier sightings are, counts once): each
-        one's ``[pose, range or x, bearing or y]`` (k, 3), in the order first recorded, and the pairing. Robot
-        sightings and fixes far off the estimate (outliers, as it judged them) are left out. None without factors,
-        sightings or landmarks. ``only``: these rows of the record instead (k,)."""
+    ) -> Pairing | None:
+        """Every sighting recorded (``only``: these rows, (k,)) paired again from an estimate
+        (:func:`~online_slam.solvers.pairing.repair`), in the order recorded; robot sightings and fixes far off the
+        estimate (outliers, as it judged them) left out. None without factors, sightings or landmarks."""
         pose, _, z, _, sqrt_info, model = self._observation_arrays()
         if not self.keep_factors or not len(pose) or not len(landmarks):
             return None
-        keys = np.column_stack([pose.astype(float), z])
-        rows = np.sort(np.unique(keys, axis=0, return_index=True)[1]) if only is None else only
+        rows = np.arange(len(pose)) if only is None else only
         base = self.graph(labels=np.full(len(pose), -1, dtype=np.int64), n_landmarks=0, ids=())
         base = without_fixes(base, fix_gate_ratio(base, poses, self.fix_widenings()) > 1.0)  # as judged at the start
         base = without_robot_sightings(base, robot_sighting_chi2(base, poses) > bound)
         sightings = Sightings(pose[rows], z[rows], sqrt_info[rows], model[rows])
-        return keys[rows], repair(base, sightings, poses, landmarks, bound, solver)
+        return repair(base, sightings, poses, landmarks, bound, solver)
 
     def graph(
         self,

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
+from scipy.special import logsumexp, softmax
 
 from online_slam.factors.graph import FactorGraph, evaluate, sighting_chi2
 from online_slam.models.observation import landmark_from_sighting
@@ -82,21 +83,20 @@ def _candidates(s: Sightings, poses: Array, landmarks: Array) -> tuple[Index, Ar
     return near, d2.reshape(len(points), c)
 
 
+def _terms(d2: Array, bound: float) -> Array:
+    """Each candidate's log-likelihood and the outlier class's (at ``bound``), normalizers dropped, (k, c + 1)."""
+    return -0.5 * np.concatenate([d2, np.full((len(d2), 1), bound)], axis=1)
+
+
 def _weights(d2: Array, bound: float, temperature: float) -> Array:
-    """Each candidate's share of a sighting's weight, the outlier class (at ``bound``) taking the rest, (k, c)."""
-    log_w = np.concatenate([-0.5 * d2, np.full((len(d2), 1), -0.5 * bound)], axis=1) / temperature
-    log_w -= log_w.max(axis=1, keepdims=True)
-    w = np.exp(log_w)
-    return (w / w.sum(axis=1, keepdims=True))[:, :-1]
+    """Each candidate's share of a sighting's weight, the outlier class taking the rest, (k, c)."""
+    return softmax(_terms(d2, bound) / temperature, axis=1)[:, :-1]
 
 
 def objective(base: FactorGraph, s: Sightings, poses: Array, landmarks: Array, bound: float) -> float:
     """What the pairing minimizes: the other factors' half squared residuals, minus each sighting's log-likelihood
     under its nearest landmarks and the outlier class (the mixture, the sightings' own normalizers dropped)."""
-    d2 = _candidates(s, poses, landmarks)[1]
-    a = np.concatenate([-0.5 * d2, np.full((len(d2), 1), -0.5 * bound)], axis=1)
-    top = a.max(axis=1)
-    log_likelihood = top + np.log(np.exp(a - top[:, None]).sum(axis=1))
+    log_likelihood = logsumexp(_terms(_candidates(s, poses, landmarks)[1], bound), axis=1)
     r = evaluate(dataclasses.replace(base, n_landmarks=len(landmarks)), poses, landmarks)
     return 0.5 * float(r @ r) - float(log_likelihood.sum())
 
