@@ -28,7 +28,8 @@ their conditional mean, so each iteration factors a system over the window poses
 only (:mod:`.window`). Per-step cost depends on W and the size of the map, not on the length of the
 trajectory. A global relinearization, in the background, re-solves every factor now and then and moves the
 prior to the revised history (:mod:`.global_solve`, :mod:`.relinearize`). Association reads its covariances
-from the last solve (:mod:`.covariance`).
+from the last solve (:mod:`.covariance`). When it ignores the stream's ids, its final pairs every sighting of the
+stream again as the batch does (:mod:`.final_pairing`).
 
 Several robots (:mod:`.robots`). Each robot's poses form their own odometry chain from its own start (poses
 are indexed over all robots in step order). The window holds the newest poses in step order, of every robot,
@@ -55,8 +56,9 @@ chains and robot sightings in :class:`~.window.Window`, the prior's poses, the f
 
 Parts: :mod:`.config` (settings), :mod:`.window` (variables, factors, the window system, consensus),
 :mod:`.prior` (the marginal prior), :mod:`.covariance` (covariance recovery), :mod:`.global_solve` (the
-background global relinearization), :mod:`.relinearize` (its whole-history math), :mod:`.state` (the state as
-data), :mod:`.robots` (several robots), :mod:`.core` (the estimator).
+background global relinearization), :mod:`.relinearize` (its whole-history math), :mod:`.final_pairing` (the
+final without ids), :mod:`.state` (the state as data), :mod:`.robots` (several robots), :mod:`.core` (the
+estimator).
 """
 
 from __future__ import annotations

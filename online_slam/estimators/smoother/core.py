@@ -29,6 +29,7 @@ from online_slam.estimators.smoother.covariance import (
     propagated_covariance,
     window_covariance,
 )
+from online_slam.estimators.smoother.final_pairing import paired_again
 from online_slam.estimators.smoother.fixes import fix_counts, gated
 from online_slam.estimators.smoother.global_solve import (
     Relinearization,
@@ -92,7 +93,7 @@ class SlidingWindowSmoother(SeveralRobots):
         self.state = SmootherState(
             Window(),
             Relinearization(ProblemLog(keep_factors=keep_factors)),
-            AssociationState(LandmarkBook(self.config.association, inside=False)),
+            AssociationState(LandmarkBook(self.config.association, inside=False), stream=self._stream_log()),
         )
         self._reject_bound = (
             outlier_threshold(self.config.robust.reject_false_alarm)
@@ -103,6 +104,11 @@ class SlidingWindowSmoother(SeveralRobots):
         self.preview = False
         """True in a copy a query makes (:meth:`online_slam.Slam.estimate`): no global relinearization starts or
         is handed over, so that it costs a window's solve and never waits for the background."""
+
+    def _stream_log(self) -> ProblemLog | None:
+        """Every step as it comes, ids ignored, when association pairs every sighting: the final pairs them all
+        again from it (:func:`~.final_pairing.paired_again`); None otherwise."""
+        return ProblemLog(use_ids=False) if self.config.association.ignores_ids else None
 
     @property
     def landmarks(self) -> Array:
@@ -148,6 +154,8 @@ class SlidingWindowSmoother(SeveralRobots):
         if w.indices or w.landmark_ids:
             raise ValueError("a map is loaded before the first step")
         log.load_map(landmark_map, fixed)
+        if self.association.stream is not None:
+            self.association.stream.load_map(landmark_map, fixed)
         w.landmark_ids = list(landmark_map.ids)
         w.index = {lid: j for j, lid in enumerate(w.landmark_ids)}
         w.landmarks = landmark_map.xy.copy()
@@ -159,6 +167,8 @@ class SlidingWindowSmoother(SeveralRobots):
         """Add the step; solve every K steps; marginalize beyond the window; relinearize globally on schedule."""
         with self._blas.limit():
             w = self.window
+            if self.association.stream is not None:
+                self.association.stream.add(step)
             step = entering(step, self.state.adaptation)
             w.add_pose(step)
             step = gated(step, self.progress.fixes, w.poses[step.index], w.pose_cov)
@@ -192,6 +202,8 @@ class SlidingWindowSmoother(SeveralRobots):
     def extend(self, step: Step, start: int) -> Snapshot:
         """The newest step grew: add its observations ``start:``; solve again if this step was a solve step."""
         with self._blas.limit():
+            if self.association.stream is not None:
+                self.association.stream.extend(step, start)
             step = gated(entering(step, self.state.adaptation), self.progress.fixes, self.window.poses[step.index],
                          self.window.pose_cov)  # fmt: skip
             step, start = self._resolve(step, start)
@@ -270,7 +282,7 @@ class SlidingWindowSmoother(SeveralRobots):
         if w.several:  # poses left the window out of step order
             decisions.sort(key=lambda d: d[0])
         rejected = np.concatenate([d[1] for d in decisions]) if decisions else np.zeros(0, dtype=bool)
-        return Estimate(
+        estimate = Estimate(
             self.name,
             self.trajectory(),
             tuple(w.landmark_ids),
@@ -296,6 +308,10 @@ class SlidingWindowSmoother(SeveralRobots):
             landmark_covs=self.landmark_marginals(),
             landmark_joint=self.landmark_joint(),
         )
+        if self.association.stream is None:
+            return estimate
+        with self._blas.limit():
+            return paired_again(estimate, self.association.stream, self.config)
 
     # -- covariances -----------------------------------------------------------------------------
     def association_covariance(self, indices: Index, exact: bool = True) -> Array:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 from online_slam.estimators.adaptation import Adaptation
 from online_slam.estimators.landmark_book import LandmarkBook
+from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.smoother.covariance import Solved
 from online_slam.estimators.smoother.global_solve import Relinearization
 from online_slam.estimators.smoother.prior import Prior
@@ -52,6 +53,9 @@ class AssociationState:
     """The newest step with associated ids, when association changed it."""
     solved: Solved | None = None
     """The last solve's factored information, while the state has not moved."""
+    stream: ProblemLog | None = None
+    """Every step as it came, ids ignored, when association pairs every sighting (the final pairs them all
+    again); None otherwise."""
 
 
 @dataclass(eq=False)
