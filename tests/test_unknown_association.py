@@ -195,6 +195,8 @@ def test_cli_association_flag_and_table(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert "association right, mapped/true" in proc.stdout
+    assert "smoother: every sighting paired again at the end:" in proc.stdout
+    assert "batch: took the smoother's final as it is" in proc.stdout
     document = json.loads(out.read_text())
     for name in ("ekf", "smoother", "batch"):
         association = document["estimators"][name]["association"]

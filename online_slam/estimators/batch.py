@@ -159,7 +159,7 @@ class BatchEstimator(LoggedEstimator):
         if initial is None or labels is None or len(labels) != n_sightings:
             raise ValueError("batch without ids needs the associations of an estimator that saw every sighting")
         if "paired_again" in initial.info:  # this procedure's answer already, over the same stream: taken as it is
-            info = {"initial": initial.estimator, "iterations": 0, "converged": True, "labels": list(labels),
+            info = {"initial": initial.estimator, "taken": True, "labels": list(labels),
                     "paired_again": initial.info["paired_again"], "solve_s": time.perf_counter() - started}  # fmt: skip
             return Estimate(self.name, initial.poses.copy(), initial.landmark_ids, initial.landmarks.copy(), info)
         where = {lid: k for k, lid in enumerate(initial.landmark_ids)}

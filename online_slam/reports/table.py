@@ -203,6 +203,12 @@ def notes(results: Results) -> list[str]:
             failures = d["global_failures"]
             out.append(f"{name}: {counted(len(failures), 'background global solve')} failed, results kept without "
                        f"{'it' if len(failures) == 1 else 'them'} (first: {failures[0]})")  # fmt: skip
+        if (again := d.get("paired_again")) and d.get("taken"):
+            out.append(f"{name}: took the {d['initial']}'s final as it is (every sighting paired again there)")
+        elif again:
+            moved, dropped = counted(again["moved"], "sighting"), again["landmarks_dropped"]
+            out.append(f"{name}: every sighting paired again at the end: {moved} paired otherwise than online, "
+                       f"{dropped} landmarks dropped ({again['solve_s']:.1f} s)")  # fmt: skip
         if "iterations" in d:
             state = "converged" if d.get("converged") else "NOT converged"
             out.append(
