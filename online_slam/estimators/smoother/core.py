@@ -23,6 +23,7 @@ from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.estimators.smoother.config import SmootherConfig
 from online_slam.estimators.smoother.covariance import (
     factored,
+    is_unknown,
     landmark_joint,
     landmark_marginals,
     pose_marginals,
@@ -394,7 +395,9 @@ class SlidingWindowSmoother(SeveralRobots):
         indices = np.array([w.index[cast(LandmarkId, ids[k])] for k in rows], dtype=np.int64)
         unique, inverse = np.unique(indices, return_inverse=True)
         columns = np.r_[np.arange(3), 3 + (2 * inverse[:, None] + np.arange(2)).reshape(-1)]
-        joint = self.association_covariance(unique, exact=False)[np.ix_(columns, columns)]
+        if is_unknown(joint := self.association_covariance(unique, exact=False)):  # no information: nothing to read
+            return
+        joint = joint[np.ix_(columns, columns)]
         at = start + np.array(rows)
         pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
         F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, self.state.adaptation.working)

@@ -115,6 +115,17 @@ def pose_marginals(solved: Solved, poses: list[int]) -> dict[int, Array]:
     return out
 
 
+UNKNOWN_VARIANCE = 1e6
+"""Every variance of the joint covariance :func:`window_covariance` gives when it has no information to read (a
+window not yet linearizable, a map's landmark without its covariance): gates pass everything, and noise adaptation
+reads nothing from it (:func:`is_unknown`)."""
+
+
+def is_unknown(joint: Array) -> bool:
+    """Whether ``joint`` is the covariance :func:`window_covariance` gives when it knows nothing."""
+    return bool(np.array_equal(joint, np.eye(len(joint)) * UNKNOWN_VARIANCE))
+
+
 def window_covariance(
     linearized: Linearized,
     prior: Prior | None,
@@ -132,7 +143,7 @@ def window_covariance(
     c = len(indices)
     active, sparse, quadratic, H = linearized.active, linearized.layout, linearized.quadratic, linearized.information
     rows = 3 + 2 * c
-    fallback = np.eye(rows) * 1e6
+    fallback = np.eye(rows) * UNKNOWN_VARIANCE
     if H is None:
         return fallback
     n = len(H)
