@@ -16,8 +16,7 @@ position RMSE against Vicon and the mean NEES. A held-out cell that misses the o
 target (6) is replayed once more with the smoother keeping every pose (:data:`SO_FAR_WINDOW`): at each step every pose
 re-solved, approximately the maximum a posteriori estimate of the data so far under the same model (the smoother's
 iteration limits and robust loss stay). If it misses as the default estimators do, the miss is not the window's or
-the filter's.
-``python -m benchmarks --only heldout --mrclam FOLDER``.
+the filter's. ``python -m benchmarks --only heldout --mrclam FOLDER``.
 """
 
 from __future__ import annotations
@@ -63,8 +62,8 @@ class Cell:
     nees: dict[str, float]
     """Mean NEES by estimator (the batch has none)."""
     so_far: tuple[float, float] | None = None
-    """Online RMSE (m) and mean NEES of the smoother keeping every pose (the MAP of the data so far at each step),
-    for a held-out cell that misses a target; None otherwise."""
+    """Online RMSE (m) and mean NEES of the smoother keeping every pose (approximately the MAP of the data so far at
+    each step), for a held-out cell that misses a target; None otherwise."""
 
     def misses(self) -> bool:
         """Whether this held-out cell misses the online or the NEES target."""
@@ -136,7 +135,8 @@ def so_far(folder: str, job: Job) -> tuple[float, float]:
     smoother = SmootherConfig(window=WindowConfig(size=SO_FAR_WINDOW))
     config = ReplayConfig(estimators=("smoother",), smoother=smoother)
     row = replay(_events(folder, job), config, name=f"{job.scheme} {job.stream}, every pose kept").estimators
-    return float(row["smoother"].online_rmse_m or 0.0), float(row["smoother"].nees_mean or 0.0)
+    online, nees = row["smoother"].online_rmse_m, row["smoother"].nees_mean
+    return float("nan") if online is None else online, float("nan") if nees is None else nees
 
 
 def run_heldout(folder: str | Path, workers: int | None = None) -> list[Cell]:

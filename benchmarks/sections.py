@@ -284,8 +284,8 @@ def _heldout(args: argparse.Namespace, world: GridConfig) -> None:
     print(f"* held out. Worst held-out figures: online {w['online_m']:.3f} m (target <= 0.25), mean NEES "
           f"{w['nees']:.2f} (target <= 6), smoother or batch final / EKF final {w['final_over_ekf']:.2f}x "
           "(target <= 1.05x)")  # fmt: skip
-    print("every pose kept: the smoother marginalizing nothing, each step the MAP of the data so far (a held-out cell "
-          "that misses a target): what the model and the data allow online")  # fmt: skip
+    print("every pose kept (a held-out cell that misses a target): the smoother marginalizing nothing, each step "
+          "approximately the MAP of the data so far; a miss it shares is not the window's or the filter's")  # fmt: skip
 
 
 def _unknown_ids(args: argparse.Namespace, world: GridConfig) -> None:
