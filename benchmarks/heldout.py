@@ -16,7 +16,9 @@ position RMSE against Vicon and the mean NEES. A held-out cell that misses the o
 target (6) is replayed once more with the smoother keeping every pose (:data:`SO_FAR_WINDOW`): at each step every pose
 re-solved, approximately the maximum a posteriori estimate of the data so far under the same model (the smoother's
 iteration limits and robust loss stay). If it misses as the default estimators do, the miss is not the window's or
-the filter's. ``python -m benchmarks --only heldout --mrclam FOLDER``.
+the filter's. Not on the stream of all five robots: every step solves every pose, so the replay's time grows with the
+square of its poses, about five times a robot's (a robot's half, 1,100 poses: about two minutes).
+``python -m benchmarks --only heldout --mrclam FOLDER``.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ class Cell:
     """Mean NEES by estimator (the batch has none)."""
     so_far: tuple[float, float] | None = None
     """Online RMSE (m) and mean NEES of the smoother keeping every pose (approximately the MAP of the data so far at
-    each step), for a held-out cell that misses a target; None otherwise."""
+    each step), for a one-robot held-out cell that misses a target; None otherwise."""
 
     def misses(self) -> bool:
         """Whether this held-out cell misses the online or the NEES target."""
@@ -140,14 +142,14 @@ def so_far(folder: str, job: Job) -> tuple[float, float]:
 
 
 def run_heldout(folder: str | Path, workers: int | None = None) -> list[Cell]:
-    """Fit every model, run every replay, then :func:`so_far` on the held-out cells that miss a target
+    """Fit every model, run every replay, then :func:`so_far` on the one-robot held-out cells that miss a target
     (``workers`` processes; None: every core)."""
     recording = recording_span(Path(folder))
     spans = {half: half_of(recording, half) for half in ("first", "second")}
     todo = jobs(fits(folder, spans), spans)
     with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
         cells = list(pool.map(run_job, [str(folder)] * len(todo), todo))
-        again = [k for k, cell in enumerate(cells) if cell.misses()]
+        again = [k for k, cell in enumerate(cells) if cell.misses() and cell.stream != "all"]
         figures = pool.map(so_far, [str(folder)] * len(again), [todo[k] for k in again])
         for k, figure in zip(again, figures):
             cells[k] = replace(cells[k], so_far=figure)
