@@ -113,6 +113,7 @@ def jobs(models: dict[str, MrclamNoise], spans: dict[str, tuple[float, float]]) 
 
 
 def _events(folder: str, job: Job) -> Iterable[Event]:
+    """The events of a job's stream: one robot, or all five in one stream."""
     if job.stream == "all":
         return read_mrclam_robots(folder, job.noise, job.span)
     return read_mrclam(folder, int(job.stream), job.noise, job.span)
