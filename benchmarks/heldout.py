@@ -9,15 +9,22 @@ was fitted on, its figures flatter it; here every fit is scored on data it did n
   half (in-sample), and the built-in model (fitted on the whole recording) on each half;
 - **leave one robot out**: the commands' calibration, the increments' noise, the sightings' correlation and the
   robot barcode fitted on the other four robots (the whole recording); the robot's own camera (where it places a
-  sighting, its sigmas) on its own first half; scored on its second half.
+  sighting, its sigmas) on its own first half; scored on its second half;
+- **whole run**: a half replayed from an empty map is a harder stream than the same half in a robot's run (it maps
+  from nothing what the robot had mapped by then), whatever the model. So each robot's second half is also scored
+  inside a replay of its whole run, under the model fitted on the first half and under the one fitted on the other
+  robots: the figures over the second half's steps only (its online estimates, and the final estimates of its
+  poses). The model still never saw the scored half's data; the estimators did see the first half's, as on a robot
+  that kept running.
 
 Every replay runs the default estimators but dead reckoning (EKF, smoother, batch) and reports the online and final
 position RMSE against Vicon and the mean NEES. A held-out cell that misses the online target (0.25 m) or the NEES
 target (6) is replayed once more with the smoother keeping every pose (:data:`SO_FAR_WINDOW`): at each step every pose
 re-solved, approximately the maximum a posteriori estimate of the data so far under the same model (the smoother's
 iteration limits and robust loss stay). If it misses as the default estimators do, the miss is not the window's or
-the filter's. Not on the stream of all five robots: every step solves every pose, so the replay's time grows with the
-square of its poses, about five times a robot's (a robot's half, 1,100 poses: about two minutes).
+the filter's. Only a one-robot replay of a part: every step solves every pose, so the replay's time grows with the
+square of its poses (a robot's half, 1,100 poses: about two minutes; all five robots' or a whole run, several times
+that).
 ``python -m benchmarks --only heldout --mrclam FOLDER``.
 """
 
@@ -29,7 +36,11 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
 from online_slam.estimators.smoother.config import SmootherConfig, WindowConfig
+from online_slam.evaluation.results import Results
+from online_slam.evaluation.scoring import position_errors
 from online_slam.importers.mrclam.noise import fit_camera_on, fit_mrclam_noise, with_camera
 from online_slam.importers.mrclam.reader import MrclamNoise, half_of, read_mrclam, recording_span
 from online_slam.importers.mrclam.robots import ROBOTS, read_mrclam_robots
@@ -63,6 +74,8 @@ class Cell:
     """Final position RMSE by estimator, m."""
     nees: dict[str, float]
     """Mean NEES by estimator (the batch has none)."""
+    whole_run: bool = False
+    """Scored on part of a replay of the whole recording (the ``whole run`` cells), not on a replay of the part."""
     so_far: tuple[float, float] | None = None
     """Online RMSE (m) and mean NEES of the smoother keeping every pose (approximately the MAP of the data so far at
     each step), for a one-robot held-out cell that misses a target; None otherwise."""
@@ -83,6 +96,8 @@ class Job:
     stream: int | str
     noise: MrclamNoise
     span: tuple[float, float]
+    scored: tuple[float, float] | None = None
+    """The part of ``span`` scored (start, end excluded); None: all of it."""
 
 
 def fits(folder: str | Path, spans: dict[str, tuple[float, float]]) -> dict[str, MrclamNoise]:
@@ -99,7 +114,7 @@ def fits(folder: str | Path, spans: dict[str, tuple[float, float]]) -> dict[str,
 
 
 def jobs(models: dict[str, MrclamNoise], spans: dict[str, tuple[float, float]]) -> list[Job]:
-    """Every replay of the benchmark, in the order of its table."""
+    """Every replay of the benchmark, in the order of its table (``spans``: ``first``, ``second`` and ``whole``)."""
     other = {"first": "second", "second": "first"}
     out = []
     for half in ("first", "second"):
@@ -109,6 +124,9 @@ def jobs(models: dict[str, MrclamNoise], spans: dict[str, tuple[float, float]]) 
             out.append(Job(f"fit {other[half]}, score {half}", True, stream, models[other[half]], spans[half]))
     for robot in ROBOTS:
         out.append(Job("fit other robots, score second", True, robot, models[f"without {robot}"], spans["second"]))
+    for robot in ROBOTS:
+        for scheme, model in (("fit first", models["first"]), ("fit other robots", models[f"without {robot}"])):
+            out.append(Job(f"{scheme}, score second, whole run", True, robot, model, spans["whole"], spans["second"]))
     return out
 
 
@@ -120,8 +138,11 @@ def _events(folder: str, job: Job) -> Iterable[Event]:
 
 
 def run_job(folder: str, job: Job) -> Cell:
-    """Replay one job's stream and take its figures."""
+    """Replay one job's stream and take its figures (over its scored part)."""
     results = replay(_events(folder, job), ReplayConfig(estimators=ESTIMATORS), name=f"{job.scheme} {job.stream}")
+    if job.scored is not None:
+        online, final, nees = scored_figures(results, job.scored)
+        return Cell(job.scheme, job.held_out, job.stream, online, final, nees, whole_run=True)
     e = results.estimators
     return Cell(
         job.scheme,
@@ -131,6 +152,33 @@ def run_job(folder: str, job: Job) -> Cell:
         {k: e[k].final_rmse_m for k in ESTIMATORS},
         {k: e[k].nees_mean for k in ("ekf", "smoother")},
     )
+
+
+def scored_figures(
+    results: Results, span: tuple[float, float]
+) -> tuple[dict[str, float], dict[str, float], dict[str, float]]:
+    """Online RMSE, final RMSE (m) and mean NEES by estimator over the steps of a replay within ``span`` (start, end
+    excluded): its online and final errors as the replay's table computes them, averaged over those steps only."""
+    t = results.series["ekf"].t
+    inside = (t >= span[0]) & (t < span[1])
+    online = {k: _rms(results.series[k].position_error_m[inside]) for k in ("ekf", "smoother")}
+    nees = {k: float(np.nanmean(results.series[k].nees[inside])) for k in ("ekf", "smoother")}
+    final = {}
+    for k in ESTIMATORS:
+        errors = position_errors(
+            results.estimates[k].poses,
+            results.truth_poses,
+            results.alignment,
+            results.truth_offsets,
+            results.truth_starts,
+        )
+        final[k] = _rms(errors[inside])
+    return online, final, nees
+
+
+def _rms(errors: np.ndarray) -> float:
+    """Root mean square of the finite errors."""
+    return float(np.sqrt(np.nanmean(np.square(errors))))
 
 
 def so_far(folder: str, job: Job) -> tuple[float, float]:
@@ -147,20 +195,21 @@ def run_heldout(folder: str | Path, workers: int | None = None) -> list[Cell]:
     (``workers`` processes; None: every core)."""
     recording = recording_span(Path(folder))
     spans = {half: half_of(recording, half) for half in ("first", "second")}
+    spans["whole"] = (recording[0], float(np.nextafter(recording[1], np.inf)))
     todo = jobs(fits(folder, spans), spans)
     with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
         cells = list(pool.map(run_job, [str(folder)] * len(todo), todo))
-        again = [k for k, cell in enumerate(cells) if cell.misses() and cell.stream != "all"]
+        again = [k for k, c in enumerate(cells) if c.misses() and c.stream != "all" and not c.whole_run]
         figures = pool.map(so_far, [str(folder)] * len(again), [todo[k] for k in again])
         for k, figure in zip(again, figures):
             cells[k] = replace(cells[k], so_far=figure)
     return cells
 
 
-def worst(cells: Sequence[Cell]) -> dict[str, float]:
+def worst(cells: Sequence[Cell], whole_run: bool = False) -> dict[str, float]:
     """The held-out cells' worst figures against the targets: online RMSE and mean NEES (EKF and smoother), and the
-    smoother's and batch's final over the EKF's final."""
-    held = [c for c in cells if c.held_out]
+    smoother's and batch's final over the EKF's final; over the replays of a part, or over the ``whole_run`` cells."""
+    held = [c for c in cells if c.held_out and c.whole_run == whole_run]
     return {
         "online_m": max(max(c.online.values()) for c in held),
         "nees": max(max(c.nees.values()) for c in held),

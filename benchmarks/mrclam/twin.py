@@ -20,6 +20,7 @@ import sys
 
 import numpy as np
 
+from online_slam.evaluation.results import EstimatorResult
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
 from online_slam.importers.mrclam.reader import MrclamNoise, read_mrclam
@@ -90,22 +91,32 @@ def twin(folder: str, robot: int, seed: int, noise: MrclamNoise | None = None) -
 
 
 def main(seeds: int = 3, folder: str = FOLDER) -> None:
-    """Print the twin's figures beside the real data's, robot by robot."""
-    config = ReplayConfig(estimators=("ekf", "smoother"))
-    print("robot  poses  twin: EKF online m, NEES; smoother online m, NEES    real data (the same figures)")
+    """Print the twin's figures beside the real data's, robot by robot: online RMSE and mean NEES of the EKF and the
+    smoother, and the batch's final RMSE over the EKF's (the twin's: its median and largest over the seeds)."""
+    config = ReplayConfig(estimators=("ekf", "smoother", "batch"))
+    print("robot  poses  twin: EKF online m, NEES; smoother online m, NEES; batch / EKF final, median (max)    "
+          "real data (the same figures)")  # fmt: skip
     for robot in (1, 2, 3, 4, 5):
-        runs = []
+        runs, ratios, poses = [], [], 0
         for seed in range(seeds):
             results = replay(twin(folder, robot, seed), config, name=f"twin {robot}")
-            runs.append([(r.online_rmse_m, r.nees_mean) for r in results.estimators.values()])
+            figures, poses = results.estimators, results.poses
+            runs.append([(figures[k].online_rmse_m, figures[k].nees_mean) for k in ("ekf", "smoother")])
+            ratios.append(_batch_over_ekf(figures))
         (ekf, ekf_nees), (sm, sm_nees) = np.mean(runs, axis=0)
         real = replay(folder, dataclasses.replace(config, dataset={"robot": robot})).estimators
         print(
-            f"{robot:>5}  {results.poses:>5}  {ekf:.3f}, {ekf_nees:5.2f}; {sm:.3f}, {sm_nees:5.2f}"
-            f"                   {real['ekf'].online_rmse_m:.3f}, {real['ekf'].nees_mean:5.2f}; "
-            f"{real['smoother'].online_rmse_m:.3f}, {real['smoother'].nees_mean:5.2f}",
+            f"{robot:>5}  {poses:>5}  {ekf:.3f}, {ekf_nees:5.2f}; {sm:.3f}, {sm_nees:5.2f}; "
+            f"{np.median(ratios):.2f} ({max(ratios):.2f})    {real['ekf'].online_rmse_m:.3f}, "
+            f"{real['ekf'].nees_mean:5.2f}; {real['smoother'].online_rmse_m:.3f}, {real['smoother'].nees_mean:5.2f}; "
+            f"{_batch_over_ekf(real):.2f}",
             flush=True,
         )
+
+
+def _batch_over_ekf(figures: dict[str, EstimatorResult]) -> float:
+    """The batch's final RMSE over the EKF's."""
+    return float(figures["batch"].final_rmse_m) / float(figures["ekf"].final_rmse_m)
 
 
 if __name__ == "__main__":
