@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+import pytest
 from conftest import numerical_jacobian
 from hypothesis import given
 from hypothesis import strategies as st
 
-from online_slam.geometry import compose
+from online_slam.geometry import compose, wrap
 from online_slam.models import (
     compose_increments,
     landmark_from_observation,
@@ -36,6 +39,17 @@ def test_range_bearing_jacobians(rng: np.random.Generator) -> None:
         _, J_p, J_l = range_bearing_with_jacobians(pose, lm)
         assert np.allclose(J_p, numerical_jacobian(lambda p: range_bearing(p, lm), pose, (1,)), atol=1e-6)
         assert np.allclose(J_l, numerical_jacobian(lambda x: range_bearing(pose, x), lm, (1,)), atol=1e-6)
+
+
+def test_range_bearing_at_a_landmark_on_the_pose_is_finite_and_unchanged_elsewhere() -> None:
+    poses = np.array([[1.0, 2.0, 0.5], [0.0, 0.0, 0.5]])
+    landmarks = np.array([[1.0, 2.0], [1e-150, 0.0]])  # on the pose; a hair (1e-150 m) off it
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        z, J_p, J_l = range_bearing_with_jacobians(poses, landmarks)
+    assert z[0].tolist() == [0.0, wrap(-0.5)]
+    assert not J_l[0].any() and J_p[0].tolist() == [[0.0, 0.0, 0.0], [0.0, 0.0, -1.0]]
+    assert J_l[1, 0] == pytest.approx([1.0, 0.0]) and J_l[1, 1, 1] == pytest.approx(1e150)  # off it: analytic
 
 
 def test_inverse_observation_jacobians(rng: np.random.Generator) -> None:

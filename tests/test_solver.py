@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import numerical_jacobian
@@ -136,6 +138,19 @@ def test_solver_reports_non_convergence() -> None:
     result = solve(batch.log.graph(), np.array(batch.log.poses), batch.log.landmarks, SolverConfig(max_iterations=1))
     assert not result.converged and result.iterations == 1 and result.message == "maximum iterations reached"
     assert result.final_cost < result.initial_cost
+
+
+def test_a_solve_that_puts_a_landmark_on_its_sighting_pose_stays_finite_and_quiet() -> None:
+    # Gauss-Newton's first step puts the landmark exactly on the pose that sights it (a zero range measured), where
+    # the bearing is undefined: no NaN may reach the normal equations, and no warning is printed.
+    graph = FactorGraph.build(
+        1, 1, fixed_poses=[0], obs_pose=[0], obs_landmark=[0], obs_z=[[0.0, 0.0]], obs_cov=[np.eye(2)]
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = solve(graph, np.zeros((1, 3)), np.array([[1.0, 0.0]]), SolverConfig(initial_lambda=0.0))
+    assert result.landmarks.tolist() == [[0.0, 0.0]] and result.final_cost == 0.0
+    assert result.converged
 
 
 def test_no_free_variables() -> None:

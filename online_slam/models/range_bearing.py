@@ -34,6 +34,11 @@ def range_bearing(pose: ArrayLike, landmark: ArrayLike) -> Array:
 def range_bearing_with_jacobians(pose: ArrayLike, landmark: ArrayLike) -> tuple[Array, Array, Array]:
     """``range_bearing`` with its Jacobians.
 
+    Decision: at a landmark exactly on the pose (range 0, where the bearing is undefined) the position Jacobians are
+    0, not NaN (and the bearing is ``wrap(-theta)``, as ``atan2(0, 0)`` gives): a solver's trial step can land there
+    (a robust solve pulling an outlier landmark onto a pose that sights it), and one such point must not put NaN
+    into the normal equations. Any other point is unchanged.
+
     Returns:
         (z (..., 2), dz/dpose (..., 2, 3), dz/dlandmark (..., 2, 2)).
     """
@@ -43,12 +48,14 @@ def range_bearing_with_jacobians(pose: ArrayLike, landmark: ArrayLike) -> tuple[
     dy = landmark[..., 1] - pose[..., 1]
     q = dx * dx + dy * dy
     r = np.sqrt(q)
+    on_pose = q == 0.0
+    q_safe, r_safe = np.where(on_pose, 1.0, q), np.where(on_pose, 1.0, r)  # dx = dy = 0 there: Jacobians 0
     shape = np.broadcast_shapes(pose.shape[:-1], landmark.shape[:-1])
     J_l = np.empty((*shape, 2, 2))
-    J_l[..., 0, 0] = dx / r
-    J_l[..., 0, 1] = dy / r
-    J_l[..., 1, 0] = -dy / q
-    J_l[..., 1, 1] = dx / q
+    J_l[..., 0, 0] = dx / r_safe
+    J_l[..., 0, 1] = dy / r_safe
+    J_l[..., 1, 0] = -dy / q_safe
+    J_l[..., 1, 1] = dx / q_safe
     J_p = np.zeros((*shape, 2, 3))
     J_p[..., :, :2] = -J_l
     J_p[..., 1, 2] = -1.0
