@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 from conftest import numerical_jacobian
 
+from online_slam import Slam
 from online_slam.estimators import BatchEstimator
 from online_slam.factors import FactorGraph, evaluate, layout, linearize
 from online_slam.factors.graph import DenseAssembler, JacobianPoint
+from online_slam.factors.information import FLOOR, floored, sqrt_information
 from online_slam.frontend import FrontEnd
 from online_slam.geometry import between, wrap
 from online_slam.solvers import SolverConfig, solve
@@ -189,3 +191,27 @@ def test_robust_gradient_matches_numerical_cost_gradient(rng: np.random.Generato
         return np.array([cost(graph, evaluate(graph, p, x[3 * free.sum() :].reshape(-1, 2)), loss)])
 
     assert np.allclose(J.T @ r, numerical_jacobian(f, x0, eps=1e-7)[0], rtol=1e-5, atol=1e-5)
+
+
+def test_a_covariance_cholesky_refuses_is_factored_with_its_eigenvalues_floored() -> None:
+    R = np.array([[np.cos(0.3), -np.sin(0.3), 0.0], [np.sin(0.3), np.cos(0.3), 0.0], [0.0, 0.0, 1.0]])
+    cov = R @ np.diag([1e16, 1e-16, 1e-16]) @ R.T  # positive definite, but not in floating point
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(cov)
+    W = sqrt_information(cov)
+    assert np.isfinite(W).all() and np.allclose(np.triu(W, 1), 0.0)
+    assert np.allclose(np.linalg.inv(W.T @ W), floored(cov), rtol=1e-4)  # condition 1e12: 1e-4 is what is left
+    assert np.linalg.eigvalsh(floored(cov)).min() == pytest.approx(1e16 * FLOOR, rel=1e-3)
+    good = np.diag([4.0, 1.0, 0.25])  # what Cholesky takes is factored as it is
+    assert sqrt_information(good).tolist() == np.linalg.inv(np.linalg.cholesky(good)).tolist()
+
+
+def test_the_smoother_takes_odometry_sigmas_sixteen_orders_apart_across_a_turn() -> None:
+    # Found by the fuzzer: each sigma within the validator's bounds, their composition not positive definite in
+    # floating point; the smoother's window raised numpy's LinAlgError through Slam.estimate.
+    slam = Slam("smoother")
+    for k in range(4):
+        slam.add_odometry(0.5 * (k + 1), [0.5, 0.0, 0.1], sigma=[1e8, 1e-8, 1e-8])
+    slam.add_observation(2.5, 1, 2.0, 0.3, [0.1, 0.01])
+    slam.add_odometry(3.0, [0.5, 0.0, 0.1], sigma=[1e8, 1e-8, 1e-8])
+    assert all(np.isfinite(slam.estimate().pose))
