@@ -38,6 +38,7 @@ from scipy.stats import chi2
 
 from online_slam.checkpoint import Checkpointed
 from online_slam.estimators.association_config import AssociationConfig
+from online_slam.factors.information import floored
 from online_slam.frontend.association import (
     Association,
     Belief,
@@ -326,9 +327,7 @@ class LandmarkBook(Checkpointed):
         taken = np.full(len(rows), -1, dtype=np.int64)
         if len(self._keys):
             diff = points[:, None, :] - self._points[None, :, :]  # (f, T, 2)
-            growth = np.asarray(pose_cov)[None] - self._pose_covs  # (T, 3, 3), clipped to its PSD part
-            values, vectors = np.linalg.eigh(0.5 * (growth + np.swapaxes(growth, 1, 2)))
-            growth = (vectors * np.maximum(values, 0.0)[:, None, :]) @ np.swapaxes(vectors, 1, 2)
+            growth = floored(np.asarray(pose_cov)[None] - self._pose_covs, 0.0)  # (T, 3, 3), its PSD part
             G = np.zeros((len(rows), 2, 3))  # d(point)/d(pose)
             G[:, 0, 0] = G[:, 1, 1] = 1.0
             G[:, :, 2] = np.stack([-(points[:, 1] - pose[1]), points[:, 0] - pose[0]], -1)

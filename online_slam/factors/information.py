@@ -35,10 +35,11 @@ def sqrt_information(cov: ArrayLike) -> NDArray[np.float64]:
     return np.linalg.inv(L)
 
 
-def floored(cov: ArrayLike) -> NDArray[np.float64]:
-    """Symmetric covariances, shape (..., n, n), with their eigenvalues raised to :data:`FLOOR` of their largest."""
+def floored(cov: ArrayLike, fraction: float = FLOOR) -> NDArray[np.float64]:
+    """Symmetric parts of covariances, shape (..., n, n), with their eigenvalues raised to ``fraction`` of their
+    largest (0: to their positive semidefinite part)."""
     cov = np.asarray(cov, dtype=float)
     values, vectors = np.linalg.eigh(0.5 * (cov + np.swapaxes(cov, -1, -2)))
-    values = np.maximum(values, FLOOR * values.max(axis=-1, keepdims=True))
+    values = np.maximum(values, fraction * values.max(axis=-1, keepdims=True))
     out: NDArray[np.float64] = (vectors * values[..., None, :]) @ np.swapaxes(vectors, -1, -2)
     return out

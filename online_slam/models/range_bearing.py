@@ -48,8 +48,8 @@ def range_bearing_with_jacobians(pose: ArrayLike, landmark: ArrayLike) -> tuple[
     dy = landmark[..., 1] - pose[..., 1]
     q = dx * dx + dy * dy
     r = np.sqrt(q)
-    on_pose = q == 0.0
-    q_safe, r_safe = np.where(on_pose, 1.0, q), np.where(on_pose, 1.0, r)  # dx = dy = 0 there: Jacobians 0
+    q_safe = np.where(q == 0.0, 1.0, q)  # on the pose dx = dy = 0: Jacobians 0
+    r_safe = np.sqrt(q_safe)
     shape = np.broadcast_shapes(pose.shape[:-1], landmark.shape[:-1])
     J_l = np.empty((*shape, 2, 2))
     J_l[..., 0, 0] = dx / r_safe
