@@ -27,7 +27,11 @@ def solve_both(events):
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "events",
-    [pytest.param(lambda: square_world(), id="square"), pytest.param(lambda: grid_world(GridConfig()), id="grid2000")],
+    [
+        pytest.param(lambda: square_world(), id="square"),
+        # half the acceptance grid (its loops closed many times over): GTSAM's custom factors take 18 s on all 2000
+        pytest.param(lambda: grid_world(GridConfig(poses=1000)), id="grid1000"),
+    ],
 )
 def test_batch_equals_gtsam_levenberg_marquardt(events) -> None:
     ours, peer = solve_both(events())

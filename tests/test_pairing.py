@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import SHARED_DATA, needs_data
 
 from online_slam.estimators.problem import ProblemLog
 from online_slam.estimators.protocol import Estimate
@@ -126,20 +125,3 @@ def test_a_sighting_two_landmarks_explain_alike_is_weighed_not_paired() -> None:
     paired = repair(graph, extra, truth, landmarks, BOUND, None)
     assert paired.index[-1] == -1 and paired.likeliest[-1] in (1, 11)
     assert _agreement(paired.index[:-1], true_label) > 0.97
-
-
-MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
-
-
-@pytest.mark.slow
-@needs_data("MRCLAM_Dataset6")
-def test_mrclam_without_ids_ends_near_its_known_id_figure() -> None:
-    """The batch and the smoother without ids end near their figures with the barcodes (robot 1's were 1.64x and
-    1.77x before they paired the run again)."""
-    from online_slam.options import replay_config
-    from online_slam.pipeline import replay
-
-    known = replay(MRCLAM, replay_config({"robot": 1, "estimators": "smoother,batch"})).estimators
-    blind = replay(MRCLAM, replay_config({"robot": 1, "estimators": "smoother,batch", "association": "jcbb"}))
-    for name in ("smoother", "batch"):
-        assert blind.estimators[name].final_rmse_m <= 1.2 * known[name].final_rmse_m

@@ -1,21 +1,41 @@
-"""Estimators on real data: MRCLAM Dataset 6, every robot, from the raw files (skipped without the data)."""
+"""Estimators on real data: MRCLAM Dataset 6 from the raw files (skipped without the data)."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import pytest
 from conftest import SHARED_DATA, needs_data
 
+from online_slam.evaluation.results import Results
 from online_slam.pipeline import ReplayConfig, replay
 
 MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
 
 
+@pytest.fixture(scope="module")
+def default_replay() -> Callable[[int], Results]:
+    """A robot's replay with the defaults, no flags (issue 12: global relinearization, batch from the smoother's
+    estimate), run once for the module."""
+    runs: dict[int, Results] = {}
+
+    def run(robot: int) -> Results:
+        if robot not in runs:
+            runs[robot] = replay(MRCLAM, ReplayConfig(dataset={"robot": robot}))
+        return runs[robot]
+
+    return run
+
+
 @pytest.mark.slow
 @needs_data("MRCLAM_Dataset6")
-@pytest.mark.parametrize("robot", [1, 2, 3, 4, 5])
-def test_mrclam_every_estimator_beats_dead_reckoning_and_smoother_and_batch_reach_25_cm(robot: int) -> None:
-    # The defaults, no flags (issue 12): global relinearization, batch from the smoother's estimate.
-    results = replay(MRCLAM, ReplayConfig(dataset={"robot": robot}))
+@pytest.mark.parametrize("robot", [1, 2, 4])
+def test_mrclam_every_estimator_beats_dead_reckoning_and_smoother_and_batch_reach_25_cm(
+    default_replay: Callable[[int], Results], robot: int
+) -> None:
+    """Robots 1, 2 and 4 (robot 4: the MAP behind the filter, benchmarks/RESULTS.md); robots 3 and 5, the longest
+    replays, are in ``python -m benchmarks --only mrclam`` with the other four."""
+    results = default_replay(robot)
     dead_reckoning = results.odometry.rmse_m
     ate = {name: r.final_rmse_m for name, r in results.estimators.items()}
     assert all(value < dead_reckoning for value in ate.values()), (ate, dead_reckoning)
@@ -59,10 +79,10 @@ def test_mrclam_halves_split_the_recording_and_start_at_vicon() -> None:
 @needs_data("MRCLAM_Dataset6")
 def test_mrclam_fit_half_refits_on_that_half_only() -> None:
     from online_slam.importers.mrclam.noise import fit_mrclam_noise
-    from online_slam.importers.mrclam.reader import half_span
+    from online_slam.importers.mrclam.reader import MrclamNoise, half_span
 
-    halves = [fit_mrclam_noise(MRCLAM, span=half_span(MRCLAM, h)) for h in ("first", "second")]
-    assert halves[0].noise != halves[1].noise
+    first = fit_mrclam_noise(MRCLAM, span=half_span(MRCLAM, "first"))
+    assert first.noise != MrclamNoise()  # the built-in model: fitted on the whole recording
     config = ReplayConfig(estimators=("ekf",), dataset={"robot": 3, "half": "second", "fit_half": "first"})
     held_out = replay(MRCLAM, config)
     assert held_out.step_times[0] >= half_span(MRCLAM, "second")[0]  # the second half alone
@@ -81,3 +101,16 @@ def test_mrclam_robot_subset_keeps_only_sightings_of_its_robots() -> None:
     assert {e.robot for e in events if isinstance(e, Start)} == {2, 4}
     seen = {e.robot_seen for e in events if isinstance(e, Observation) and e.robot_seen is not None}
     assert seen and seen <= {2, 4}
+
+
+@pytest.mark.slow
+@needs_data("MRCLAM_Dataset6")
+def test_mrclam_without_ids_ends_near_its_known_id_figure(default_replay: Callable[[int], Results]) -> None:
+    """The batch and the smoother without ids end near their figures with the barcodes (robot 1's were 1.64x and
+    1.77x before they paired the run again)."""
+    from online_slam.options import replay_config
+
+    known = default_replay(1).estimators
+    blind = replay(MRCLAM, replay_config({"robot": 1, "estimators": "smoother,batch", "association": "jcbb"}))
+    for name in ("smoother", "batch"):
+        assert blind.estimators[name].final_rmse_m <= 1.2 * known[name].final_rmse_m

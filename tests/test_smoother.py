@@ -294,15 +294,15 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
 ) -> None:
     """The hand-over step is fixed, so results never depend on thread timing; a checkpoint taken while a global
     solve is pending carries its result (in memory, and through a file), and the run continues identically."""
-    steps = list(FrontEnd().steps(grid_world(GridConfig(poses=400, seed=5))))
+    steps = list(FrontEnd().steps(grid_world(GridConfig(poses=200, seed=5))))
     config = SmootherConfig(
-        window=WindowConfig(size=10), global_solve=GlobalConfig(every=100, delay=30), linearization=linearization
+        window=WindowConfig(size=10), global_solve=GlobalConfig(every=50, delay=30), linearization=linearization
     )
 
     def run_all(cut: int | None = None, through_file: bool = False) -> np.ndarray:
         smoother = SlidingWindowSmoother(config)
         for k, step in enumerate(steps):
-            if k == cut:  # a global solve started at step 300 is pending until 330
+            if k == cut:  # a global solve started at step 150 is pending until 180
                 assert smoother.relinearization.job is not None
                 state = smoother.state_dict()
                 assert smoother.relinearization.job.result is not None  # finished, its result saved
@@ -317,8 +317,8 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
 
     first, again = run_all(), run_all()
     np.testing.assert_array_equal(first, again)
-    np.testing.assert_array_equal(first, run_all(cut=310))
-    np.testing.assert_array_equal(first, run_all(cut=310, through_file=True))
+    np.testing.assert_array_equal(first, run_all(cut=160))
+    np.testing.assert_array_equal(first, run_all(cut=160, through_file=True))
 
 
 def test_state_dict_is_the_tree_of_the_state_and_load_state_rebuilds_it() -> None:
