@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 from online_slam.estimators.adaptation import Adaptation, adapt, innovation_statistics, update_adaptation
 from online_slam.estimators.adaptation_config import AdaptationConfig
@@ -231,18 +230,11 @@ def test_noise_declared_too_sure_is_inflated_toward_the_truth(odometry: float, s
 def test_the_cli_takes_the_flag_and_says_what_it_adapted(tmp_path) -> None:  # noqa: ANN001
     """On by default (``--adapt-noise`` says so again); ``--no-adapt-noise`` turns it off."""
     out = tmp_path / "r.json"
-    done = subprocess.run(
-        [sys.executable, "-m", "online_slam", "replay", "grid", "--adapt-noise", "--estimators", "ekf",
-         "--odometry-noise-scale", "0.01", "--json", str(out)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    done = run_cli("replay", "grid", "--adapt-noise", "--estimators", "ekf", "--odometry-noise-scale", "0.01",
+                   "--json", str(out))  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "ekf: noise adapted to its innovations: odometry covariance x" in done.stdout
     assert "adapted_noise" in json.loads(out.read_text())["estimators"]["ekf"]
-    off = subprocess.run(
-        [sys.executable, "-m", "online_slam", "replay", "square", "--no-adapt-noise", "--estimators", "ekf",
-         "--json", str(out)],
-        capture_output=True, text=True, timeout=120,
-    )  # fmt: skip
+    off = run_cli("replay", "square", "--no-adapt-noise", "--estimators", "ekf", "--json", str(out))
     assert off.returncode == 0, off.stderr
     assert "adapted_noise" not in json.loads(out.read_text())["estimators"]["ekf"]

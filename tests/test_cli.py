@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import DATA_VARIABLE
+from inprocess import run_cli
 
 from online_slam.sources import square_world, write_stream
 
@@ -21,7 +22,13 @@ EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.exe
 
 
 def cli(*args: str, stdin: str | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], input=stdin, capture_output=True, text=True, cwd=cwd, timeout=300)
+    """``online-slam *args`` run in this process (see :mod:`inprocess`)."""
+    return run_cli(*args, stdin=stdin, cwd=cwd)
+
+
+def executable(*args: str) -> subprocess.CompletedProcess:
+    """``online-slam *args`` as README runs it: the installed executable, a new process."""
+    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300)
 
 
 def parse_table(text: str) -> dict[str, dict[str, str]]:
@@ -40,7 +47,7 @@ def parse_table(text: str) -> dict[str, dict[str, str]]:
 
 @pytest.mark.slow
 def test_default_replay_prints_the_article_table() -> None:
-    done = cli("replay")
+    done = executable("replay")
     assert done.returncode == 0, done.stderr
     table = parse_table(done.stdout)
     assert table["odometry"]["final RMSE m"] == "1.338"
@@ -52,7 +59,7 @@ def test_default_replay_prints_the_article_table() -> None:
 
 
 def test_no_command_means_replay() -> None:
-    done = cli()
+    done = executable()
     assert done.returncode == 0 and parse_table(done.stdout)["odometry"]["final RMSE m"] == "1.338"
 
 

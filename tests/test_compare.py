@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 import online_slam
 from online_slam.compare import CompareConfig, compare, nees_bounds
@@ -23,7 +24,7 @@ EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.exe
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=600)
+    return run_cli(*args)
 
 
 @pytest.mark.slow

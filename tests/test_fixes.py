@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import io
 import json
-import subprocess
-import sys
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import numerical_jacobian
+from inprocess import run_cli
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.estimators import BatchEstimator, EkfSlam, SlidingWindowSmoother, SmootherConfig
@@ -459,14 +458,10 @@ def test_a_fix_widened_for_its_correlation_is_still_judged_by_its_own_covariance
     events, _ = jumped(np.array([30.0, 0.0, 0.0]))
     path = tmp_path / "jump.jsonl"
     write_stream(path, events)
-    run_cli = subprocess.run(
-        [sys.executable, "-m", "online_slam", "replay", str(path), "--fix-correlation", "20", "--json",
-         str(tmp_path / "out.json")],
-        capture_output=True, text=True, timeout=120, env={"PYTHONPATH": str(ROOT), "PATH": ""},
-    )  # fmt: skip
-    assert run_cli.returncode == 0, run_cli.stderr
+    done = run_cli("replay", str(path), "--fix-correlation", "20", "--json", str(tmp_path / "out.json"))
+    assert done.returncode == 0, done.stderr
     for name in ("ekf", "smoother", "batch"):  # widened, the jump would read within the gate (30 m / 4.2 sigma)
-        assert f"{name}: fixes 39 used, 1 refused by the gate" in run_cli.stdout
+        assert f"{name}: fixes 39 used, 1 refused by the gate" in done.stdout
     figures = json.loads((tmp_path / "out.json").read_text())["estimators"]
     assert all(figures[name]["fixes_rejected"] == 1 for name in ("ekf", "smoother", "batch"))
 

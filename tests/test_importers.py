@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import shutil
-import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -12,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import SHARED_DATA, needs_data
+from inprocess import run_cli
 
 from online_slam.errors import InputError
 from online_slam.importers import open_dataset
@@ -101,9 +101,7 @@ def test_malformed_dataset_lines_are_one_line_errors(tmp_path: Path, content: st
     with pytest.raises(InputError) as info:
         list(open_dataset(path))
     assert f"{path}{where}" in str(info.value)
-    done = subprocess.run(
-        [*EXE, "convert", "gtsam", str(path), "-o", str(tmp_path / "o.jsonl")], capture_output=True, text=True
-    )
+    done = run_cli("convert", "gtsam", str(path), "-o", str(tmp_path / "o.jsonl"))
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1 and where in done.stderr
 
@@ -507,11 +505,7 @@ def test_mrclam_noise_fit_reproduces_the_builtin_odometry_coefficients(tmp_path:
         c.range_sigma_per_m for c in fit.noise.cameras
     )
     out = tmp_path / "robot2.jsonl"
-    done = subprocess.run(
-        [*EXE, "convert", "mrclam", str(MRCLAM), "--robot", "2", "--refit", "-o", str(out)],
-        capture_output=True,
-        text=True,
-    )
+    done = run_cli("convert", "mrclam", str(MRCLAM), "--robot", "2", "--refit", "-o", str(out))
     assert done.returncode == 0, done.stderr
     header = next(iter(read_stream(out)))
     assert header.meta["noise"]["range_sigma"] == pytest.approx(fit.noise.range_sigma, rel=1e-12)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import numerical_graph_jacobian
+from inprocess import run_cli
 
 from online_slam import Slam
 from online_slam.errors import ConfigError, InputError
@@ -187,11 +188,8 @@ def test_slam_starts_from_a_map_and_gives_its_own(tmp_path: Path, estimator: str
 
 @pytest.mark.slow
 def test_the_commands_write_and_read_maps(tmp_path: Path) -> None:
-    env = {"PYTHONPATH": str(ROOT), "PATH": ""}
-
     def cli(*args: str) -> subprocess.CompletedProcess:
-        command = [sys.executable, "-m", "online_slam", *args]
-        return subprocess.run(command, capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
+        return run_cli(*args, cwd=tmp_path)
 
     survey = cli("convert", "stream", str(ROOT / "replay" / "square.jsonl"), "--map-out", "survey.json")
     assert survey.returncode == 0, survey.stderr

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import numerical_graph_jacobian
+from inprocess import run_cli
 
 from online_slam.errors import InputError
 from online_slam.estimators.smoother import SlidingWindowSmoother, SmootherConfig, WindowConfig
@@ -181,9 +180,6 @@ def test_runs_save_the_joint_covariance_and_reuse_it_in_every_estimator(tmp_path
 def test_the_table_says_which_map_the_run_started_from(tmp_path: Path) -> None:
     path = tmp_path / "map.json"
     write_map(path, LandmarkMap.of([0, 1], [[-1.0, -1.0], [1.0, 1.0]], np.tile(0.01 * np.eye(2), (2, 1, 1))))
-    run = subprocess.run(
-        [sys.executable, "-m", "online_slam", "replay", "square", "--map", str(path), "--estimators", "ekf"],
-        capture_output=True, text=True, timeout=120, env={"PYTHONPATH": str(ROOT), "PATH": ""},
-    )  # fmt: skip
+    run = run_cli("replay", "square", "--map", str(path), "--estimators", "ekf")
     assert run.returncode == 0, run.stderr
     assert f"started from a map of 2 landmarks ({path}): independent priors" in run.stdout

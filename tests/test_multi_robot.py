@@ -8,11 +8,11 @@ import copy
 import dataclasses
 import json
 import shutil
-import subprocess
 import sys
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators import BatchEstimator
@@ -187,7 +187,7 @@ def test_figures_per_robot_add_up_to_those_over_all_robots() -> None:
 
 
 def test_replay_meet_runs_every_estimator() -> None:
-    done = subprocess.run([*EXE, "replay", "meet", "--json", "-"], capture_output=True, text=True)
+    done = run_cli("replay", "meet", "--json", "-")
     assert done.returncode == 0, done.stderr
     data = json.loads(done.stdout)
     assert not data.get("left") and sorted(data["estimators"]) == ["batch", "ekf", "smoother"]

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from inprocess import run_cli
 
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import GridConfig, grid_world
@@ -30,7 +31,7 @@ BAD_LINES = [
 
 
 def cli(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300, input=stdin)
+    return run_cli(*args, stdin=stdin)
 
 
 def _figures(document: dict) -> dict:

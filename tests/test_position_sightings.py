@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 import online_slam
 from online_slam import InputError, ReplayConfig, Slam
@@ -207,9 +205,7 @@ def test_a_recording_of_position_sightings_reads_back(tmp_path: Path) -> None:
     pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
     stream, rrd, out = tmp_path / "xy.jsonl", tmp_path / "xy.rrd", tmp_path / "xy.json"
     write_stream(stream, grid_world(dataclasses.replace(XY_GRID, poses=40)))
-    exe = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
-    command = [*exe, "replay", str(stream), "--rrd", str(rrd), "--json", str(out), "--quiet"]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    done = run_cli("replay", str(stream), "--rrd", str(rrd), "--json", str(out), "--quiet")
     assert done.returncode == 0, done.stderr
     series = online_slam.read_recording(rrd)
     assert series.results["poses"] == 40

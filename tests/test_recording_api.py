@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 pytest.importorskip("rerun", reason="rerun-sdk is not installed")
 pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
@@ -24,12 +24,7 @@ EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.exe
 def square(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict, RecordingSeries]:
     folder = tmp_path_factory.mktemp("rrd")
     rrd, out = folder / "square.rrd", folder / "square.json"
-    done = subprocess.run(
-        [*EXE, "replay", "square", "--rrd", str(rrd), "--json", str(out), "--quiet"],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    done = run_cli("replay", "square", "--rrd", str(rrd), "--json", str(out), "--quiet")
     assert done.returncode == 0, done.stderr
     return rrd, json.loads(out.read_text()), online_slam.read_recording(rrd)
 

@@ -15,6 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 pytest.importorskip("rerun", reason="rerun-sdk is not installed")
 pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
@@ -28,7 +29,7 @@ EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.exe
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300)
+    return run_cli(*args)
 
 
 @pytest.fixture(scope="module")

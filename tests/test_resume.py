@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from conftest import assert_close
+from inprocess import run_cli
 
 from online_slam.checkpoint import FORMAT_VERSION, read_checkpoint
 from online_slam.faults import CRASH_VARIABLE
@@ -25,7 +26,7 @@ EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.exe
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300)
+    return run_cli(*args)
 
 
 def figures(document: dict) -> dict:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import SHARED_DATA, needs_data
+from inprocess import run_cli
 
 from online_slam import Slam
 from online_slam.errors import InputError
@@ -144,8 +145,7 @@ def test_a_bad_robot_line_in_a_file_is_one_line_exit_2(tmp_path: Path) -> None:
 def test_g2o_refuses_a_second_robot(tmp_path: Path) -> None:
     path = tmp_path / "robots.jsonl"
     path.write_text("".join(json.dumps(r) + "\n" for r in two_robots()))
-    done = subprocess.run([*EXE, "convert", "stream", str(path), "-o", str(tmp_path / "x.g2o")], capture_output=True,
-                          text=True)  # fmt: skip
+    done = run_cli("convert", "stream", str(path), "-o", str(tmp_path / "x.g2o"))
     assert done.returncode == 2 and not (tmp_path / "x.g2o").exists()
     assert done.stderr.strip().splitlines() == [
         "online-slam: error: g2o holds one pose chain; robot 'b' is a second robot"
@@ -175,7 +175,7 @@ def test_the_smoother_alone_takes_several_robots() -> None:
 
 
 def test_replay_of_several_robots_with_the_smoother_alone_reports_each_robot() -> None:
-    done = subprocess.run([*EXE, "replay", "meet-apart", "--estimators", "smoother"], capture_output=True, text=True)
+    done = run_cli("replay", "meet-apart", "--estimators", "smoother")
     assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
     assert "smoother  robot 2" in done.stdout and "left out" not in done.stdout
 
@@ -297,7 +297,6 @@ def test_mrclam_dataset_6_all_robots() -> None:
 @needs_mrclam
 def test_convert_all_mrclam_robots_writes_a_stream_that_reads_back(tmp_path: Path) -> None:
     out = tmp_path / "all.jsonl.gz"
-    done = subprocess.run([*EXE, "convert", "mrclam", str(MRCLAM), "--robot", "all", "-o", str(out)],
-                          capture_output=True, text=True)  # fmt: skip
+    done = run_cli("convert", "mrclam", str(MRCLAM), "--robot", "all", "-o", str(out))
     assert done.returncode == 0, done.stderr
     assert list(read_stream(out)) == list(open_dataset(MRCLAM, robot="all"))

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
+from inprocess import run_cli
 
 pytest.importorskip("distributed", reason="dask[distributed] is not installed")
 
@@ -53,7 +54,7 @@ def local_rows(cells) -> list[dict]:
 
 def replayed(*args: str) -> dict:
     """``online-slam replay ARGS --json -``: the figures replay prints for these options."""
-    done = subprocess.run([*EXE, "replay", *args, "--json", "-", "--quiet"], capture_output=True, text=True)
+    done = run_cli("replay", *args, "--json", "-", "--quiet")
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)["estimators"]
 

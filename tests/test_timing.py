@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import assert_close
+from inprocess import run_cli
 
 from online_slam import ReplayConfig, Slam, replay
 from online_slam.errors import InputError
@@ -230,7 +231,7 @@ def test_estimate_at_a_time_predicts_without_making_a_pose() -> None:
 
 
 def _cli(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300, input=stdin)
+    return run_cli(*args, stdin=stdin)
 
 
 def test_cli_reads_late_lines_with_a_budget_and_stdin_has_one_by_default(tmp_path: Path) -> None:

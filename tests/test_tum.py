@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from inprocess import run_cli
 
 evo_file_interface = pytest.importorskip("evo.tools.file_interface", reason="evo is not installed (dev extra)")
 from evo.core import metrics, sync  # noqa: E402
@@ -29,10 +30,7 @@ def ape_rmse(reference: Path, estimate: Path) -> float:
 @pytest.mark.parametrize("alignment", ["anchor", "se2"])
 def test_evo_ape_on_the_tum_files_equals_the_tables_rmse(tmp_path: Path, alignment: str) -> None:
     out, folder = tmp_path / "r.json", tmp_path / "tum"
-    done = subprocess.run(
-        [*EXE, "replay", "square", "--align", alignment, "--tum", str(folder), "--json", str(out), "--quiet"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+    done = run_cli("replay", "square", "--align", alignment, "--tum", str(folder), "--json", str(out), "--quiet")
     assert done.returncode == 0, done.stderr
     results = json.loads(out.read_text())
     truth = folder / "truth.tum"

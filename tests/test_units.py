@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from inprocess import run_cli
 
 from online_slam import replay
 from online_slam.pipeline import ReplayConfig
@@ -65,7 +66,7 @@ def streams(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXE, *args], capture_output=True, text=True, timeout=300)
+    return run_cli(*args)
 
 
 def _suspect(stderr: str) -> list[str]:

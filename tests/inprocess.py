@@ -1,0 +1,72 @@
+"""The command line run inside the test's own process: exit code, stdout and stderr as a shell would see them.
+
+A new interpreter spends 1.5-2 s importing scipy.stats, filterpy and rerun before a command starts; the suite runs
+about a hundred commands, so most tests call :func:`main` here instead. The entry point itself stays tested as a
+user runs it: README's two replays, Ctrl-C, SIGKILL and late-line tests start the ``online-slam`` executable.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import subprocess
+import sys
+import warnings
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+from online_slam.cli.main import main
+from online_slam.faults import CRASH_VARIABLE
+
+
+def _text_stream(data: bytes = b"") -> io.TextIOWrapper:
+    """A text stream with a ``.buffer`` (the package reads stdin's bytes), as a pipe gives."""
+    return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8", write_through=True)
+
+
+@contextlib.contextmanager
+def _environment(env: Mapping[str, str] | None, cwd: Path | str | None) -> Iterator[None]:
+    """``os.environ`` replaced by ``env`` and the working folder by ``cwd`` for the block; both restored."""
+    saved_env, saved_cwd = dict(os.environ), os.getcwd()
+    try:
+        if env is not None:
+            os.environ.clear()
+            os.environ.update(env)
+        if cwd is not None:
+            os.chdir(cwd)
+        yield
+    finally:
+        os.chdir(saved_cwd)
+        os.environ.clear()
+        os.environ.update(saved_env)
+
+
+def run_cli(
+    *args: str, stdin: str | None = None, cwd: Path | str | None = None, env: Mapping[str, str] | None = None
+) -> subprocess.CompletedProcess:
+    """``online-slam *args`` in this process: its exit code (``SystemExit`` included) and what it printed.
+
+    Python warnings raised during the command are printed to its stderr as an interpreter would print them, so a
+    test that reads stderr sees them. A crash point (``$ONLINE_SLAM_CRASH_AFTER``) would kill this process: refused.
+    """
+    if CRASH_VARIABLE in (os.environ if env is None else env):
+        raise RuntimeError(f"${CRASH_VARIABLE} kills the process: start the executable for that test")
+    out, err, source = _text_stream(), _text_stream(), _text_stream((stdin or "").encode())
+    saved = sys.stdin, sys.stdout, sys.stderr
+    sys.stdin, sys.stdout, sys.stderr = source, out, err
+    try:
+        with _environment(env, cwd), warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                code = main(list(args))
+            except SystemExit as stop:  # argparse's usage errors, --help and --version
+                if isinstance(stop.code, str):
+                    print(stop.code, file=sys.stderr)
+                code = 1 if isinstance(stop.code, str) else int(stop.code or 0)
+        for w in caught:
+            err.write(warnings.formatwarning(w.message, w.category, w.filename, w.lineno, w.line))
+    finally:
+        sys.stdin, sys.stdout, sys.stderr = saved
+    texts = [stream.buffer.getvalue().decode("utf-8") for stream in (out, err)]  # type: ignore[attr-defined]
+    return subprocess.CompletedProcess(["online-slam", *args], code, *texts)
