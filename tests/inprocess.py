@@ -1,8 +1,9 @@
 """The command line run inside the test's own process: exit code, stdout and stderr as a shell would see them.
 
 A new interpreter spends 1.5-2 s importing scipy.stats, filterpy and rerun before a command starts; the suite runs
-about a hundred commands, so most tests call :func:`main` here instead. The entry point itself stays tested as a
-user runs it: README's two replays, Ctrl-C, SIGKILL and late-line tests start the ``online-slam`` executable.
+about 140 commands, so most tests call :func:`main` here instead. Real processes remain where the process is the
+point: README's two replays, kill and Ctrl-C with resume, sweeps on a scheduler, the viewer, the import-laziness
+checks and the benchmarks.
 """
 
 from __future__ import annotations

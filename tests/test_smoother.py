@@ -62,6 +62,7 @@ def test_window_20_on_the_2000_pose_grid() -> None:
     # measured 1.031x batch here (GTSAM's fixed-lag smoother keeping all landmarks: 1.054x).
     assert smoother.final_rmse_m <= 1.05 * batch.final_rmse_m
     assert smoother.online_rmse_m <= 1.15 * ekf.online_rmse_m
+    assert ekf.online_rmse_m <= 2 * batch.final_rmse_m  # the EKF's accuracy on the grid (tests/test_ekf.py)
     # After a rigid alignment of each online trajectory (one transform each, as ``alignment="se2"`` does):
     truth = np.array([e.pose for e in grid_world() if isinstance(e, Truth)])[:, :2]
     aligned = {}
