@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, rotation
-from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers._lines import table
 from online_slam.importers.mrclam.sightings import CAMERAS, Camera, camera_sightings, mounting
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
@@ -131,10 +131,7 @@ def correlates(noise: MrclamNoise) -> bool:
 
 
 def _table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
-    rows = [numbers(str(path), number, fields, columns) for number, fields in numbered_lines(path)]
-    if not rows:
-        raise InputError(str(path), 0, "", "no data rows")
-    return np.array(rows)
+    return table(path, columns)
 
 
 @dataclass(frozen=True)
