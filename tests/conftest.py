@@ -99,10 +99,12 @@ def rng() -> np.random.Generator:
 # pytest-xdist 3.8 reorders modules by their number of tests, which put the 156 s MRCLAM module last), so long
 # modules collected last would leave one worker running alone at the end.
 HEAVY_FIRST = (
-    "test_real_datasets.py", "test_cli.py", "test_resume.py", "test_shipped_replays.py", "test_rerun.py",
-    "test_smoother.py", "test_sweep.py", "test_unknown_association.py", "test_importers.py", "test_web_viewer.py",
-    "test_compare.py", "test_slam_api.py", "test_gtsam_crosscheck.py", "test_acfr.py", "test_ekf.py",
-    "test_on_error.py", "test_outliers.py", "test_fuzz.py", "test_tum.py",
+    "test_real_datasets.py", "test_smoother.py", "test_circle_smoother.py", "test_outlier_worlds.py",
+    "test_importers.py", "test_unknown_association.py", "test_adaptation.py", "test_circle.py",
+    "test_position_sightings.py", "test_cli.py", "test_outliers.py", "test_robots.py", "test_noise_self.py",
+    "test_checkpoint.py", "test_sweep.py", "test_web_viewer.py", "test_slam_api.py", "test_compare.py",
+    "test_resume.py", "test_shipped_replays.py", "test_multi_robot.py", "test_units.py", "test_timing.py",
+    "test_ekf.py", "test_rerun.py", "test_acfr.py", "test_gtsam_crosscheck.py", "test_fuzz.py",
 )  # fmt: skip
 
 
