@@ -25,11 +25,11 @@ WAYPOINT = WaypointConfig(poses=1000, size=40.0, landmarks=200, sensor_range=6.0
 
 @pytest.mark.slow
 def test_wrong_ids_on_a_waypoint_world_keep_the_smoother_online_within_2x_clean_at_the_seed_that_lost_it() -> None:
-    """Before the consensus rule and the stale hand-over check (f245cd8) corruption seeds 0, 1 and 4 read 2.84x,
-    3.23x and 2.59x: three wrong-id sightings moved a landmark the prior held, or a background solve started before
-    such a release was applied, and the online error stayed high until the next global solve. The suite keeps the
-    worst of them (seeds 0 and 4 now read 1.14x and 1.13x; every seed, ten world seeds of the family:
-    ``python -m benchmarks.robustness``)."""
+    """Before the consensus rule and the stale hand-over check (at f245cd8; 3558ed4 added both) corruption seeds 0,
+    1 and 4 read 2.84x, 3.23x and 2.59x: three wrong-id sightings moved a landmark the prior held, or a background
+    solve started before such a release was applied, and the online error stayed high until the next global solve.
+    The suite keeps the worst of them (seeds 0 and 4 now read 1.14x and 1.13x; every seed, ten world seeds of the
+    family: ``python -m benchmarks.robustness``)."""
     config = ReplayConfig(estimators=("smoother",))
     clean = online_slam.replay(waypoint_world(WAYPOINT), config).estimators["smoother"].online_rmse_m
     dirty = contaminate(waypoint_world(WAYPOINT), Contamination(wrong_ids=0.1, seed=1))
