@@ -20,7 +20,8 @@ from online_slam import Slam
 from online_slam.errors import InputError
 from online_slam.frontend import FrontEnd
 from online_slam.importers import open_dataset
-from online_slam.importers.mrclam.reader import MrclamNoise, _interpolate_truth, _table
+from online_slam.importers._lines import table
+from online_slam.importers.mrclam.reader import MrclamNoise, _interpolate_truth
 from online_slam.importers.mrclam.robots import read_mrclam_robots
 from online_slam.pipeline import ReplayConfig, replay
 from online_slam.sources import (
@@ -288,7 +289,7 @@ def test_mrclam_dataset_6_all_robots() -> None:
     timed = [e.t for e in events if hasattr(e, "t")]
     assert timed == sorted(timed)
     for start in (e for e in events if isinstance(e, Start)):
-        vicon = _table(MRCLAM / f"Robot{start.robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
+        vicon = table(MRCLAM / f"Robot{start.robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
         assert np.allclose(start.pose, _interpolate_truth(vicon, np.array([start.t]))[0][0], atol=1e-12)
         first = min(e.t for e in events if getattr(e, "robot", None) == start.robot)
         assert start.t == first

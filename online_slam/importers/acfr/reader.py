@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 
 from online_slam.errors import InputError
 from online_slam.geometry.se2 import between
-from online_slam.importers._lines import numbered_lines, numbers
+from online_slam.importers._lines import table
 from online_slam.importers.acfr import FILES, GPS_ANTENNA
 from online_slam.importers.laser import to_robot_frame
 from online_slam.importers.motion import ackermann, integrate, pose_times, start_from_positions, truth_at
@@ -118,14 +118,11 @@ class AcfrNoise:
 
 
 def _table(path: Path, names: tuple[str, ...]) -> Array:
-    rows = [numbers(str(path), line, fields, names) for line, fields in numbered_lines(path)]
-    if not rows:
-        raise InputError(str(path), 0, "", "no data rows")
-    table = np.array(rows, dtype=float)
-    if np.any(np.diff(table[:, 0]) < 0):
-        line = int(np.flatnonzero(np.diff(table[:, 0]) < 0)[0]) + 2
+    rows = table(path, names)
+    if np.any(np.diff(rows[:, 0]) < 0):
+        line = int(np.flatnonzero(np.diff(rows[:, 0]) < 0)[0]) + 2
         raise InputError(str(path), line, "t", "time goes backwards")
-    return table
+    return rows
 
 
 def _fix_rows(gps: Array, every: float, noise: AcfrNoise) -> NDArray[np.bool_]:

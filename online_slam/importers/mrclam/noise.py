@@ -42,12 +42,12 @@ from scipy.optimize import curve_fit, least_squares, minimize
 from online_slam.evaluation.noise_fit import MAD_TO_SIGMA
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between
+from online_slam.importers._lines import table
 from online_slam.importers.mrclam.reader import (
     MrclamNoise,
     RobotData,
     _dead_reckoning,
     _interpolate_truth,
-    _table,
     calibrated,
     levers_of,
     load_robot,
@@ -399,7 +399,7 @@ def fit_robot_barcode(datas: dict[int, RobotData], cameras: dict[int, Camera]) -
 
 
 def _landmark_xy(root: Path) -> dict[int, Array]:
-    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    landmarks = table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     return {int(row[0]): row[1:3] for row in landmarks}
 
 

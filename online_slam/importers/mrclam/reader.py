@@ -130,10 +130,6 @@ def correlates(noise: MrclamNoise) -> bool:
     )
 
 
-def _table(path: Path, columns: tuple[str, ...]) -> np.ndarray:
-    return table(path, columns)
-
-
 @dataclass(frozen=True)
 class Pieces:
     """Piecewise-constant commands integrated exactly between breakpoints (every command and sample time)."""
@@ -291,7 +287,7 @@ back). Not checked on data here: only Dataset 6 is at hand."""
 
 def subjects_of_barcodes(root: Path) -> dict[int, int]:
     """Subject of each barcode, from ``Barcodes.dat`` (with a known swap of the folder's undone)."""
-    barcodes = _table(root / "Barcodes.dat", ("subject", "barcode"))
+    barcodes = table(root / "Barcodes.dat", ("subject", "barcode"))
     subject_of = {int(b): int(s) for s, b in barcodes}
     swapped = SWAPPED_SUBJECTS.get(root.resolve().name)
     if swapped is not None:
@@ -304,9 +300,9 @@ def load_robot(root: Path, robot: int, span: tuple[float, float] | None = None) 
     """Read one robot's odometry, measurements and Vicon truth; landmark sightings apart from robot sightings; only
     ``span`` (start, end) of the recording when given (:meth:`RobotData.span`)."""
     subject_of = subjects_of_barcodes(root)
-    odometry = _table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
-    measurements = _table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
-    truth = _table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
+    odometry = table(root / f"Robot{robot}_Odometry.dat", ("time", "v", "w"))
+    measurements = table(root / f"Robot{robot}_Measurement.dat", ("time", "barcode", "range", "bearing"))
+    truth = table(root / f"Robot{robot}_Groundtruth.dat", ("time", "x", "y", "theta"))
     subjects = np.array([subject_of.get(int(b), -1) for b in measurements[:, 1]])
     is_landmark = subjects >= 6
     kept, kept_subjects = measurements[is_landmark], subjects[is_landmark]
@@ -477,7 +473,7 @@ def read_mrclam(
     kept_subjects, times, truth = data.subjects, data.times, data.truth
     camera, kept, sigmas = camera_sightings(cfg, robot, data.measurements, kept_subjects, mounted=True)
     sensors = {} if camera is None else {"sensors": {"camera": {"pose": mounting(camera)}}}
-    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    landmarks = table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     increments, covariances = odometry_increments(data.odometry, times, cfg)
     true_poses, covered = _interpolate_truth(truth, times)
     yield Header(

@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from online_slam.importers._lines import table
 from online_slam.importers.mrclam.reader import (
     MrclamNoise,
     RobotData,
     _interpolate_truth,
-    _table,
     correlates,
     load_robot,
     noise_meta,
@@ -146,7 +146,7 @@ def read_mrclam_robots(
     root = Path(folder)
     cfg = noise or MrclamNoise()
     data = {robot: _among(load_robot(root, robot, span), robots) for robot in robots}
-    landmarks = _table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
+    landmarks = table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     times = {robot: pose_times(robot, data) for robot in robots}
     lines = [line for robot in robots for line in _robot_lines(robot, data[robot], times[robot], cfg)]
     lines.sort(key=lambda line: line[:3])  # stable: one robot's sightings of one time keep the order made above
