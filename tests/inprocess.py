@@ -14,7 +14,7 @@ import os
 import subprocess
 import sys
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from pathlib import Path
 
 from online_slam.cli.main import main
@@ -27,37 +27,31 @@ def _text_stream(data: bytes = b"") -> io.TextIOWrapper:
 
 
 @contextlib.contextmanager
-def _environment(env: Mapping[str, str] | None, cwd: Path | str | None) -> Iterator[None]:
-    """``os.environ`` replaced by ``env`` and the working folder by ``cwd`` for the block; both restored."""
-    saved_env, saved_cwd = dict(os.environ), os.getcwd()
+def _folder(cwd: Path | str | None) -> Iterator[None]:
+    """The working folder ``cwd`` for the block (None: unchanged), restored after (``contextlib.chdir`` is 3.11+)."""
+    saved = os.getcwd()
     try:
-        if env is not None:
-            os.environ.clear()
-            os.environ.update(env)
         if cwd is not None:
             os.chdir(cwd)
         yield
     finally:
-        os.chdir(saved_cwd)
-        os.environ.clear()
-        os.environ.update(saved_env)
+        os.chdir(saved)
 
 
-def run_cli(
-    *args: str, stdin: str | None = None, cwd: Path | str | None = None, env: Mapping[str, str] | None = None
-) -> subprocess.CompletedProcess:
-    """``online-slam *args`` in this process: its exit code (``SystemExit`` included) and what it printed.
+def run_cli(*args: str, stdin: str | None = None, cwd: Path | str | None = None) -> subprocess.CompletedProcess:
+    """``online-slam *args`` in this process (in the folder ``cwd`` when given): its exit code (``SystemExit``
+    included) and what it printed.
 
     Python warnings raised during the command are printed to its stderr as an interpreter would print them, so a
     test that reads stderr sees them. A crash point (``$ONLINE_SLAM_CRASH_AFTER``) would kill this process: refused.
     """
-    if CRASH_VARIABLE in (os.environ if env is None else env):
+    if CRASH_VARIABLE in os.environ:
         raise RuntimeError(f"${CRASH_VARIABLE} kills the process: start the executable for that test")
     out, err, source = _text_stream(), _text_stream(), _text_stream((stdin or "").encode())
     saved = sys.stdin, sys.stdout, sys.stderr
     sys.stdin, sys.stdout, sys.stderr = source, out, err
     try:
-        with _environment(env, cwd), warnings.catch_warnings(record=True) as caught:
+        with _folder(cwd), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
                 code = main(list(args))

@@ -4,14 +4,11 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from inprocess import run_cli
+from inprocess import run_cli as cli
 
 import online_slam
 from online_slam.compare import CompareConfig, compare, nees_bounds
@@ -19,12 +16,6 @@ from online_slam.estimators.presets import smoother_label
 from online_slam.estimators.smoother import SmootherConfig, WindowConfig
 from online_slam.evaluation.scoring import share_in_bounds
 from online_slam.pipeline import ReplayConfig
-
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return run_cli(*args)
 
 
 @pytest.mark.slow

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import io
-import shutil
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -48,7 +46,6 @@ from online_slam.importers.mrclam.sightings import (
 )
 from online_slam.sources import LandmarkTruth, Observation, Odometry, Truth, read_stream, square_world, write_stream
 
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 MRCLAM = SHARED_DATA / "MRCLAM_Dataset6"
 CITY = SHARED_DATA / "isam_citytrees10000_synthetic"
 VICTORIA = SHARED_DATA / "gtsam_victoria_park" / "victoria_park.txt"

@@ -7,8 +7,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
-import shutil
-import sys
 
 import numpy as np
 import pytest
@@ -32,7 +30,6 @@ from online_slam.pipeline import ReplayConfig, replay
 from online_slam.reports.table import format_results
 from online_slam.sources import WORLDS, MeetConfig, Observation, Odometry, Start, meet_world
 
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 SIG3, SIG2 = (0.05, 0.05, 0.01), (0.05, 0.01)
 
 

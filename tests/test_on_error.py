@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 import json
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from inprocess import run_cli
+from inprocess import run_cli as cli
 
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import GridConfig, grid_world
-
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 
 BAD_LINES = [
     ('{"type": "odometry", "t": 3,', "invalid_json"),
@@ -28,10 +23,6 @@ BAD_LINES = [
     ('{"type": "start", "t": 0, "pose": [0, 0, 0]}', "out_of_order"),
     ("[1, 2, 3]", "not_an_object"),
 ]
-
-
-def cli(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
-    return run_cli(*args, stdin=stdin)
 
 
 def _figures(document: dict) -> dict:

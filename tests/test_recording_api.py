@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import sys
 from pathlib import Path
 
@@ -16,8 +15,6 @@ pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
 
 import online_slam  # noqa: E402
 from online_slam import OnlineSlamError, RecordingSeries  # noqa: E402
-
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 
 
 @pytest.fixture(scope="module")

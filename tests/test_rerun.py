@@ -8,14 +8,13 @@ import json
 import re
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from inprocess import run_cli
+from inprocess import run_cli as cli
 
 pytest.importorskip("rerun", reason="rerun-sdk is not installed")
 pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
@@ -25,11 +24,6 @@ from conftest import stop_process_tree  # noqa: E402
 from online_slam.sinks.recording import Recording, blueprint_views  # noqa: E402
 
 MRCLAM = Path(__file__).resolve().parents[1] / "replay" / "mrclam6_robot1.jsonl.gz"
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return run_cli(*args)
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from conftest import assert_close
-from inprocess import run_cli
+from inprocess import run_cli as cli
 
 from online_slam.checkpoint import FORMAT_VERSION, read_checkpoint
 from online_slam.faults import CRASH_VARIABLE
@@ -23,10 +23,6 @@ from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import GridConfig, grid_world
 
 EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return run_cli(*args)
 
 
 def figures(document: dict) -> dict:

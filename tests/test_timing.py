@@ -6,16 +6,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import shutil
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import assert_close
-from inprocess import run_cli
+from inprocess import run_cli as _cli
 
 from online_slam import ReplayConfig, Slam, replay
 from online_slam.errors import InputError
@@ -27,7 +24,6 @@ from online_slam.sources.stream import write_stream
 from online_slam.sources.timing import TimingConfig, timing_world
 from online_slam.sources.worlds import GridConfig, grid_world
 
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 SMALL = TimingConfig(duration=12.0, landmarks=120, seed=3)
 
 
@@ -228,10 +224,6 @@ def test_estimate_at_a_time_predicts_without_making_a_pose() -> None:
     assert slam.poses == 2
     with pytest.raises(InputError, match="before the newest pose"):
         slam.estimate(at=0.5)
-
-
-def _cli(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
-    return run_cli(*args, stdin=stdin)
 
 
 def test_cli_reads_late_lines_with_a_budget_and_stdin_has_one_by_default(tmp_path: Path) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -13,8 +12,6 @@ from inprocess import run_cli
 
 evo_file_interface = pytest.importorskip("evo.tools.file_interface", reason="evo is not installed (dev extra)")
 from evo.core import metrics, sync  # noqa: E402
-
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 
 
 def ape_rmse(reference: Path, estimate: Path) -> float:

@@ -6,14 +6,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import shutil
-import subprocess
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from inprocess import run_cli
+from inprocess import run_cli as cli
 
 from online_slam import replay
 from online_slam.pipeline import ReplayConfig
@@ -21,7 +18,6 @@ from online_slam.sources.events import Event, Observation, Odometry
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import WaypointConfig, waypoint_world
 
-EXE = [shutil.which("online-slam")] if shutil.which("online-slam") else [sys.executable, "-m", "online_slam"]
 REPLAY = Path(__file__).resolve().parents[1] / "replay"
 
 
@@ -63,10 +59,6 @@ def streams(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         out[name] = folder / f"{name}.jsonl"
         write_stream(out[name], [c for c in map(change, world) if c is not None])
     return out
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return run_cli(*args)
 
 
 def _suspect(stderr: str) -> list[str]:
