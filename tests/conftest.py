@@ -20,6 +20,19 @@ SHARED_DATA = Path(os.environ.get(DATA_VARIABLE) or Path(__file__).resolve().par
 REAL_DATA_SKIP = "real data: "
 
 
+@pytest.fixture
+def mrclam_head(tmp_path: Path) -> Path:
+    """The first 120 lines of replay/'s MRCLAM robot-1 stream as a file: a short stream whose header names the
+    robot."""
+    import gzip
+    import itertools
+
+    head = tmp_path / "head.jsonl"
+    with gzip.open(Path(__file__).resolve().parents[1] / "replay" / "mrclam6_robot1.jsonl.gz", "rt") as lines:
+        head.write_text("".join(itertools.islice(lines, 120)), encoding="utf-8")
+    return head
+
+
 def needs_data(relative: str) -> pytest.MarkDecorator:
     """Skip a test when the real dataset ``relative`` (a folder or file under :data:`SHARED_DATA`) is absent."""
     return pytest.mark.skipif(

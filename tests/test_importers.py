@@ -164,7 +164,7 @@ def test_mrclam_batch_equals_gtsam_from_the_same_initial_values() -> None:
     from online_slam.frontend import FrontEnd
 
     fe, batch, ekf = FrontEnd(), BatchEstimator(), EkfSlam()
-    for step in fe.steps(open_dataset(MRCLAM, robot=4, half="first")):  # half the work; the whole: same figure
+    for step in fe.steps(open_dataset(MRCLAM, robot=4, half="first")):  # half the work of the whole run
         batch.step(step)
         ekf.step(step)
     start = ekf.finish()

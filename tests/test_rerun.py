@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import gzip
-import itertools
 import json
 import re
 import shutil
@@ -22,8 +20,6 @@ pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
 from conftest import stop_process_tree  # noqa: E402
 
 from online_slam.sinks.recording import Recording, blueprint_views  # noqa: E402
-
-MRCLAM = Path(__file__).resolve().parents[1] / "replay" / "mrclam6_robot1.jsonl.gz"
 
 
 @pytest.fixture(scope="module")
@@ -182,10 +178,8 @@ def test_recorded_events_name_ids_as_ids(square_recording: tuple[Path, dict]) ->
 
 
 @pytest.mark.slow
-def test_the_robot_is_in_the_recording_and_inspect(tmp_path: Path) -> None:
-    head, rrd = tmp_path / "head.jsonl", tmp_path / "robot1.rrd"
-    with gzip.open(MRCLAM, "rt", encoding="utf-8") as lines:
-        head.write_text("".join(itertools.islice(lines, 120)), encoding="utf-8")
+def test_the_robot_is_in_the_recording_and_inspect(mrclam_head: Path, tmp_path: Path) -> None:
+    head, rrd = mrclam_head, tmp_path / "robot1.rrd"
     done = cli("replay", str(head), "--estimators", "ekf", "--rrd", str(rrd), "--quiet")
     assert done.returncode == 0, done.stderr
     with Recording(rrd) as recording:
