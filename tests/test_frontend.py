@@ -169,3 +169,24 @@ def test_steps_stream_before_the_source_ends() -> None:
     assert next(steps).index == 1
     with pytest.raises(RuntimeError):
         next(steps)
+
+
+def test_each_sightings_widening_reaches_its_step_and_its_own_covariance_is_the_declared_one_narrowed() -> None:
+    """``widened`` (a line's variance factors): a step carries each sighting's, ones where a line gives none, and
+    ``z_own_cov`` divides the covariance declared (times a noise scale, which the factors do not change) by
+    ``sqrt(f f^T)``: a full covariance keeps its correlation."""
+    cov = ((0.04, 0.003), (0.003, 0.0009))
+    events = [
+        obs(0.0, "a"),
+        Observation(t=0.0, landmark="b", range=3.0, bearing=0.2, sigma=SIG2, widened=(4.0, 9.0)),
+        Observation(t=0.0, landmark="c", range=3.0, bearing=0.2, cov=cov, widened=(25.0, 1.0)),
+        odo(1.0),
+        obs(1.0, "a"),
+    ]
+    steps = list(FrontEnd(FrontEndConfig(sensor_noise_scale=2.0)).steps(events))
+    np.testing.assert_array_equal(steps[0].z_widening, [[1.0, 1.0], [4.0, 9.0], [25.0, 1.0]])
+    own = steps[0].z_own_cov()
+    np.testing.assert_allclose(own[0], steps[0].z_cov[0], rtol=1e-15)
+    np.testing.assert_allclose(own[1], 2.0 * np.diag([0.1**2 / 4.0, 0.01**2 / 9.0]), rtol=1e-12)
+    np.testing.assert_allclose(own[2], 2.0 * np.array([[0.04 / 25.0, 0.003 / 5.0], [0.003 / 5.0, 0.0009]]), rtol=1e-12)
+    assert steps[1].z_widening.shape == (1, 2) and steps[1].z_own_cov() is steps[1].z_cov  # nothing widened

@@ -50,9 +50,9 @@ def streams(draw: st.DrawFn) -> list:
             events.append(Odometry(t=t, delta=(1.0, 0.0, 0.5), cov=((a, 0.0, 0.0), (0.0, b, 0.0), (0.0, 0.0, a))))
         elif kind == "observation":
             landmark, hidden = draw(st.one_of(st.none(), ids)), draw(st.one_of(st.none(), ids))
-            events.append(
-                Observation(t, landmark, draw(positive), draw(bearings), sigma=(0.1, 0.01), truth_landmark=hidden)
-            )
+            widened = draw(st.one_of(st.none(), st.tuples(*[st.floats(1.0, 1e9)] * 2)))
+            z = (draw(positive), draw(bearings))
+            events.append(Observation(t, landmark, *z, sigma=(0.1, 0.01), truth_landmark=hidden, widened=widened))
         elif kind == "truth":
             events.append(Truth(t=t, pose=draw(st.tuples(finite, finite, finite))))
         else:
@@ -126,6 +126,10 @@ BAD_LINES = [
     (json.dumps({**OK_OBS, "sigma": None, "cov": [[1, 0.5], [0, 1]]}).replace('"sigma": null, ', ""), "cov", "symm"),
     (json.dumps({**OK_OBS, "cov": [[1, 0], [0, 1]]}), "cov", "either sigma or cov"),
     (json.dumps({"type": "landmark_truth", "landmark": 1, "position": [1]}), "position", "list of 2"),
+    (json.dumps({**OK_OBS, "widened": [0.5, 2.0]}), "widened[0]", "variance factor >= 1"),
+    (json.dumps({**OK_OBS, "widened": [2.0, 1e13]}), "widened[1]", "magnitude <= 1e+09"),
+    (json.dumps({**OK_OBS, "widened": 4.0}), "widened", "list of 2 numbers"),
+    (json.dumps({**OK_OBS, "widened": [1.0, 1.0]}).replace("[1.0, 1.0]", "[NaN, 1]"), "widened[0]", "finite"),
 ]
 
 

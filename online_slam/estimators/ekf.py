@@ -295,7 +295,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         return y, H_s, columns
 
     def update_structured(
-        self, indices: NDArray[np.int64], z: Array, R: Array, model: Any = RANGE_BEARING
+        self, indices: NDArray[np.int64], z: Array, R: Array, model: Any = RANGE_BEARING, own: Array | None = None
     ) -> tuple[Array, NDArray[np.bool_]]:
         """Joint update with k observations of known landmarks; O(n^2 k).
 
@@ -304,6 +304,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             z: Observations, shape (k, 2).
             R: Their covariances, shape (k, 2, 2).
             model: Their model tags (k,), or one tag for all (default range-bearing).
+            own: Their own covariances (k, 2, 2) where R is widened (:meth:`Step.z_own_cov`); None: R.
 
         Returns:
             (NIS of each observation at the predicted state, shape (k,); which were accepted, shape (k,)).
@@ -356,7 +357,8 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             PHt, S, y = PHt[:, keep], S[np.ix_(keep, keep)], y[accepted]
         rise = 1.0
         if len(y) and self.config.adaptation.enabled:
-            rise = update_adaptation(self.state.adaptation, S, R[accepted], y, self.config.adaptation)
+            own = R if own is None else own
+            rise = update_adaptation(self.state.adaptation, S, R[accepted], y, self.config.adaptation, own[accepted])
         if len(y):
             try:
                 self._apply(PHt, S, y.reshape(-1))
@@ -466,11 +468,15 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         """Update with the step's observations ``start:``, add new landmarks, record what happened."""
         ids: tuple[LandmarkId | None, ...] | list[LandmarkId | None]  # as given, or as associated
         ids, z_all, R_all, m_all = step.landmarks[start:], step.z[start:], step.z_cov[start:], step.z_model[start:]
-        k = len(ids)
+        own = R_all if self.book.needs(ids) else step.z_own_cov()[start:]  # associated: judged as declared
+
+        def rows(at: Any) -> tuple[Array, Array, NDArray[np.int8], Array]:  # z, R, models, own covariances
+            return z_all[at], R_all[at], m_all[at], own[at]
+
+        nis = np.full(len(ids), np.nan)
         if self.book.needs(ids):
             ids = self._associate(step.index, ids, z_all, R_all, m_all)
         self.state.step_ids += ids
-        nis = np.full(k, np.nan)
         held = np.array([lid is None for lid in ids], dtype=bool)
         rejected = held.copy()  # a sighting association kept back is not used
         gated: list[LandmarkId] = []
@@ -480,12 +486,12 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             # Cast: a known sighting's id is in the index, so it is not None.
             indices = np.array([self.state.index[cast(LandmarkId, ids[i])] for i in where], dtype=np.int64)
             if self.config.update == "joint":
-                nis[where], accepted = self.update_structured(indices, z_all[where], R_all[where], m_all[where])
+                nis[where], accepted = self.update_structured(indices, *rows(where))
             else:
                 accepted = np.ones(len(where), dtype=bool)
                 for j, i in enumerate(where):
                     nis[i : i + 1], accepted[j : j + 1] = self.update_structured(
-                        indices[j : j + 1], z_all[i : i + 1], R_all[i : i + 1], m_all[i : i + 1]
+                        indices[j : j + 1], *rows(slice(i, i + 1))
                     )
             gated = [ids[i] for i in where[~accepted]]
             rejected[where[~accepted]] = True
@@ -493,9 +499,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         for i in np.flatnonzero(~known & ~held):
             lid = cast(LandmarkId, ids[i])  # not held: it has an id
             if lid in self.state.index:  # seen twice in this step: the first sighting initialised it
-                nis[i : i + 1], ok = self.update_structured(
-                    np.array([self.state.index[lid]]), z_all[i : i + 1], R_all[i : i + 1], m_all[i : i + 1]
-                )
+                nis[i : i + 1], ok = self.update_structured(np.array([self.state.index[lid]]), *rows(slice(i, i + 1)))
                 if not ok[0]:
                     gated.append(lid)
                     rejected[i] = True

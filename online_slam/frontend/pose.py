@@ -68,10 +68,28 @@ class Step:
     z_widened: bool = False
     """The source declares (header ``sightings_correlated``) the sightings' covariances widened for errors
     correlated in time: their innovations read smaller than declared, and no adaptation shrinks them."""
+    z_widening: Array = None  # type: ignore[assignment]  # not given: __post_init__ puts ones, never None
+    """How many times each sighting's ``z_cov`` variances exceed its own (its line's ``widened``), shape (k, 2),
+    each >= 1; not given: ones. Noise adaptation judges innovations by ``z_cov / sqrt(f f^T)``."""
 
     def __post_init__(self) -> None:
         if self.z_model is None:
             object.__setattr__(self, "z_model", np.zeros(len(self.landmarks), dtype=np.int8))
+        if self.z_widening is None:
+            object.__setattr__(self, "z_widening", np.ones((len(self.landmarks), 2)))
+
+    def z_own_cov(self) -> Array:
+        """The sightings' own covariances (``z_cov`` without :attr:`z_widening`; ``z_cov`` itself when no sighting
+        is widened), shape (k, 2, 2)."""
+        if (self.z_widening == 1.0).all():
+            return self.z_cov
+        d = 1.0 / np.sqrt(self.z_widening)
+        return self.z_cov * d[:, :, None] * d[:, None, :]
+
+
+SIGHTING_ARRAYS = ("z", "z_cov", "z_model", "z_widening")
+"""The :class:`Step` arrays with a row per landmark sighting (a step keeping some of its sightings keeps their rows
+of each)."""
 
 
 @dataclass
@@ -116,6 +134,7 @@ class PendingStep:
     z_model: list[int] = field(default_factory=list)  # per sighting: its model's tag
     z_mount: list[tuple[float, ...]] = field(default_factory=list)  # per sighting: its sensor's pose, if ``mounted``
     z_sensor: list[str | None] = field(default_factory=list)  # per sighting: its sensor's name, if ``mounted``
+    z_widening: list[Any] = field(default_factory=list)  # per sighting: its ``widened`` (2,) or None
     mounted: bool = False  # the stream declares sensors: the step's models carry each sighting's mounting
     widened: bool = False  # the stream declares its sighting covariances widened for correlation (Step.z_widened)
     sealed: bool = False  # an estimator has seen this pose: keyframing may no longer move it
@@ -172,7 +191,14 @@ class PendingStep:
             sensors=tuple(self.z_sensor),
             fixes=tuple(self.fixes),
             z_widened=self.widened,
+            z_widening=self._widening(),  # type: ignore[arg-type]  # None: Step puts ones
         )
+
+    def _widening(self) -> Array | None:
+        """The sightings' :attr:`Step.z_widening` (None when none gave one: ones)."""
+        if not any(w is not None for w in self.z_widening):
+            return None
+        return np.array([(1.0, 1.0) if w is None else w for w in self.z_widening], dtype=float)
 
     def _models(self) -> NDArray[Any]:
         """The sightings' model tags, or with sensors their :data:`~online_slam.models.observation.SIGHTING`

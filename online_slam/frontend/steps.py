@@ -338,6 +338,7 @@ class FrontEnd:
             pending.z.append(event.z)
             pending.z_model.append(event.model)
             pending.z_noise.append(event.sigma if event.cov is None else event.cov)
+            pending.z_widening.append(event.widened)
             if event.cov is not None:
                 pending.full_covariance = True
             if pending.mounted:
@@ -366,6 +367,7 @@ class FrontEnd:
             pending.landmarks.extend(event.landmarks[i] for i in keep)
             pending.z.extend(z_list[i] for i in keep)
             pending.z_noise.extend(event.noise[i] for i in keep)
+        pending.z_widening.extend([None] * len(keep))
         if event.noise and isinstance(event.noise[0][0], tuple):
             pending.full_covariance = True
 

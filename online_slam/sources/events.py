@@ -199,6 +199,11 @@ class Observation:
     sensor: str | None = None
     """The sensor that took it (a name the header's ``sensors`` declares with its pose in the robot frame; z is
     then in the sensor's frame), or None: a sensor at the robot's centre."""
+    widened: Vector | None = None
+    """How many times each component's variance in ``sigma`` / ``cov`` exceeds the sighting's own (each >= 1): the
+    source widened it for errors this sighting shares with earlier ones (MRCLAM's converter), which its
+    innovation does not show; None: not widened. The estimators use the covariance given; noise adaptation judges
+    innovations by the sighting's own."""
 
     @property
     def z(self) -> tuple[float, float]:
@@ -238,6 +243,8 @@ class Observation:
             record["robot"] = self.robot
         if self.sensor is not None:
             record["sensor"] = self.sensor
+        if self.widened is not None:
+            record["widened"] = list(self.widened)
         return record
 
 

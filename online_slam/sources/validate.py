@@ -65,6 +65,7 @@ FIELDS: dict[str, set[str]] = {
         "truth_outlier",
         "truth_landmark",
         "sensor",
+        "widened",
     }
     | ROBOT_FIELDS["observation"],
     "truth": {"type", "t", "pose", "position", "offset"} | ROBOT_FIELDS["truth"],
@@ -393,6 +394,7 @@ class EventValidator(ScanRules, RobotRules):
         sensor = self.sensor(record.get("sensor"), self._pending.sensors, line)
         if sensor is not None and seen is not None:
             raise self.fail(line, "sensor", "a sighting of a robot is taken at the robot's centre (no sensor)")
+        widened = None if "widened" not in record else self.widening(record, line)
         return Observation(
             t,
             landmark,
@@ -406,7 +408,16 @@ class EventValidator(ScanRules, RobotRules):
             robot_seen=seen,
             xy=xy,
             sensor=sensor,
+            widened=widened,
         )
+
+    def widening(self, record: dict[str, Any], line: int) -> Vector:
+        """An observation's ``widened``: two variance factors >= 1 (and, as every number, <= ``MAX_MAGNITUDE``)."""
+        factors = self.vector(record, "widened", 2, line)
+        for i, f in enumerate(factors):
+            if not f >= 1.0:
+                raise self.fail(line, f"widened[{i}]", f"expected a variance factor >= 1 (given over own), got {f}")
+        return factors
 
     def _sighting(self, record: dict[str, Any], line: int) -> tuple[float | None, float | None, Vector | None]:
         """An observation's measurement: (range, bearing, None), or (None, None, xy) for a position sighting."""

@@ -69,6 +69,7 @@ from online_slam.estimators.smoother.window import (
 )
 from online_slam.factors.graph import FactorGraph
 from online_slam.factors.robust import outlier_threshold
+from online_slam.frontend.pose import SIGHTING_ARRAYS
 from online_slam.frontend.steps import Step
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.pose_moments import reported
@@ -376,15 +377,13 @@ class SlidingWindowSmoother(SeveralRobots):
                 self.association_covariance,
             )
         keep = np.array([lid is not None for lid in ids], dtype=bool)
-        resolved = replace(
-            step,
-            landmarks=base.landmarks[:cut] + tuple(lid for lid, ok in zip(ids, keep) if ok),
-            z=np.concatenate([base.z[:cut], step.z[start:][keep]]),
-            z_cov=np.concatenate([base.z_cov[:cut], step.z_cov[start:][keep]]),
-            z_model=np.concatenate([base.z_model[:cut], step.z_model[start:][keep]]),
-        )
-        a.resolved = resolved
-        return resolved, cut
+        new = replace(step, z_widening=np.ones_like(step.z_widening)) if needed else step  # associated: as declared
+        arrays: dict[str, Any] = {
+            f: np.concatenate([getattr(base, f)[:cut], getattr(new, f)[start:][keep]]) for f in SIGHTING_ARRAYS
+        }
+        landmarks = base.landmarks[:cut] + tuple(lid for lid, ok in zip(ids, keep) if ok)
+        a.resolved = replace(step, landmarks=landmarks, **arrays)
+        return a.resolved, cut
 
     def _adapt(self, step: Step, start: int) -> None:
         """Fold the newest pose's sightings ``start:`` of landmarks already mapped into the noise adaptation."""
@@ -400,7 +399,8 @@ class SlidingWindowSmoother(SeveralRobots):
         joint = joint[np.ix_(columns, columns)]
         at = start + np.array(rows)
         pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
-        F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, self.state.adaptation.working)
+        own, working = step.z_own_cov()[at], self.state.adaptation.working
+        F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, working, own)
         if (rise := adapt(self.state.adaptation, F, q, self.config.adaptation)) > 1.0 and self.prior is not None:
             self.prior.Sigma *= rise  # its fold-ins took the odometry too sure, as the EKF's covariance did
 

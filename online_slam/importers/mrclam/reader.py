@@ -44,7 +44,7 @@ from online_slam.errors import InputError
 from online_slam.geometry.angles import wrap
 from online_slam.geometry.se2 import between, rotation
 from online_slam.importers._lines import table
-from online_slam.importers.mrclam.sightings import CAMERAS, Camera, camera_sightings, mounting
+from online_slam.importers.mrclam.sightings import CAMERAS, Camera, camera_sightings, mounting, widened_field
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 
@@ -471,7 +471,7 @@ def read_mrclam(
     if not len(data.times):
         raise InputError(str(root), 0, "robot", f"robot {robot} has no sightings in that part of the recording")
     kept_subjects, times, truth = data.subjects, data.times, data.truth
-    camera, kept, sigmas = camera_sightings(cfg, robot, data.measurements, kept_subjects, mounted=True)
+    camera, kept, sigmas, widening = camera_sightings(cfg, robot, data.measurements, kept_subjects, mounted=True)
     sensors = {} if camera is None else {"sensors": {"camera": {"pose": mounting(camera)}}}
     landmarks = table(root / "Landmark_Groundtruth.dat", ("subject", "x", "y", "x_std", "y_std"))
     increments, covariances = odometry_increments(data.odometry, times, cfg)
@@ -514,4 +514,5 @@ def read_mrclam(
                 bearing=float(kept[i, 3]),
                 sigma=(float(sigmas[i, 0]), float(sigmas[i, 1])),
                 sensor=None if camera is None else "camera",
+                widened=widened_field(widening[i]),
             )

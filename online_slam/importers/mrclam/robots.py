@@ -37,7 +37,7 @@ from online_slam.importers.mrclam.reader import (
     noise_meta,
     odometry_increments,
 )
-from online_slam.importers.mrclam.sightings import camera_of, camera_sightings, mounting
+from online_slam.importers.mrclam.sightings import camera_of, camera_sightings, mounting, widened_field
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
 
 ROBOTS = (1, 2, 3, 4, 5)
@@ -76,9 +76,9 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             robot,
             Truth(t=float(times[j]), pose=tuple(map(float, true_poses[j])), robot=robot),
         )
-    camera, rows, sigmas = camera_sightings(cfg, robot, data.measurements, data.subjects, mounted=True)
+    camera, rows, sigmas, widening = camera_sightings(cfg, robot, data.measurements, data.subjects, mounted=True)
     sensor = None if camera is None else f"camera{robot}"
-    for row, subject, sigma in zip(rows, data.subjects, sigmas):
+    for row, subject, sigma, factors in zip(rows, data.subjects, sigmas, widening):
         t = float(row[0])
         sighting = Observation(
             t,
@@ -88,9 +88,10 @@ def _robot_lines(robot: int, data: RobotData, times: np.ndarray, cfg: MrclamNois
             (float(sigma[0]), float(sigma[1])),
             robot=robot,
             sensor=sensor,
+            widened=widened_field(factors),
         )
         yield t, _SIGHTING, robot, sighting
-    _, placed, widened = camera_sightings(cfg, robot, data.robot_rows, data.robots_seen, cfg.robot_barcode_m)
+    _, placed, widened, _ = camera_sightings(cfg, robot, data.robot_rows, data.robots_seen, cfg.robot_barcode_m)
     for row, seen, sigma in zip(placed, data.robots_seen, widened):
         t = float(row[0])
         yield (

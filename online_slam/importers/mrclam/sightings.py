@@ -99,11 +99,19 @@ def sighting_sigmas(
     Returns:
         Sigmas ``[range, bearing]``, shape (N, 2).
     """
-    base = base_sigmas(noise, ranges, camera)
-    factors = [
-        information_factors(times, subjects, terms) for terms in (noise.range_correlation, noise.bearing_correlation)
-    ]
-    return base * np.sqrt(np.stack(factors, -1))
+    return base_sigmas(noise, ranges, camera) * np.sqrt(sighting_widening(noise, times, subjects))
+
+
+def sighting_widening(noise: MrclamNoise, times: np.ndarray, subjects: np.ndarray) -> np.ndarray:
+    """The factors :func:`sighting_sigmas` widens each sighting's range and bearing variance by
+    (:func:`information_factors`), shape (N, 2), each >= 1: what a stream's ``widened`` carries."""
+    terms = (noise.range_correlation, noise.bearing_correlation)
+    return np.stack([information_factors(times, subjects, t) for t in terms], -1)
+
+
+def widened_field(factors: np.ndarray) -> tuple[float, float] | None:
+    """A sighting's ``widened`` from its row of :func:`sighting_widening` (None where it widens by nothing)."""
+    return None if (factors == 1.0).all() else (float(factors[0]), float(factors[1]))
 
 
 DIFFUSE = 1e8
@@ -199,17 +207,19 @@ def camera_sightings(
     subjects: np.ndarray,
     range_offset: float = 0.0,
     mounted: bool = False,
-) -> tuple[Camera | None, np.ndarray, np.ndarray]:
+) -> tuple[Camera | None, np.ndarray, np.ndarray, np.ndarray]:
     """One robot's sightings as the stream carries them: its camera (None without one), the rows
     ``(t, barcode, range, bearing)`` placed by it (:func:`through_camera`; from the camera itself with
-    ``mounted``), their range less ``range_offset``, and their widened sigmas (:func:`sighting_sigmas`,
-    ``subjects`` grouping them; from the ranges to the robot's centre either way), shapes (N, 4) and (N, 2)."""
+    ``mounted``), their range less ``range_offset``, their widened sigmas (:func:`sighting_sigmas`, ``subjects``
+    grouping them; from the ranges to the robot's centre either way) and the variance factors they are widened by
+    (:func:`sighting_widening`), shapes (N, 4), (N, 2) and (N, 2)."""
     camera = camera_of(noise, robot)
     centred = np.array(through_camera(rows, camera), dtype=float)
     centred[:, 2] -= range_offset
-    sigmas = sighting_sigmas(noise, centred[:, 0], subjects, centred[:, 2], camera)
+    widening = sighting_widening(noise, centred[:, 0], subjects)
+    sigmas = base_sigmas(noise, centred[:, 2], camera) * np.sqrt(widening)
     if not mounted or camera is None:
-        return camera, centred, sigmas
+        return camera, centred, sigmas, widening
     placed = np.array(through_camera(rows, camera, mounted=True), dtype=float)
     placed[:, 2] -= range_offset
-    return camera, placed, sigmas
+    return camera, placed, sigmas, widening
