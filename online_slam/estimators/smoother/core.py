@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from online_slam.checkpoint import from_tree, to_tree
-from online_slam.estimators.adaptation import GATE, adapt, adapted_info, entering, sighting_statistics
+from online_slam.estimators.adaptation import adapted_info, entering, fold_sightings
 from online_slam.estimators.blas import OneThreadBlas
 from online_slam.estimators.landmark_book import LandmarkBook
 from online_slam.estimators.problem import ProblemLog
@@ -399,9 +399,9 @@ class SlidingWindowSmoother(SeveralRobots):
         joint = joint[np.ix_(columns, columns)]
         at = start + np.array(rows)
         pose, z, R, model = w.poses[w.indices[-1]], step.z[at], step.z_cov[at], step.z_model[at]
-        own, working = step.z_own_cov()[at], self.state.adaptation.working
-        F, q = sighting_statistics(pose, w.landmarks[indices], z, R, model, joint, GATE, working, own)
-        if (rise := adapt(self.state.adaptation, F, q, self.config.adaptation)) > 1.0 and self.prior is not None:
+        own, state = step.z_own_cov()[at], self.state.adaptation
+        rise = fold_sightings(state, pose, w.landmarks[indices], z, R, own, model, joint, self.config.adaptation)
+        if rise > 1.0 and self.prior is not None:
             self.prior.Sigma *= rise  # its fold-ins took the odometry too sure, as the EKF's covariance did
 
     def _add_retro(self) -> None:
