@@ -120,12 +120,8 @@ def adapt(
     state.information = keep * state.information + F
     state.quadratic = keep * state.quadratic + q
     state.updates += 1
-    info = state.information
-    a, b, d = info[0, 0], info[0, 1], info[1, 1]
-    det = a * d - b * b
-    if a <= 0.0 or d <= 0.0 or det <= 1e-12 * (a + d) ** 2:  # one part not seen yet: nothing to say of it
+    if (inverse := _inverse(state.information)) is None:
         return 1.0
-    inverse = np.array([[d, -b], [-b, a]]) / det
     estimate = inverse @ state.quadratic
     g = q - F @ estimate
     state.dispersion = keep * state.dispersion + np.outer(g, g) + np.outer(g, state.recent) + np.outer(state.recent, g)
@@ -146,18 +142,33 @@ def adapt(
         if abs(estimate[i] - 1.0) > config.threshold * (independent[i] if rises else robust[i]):
             floor = 1.0 if i == 0 or state.widened else config.sensor_floor
             scales[i] = min(config.max_scale, max(floor, scales[i] * math.exp(config.gain * math.log(estimate[i]))))
-    # The remembered updates were judged under the scales before: what they say of the new ones is their estimate
-    # over the change (without this the scales wind up past the truth while the memory lags).
-    now = estimate * before / scales
+    _carry(state, inverse, estimate, before, scales)
+    return max(1.0, state.odometry_scale / float(before[0]))
+
+
+def _inverse(info: Array) -> Array | None:
+    """The inverse of a 2x2 information ``F``; None while one part is not seen yet (nothing to say of it)."""
+    a, b, d = info[0, 0], info[0, 1], info[1, 1]
+    det = a * d - b * b
+    if a <= 0.0 or d <= 0.0 or det <= 1e-12 * (a + d) ** 2:
+        return None
+    return np.array([[d, -b], [-b, a]]) / det
+
+
+def _carry(state: Adaptation, inverse: Array, estimate: Array, before: Array, after: Array) -> None:
+    """Set the scales to ``after`` (in place), the remembered statistics with them: they were judged under the scales
+    ``before``, so what they say of the new ones is their ``estimate`` over the change (without this the scales wind
+    up past the truth while the memory lags)."""
+    info = state.information
+    now = estimate * before / after
     state.quadratic = info @ now
-    if (scales != before).any():  # the scores' dispersion in the new units: theta' = D theta, so Omega' = M Omega M^T
-        M = info @ np.diag(before / scales) @ inverse
+    if (after != before).any():  # the scores' dispersion in the new units: theta' = D theta, so Omega' = M Omega M^T
+        M = info @ np.diag(before / after) @ inverse
         state.dispersion = M @ state.dispersion @ M.T
         state.recent = M @ state.recent
-    state.odometry_scale, state.sensor_scale = float(scales[0]), float(scales[1])
+    state.odometry_scale, state.sensor_scale = float(after[0]), float(after[1])
     if state.updates >= WORKING_AFTER:
         state.working = np.clip(now, *WORKING_RANGE)
-    return max(1.0, state.odometry_scale / float(before[0]))
 
 
 def update_adaptation(
@@ -206,18 +217,12 @@ def own_statistics(state: Adaptation) -> Adaptation:
 def _rescale(state: Adaptation, odometry: float, sensor: float) -> None:
     """Set the scales (in place), the remembered statistics taken to them as :func:`adapt` takes them."""
     before, after = np.array([state.odometry_scale, state.sensor_scale]), np.array([odometry, sensor])
-    info = state.information
-    a, b, d = info[0, 0], info[0, 1], info[1, 1]
-    det = a * d - b * b
-    if (before != after).any() and a > 0.0 and d > 0.0 and det > 1e-12 * (a + d) ** 2:
-        inverse = np.array([[d, -b], [-b, a]]) / det
-        now = inverse @ state.quadratic * before / after
-        state.quadratic = info @ now
-        M = info @ np.diag(before / after) @ inverse
-        state.dispersion, state.recent = M @ state.dispersion @ M.T, M @ state.recent
-        if state.updates >= WORKING_AFTER:
-            state.working = np.clip(now, *WORKING_RANGE)
-    state.odometry_scale, state.sensor_scale = odometry, sensor
+    if (before == after).all():
+        return
+    if (inverse := _inverse(state.information)) is None:
+        state.odometry_scale, state.sensor_scale = odometry, sensor
+        return
+    _carry(state, inverse, inverse @ state.quadratic, before, after)
 
 
 def _block_diagonal(R: Array) -> Array:

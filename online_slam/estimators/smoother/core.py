@@ -349,10 +349,8 @@ class SlidingWindowSmoother(SeveralRobots):
 
     # -- association -----------------------------------------------------------------------------
     def _resolve(self, step: Step, start: int) -> tuple[Step, int]:
-        """The step with the sightings ``start:`` associated (those not used left out), and where they begin.
-
-        Without association (every sighting has an id, ids used) this is the step itself.
-        """
+        """The step with the sightings ``start:`` associated (those not used left out, those kept judged as declared
+        by noise adaptation), and where they begin. Without association (every sighting has an id) the step itself."""
         a, w = self.association, self.window
         ids: tuple[LandmarkId | None, ...] | list[LandmarkId | None] = step.landmarks[start:]  # or as associated
         needed = a.book.needs(ids)
@@ -377,10 +375,11 @@ class SlidingWindowSmoother(SeveralRobots):
                 self.association_covariance,
             )
         keep = np.array([lid is not None for lid in ids], dtype=bool)
-        new = replace(step, z_widening=np.ones_like(step.z_widening)) if needed else step  # associated: as declared
         arrays: dict[str, Any] = {
-            f: np.concatenate([getattr(base, f)[:cut], getattr(new, f)[start:][keep]]) for f in SIGHTING_ARRAYS
+            f: np.concatenate([getattr(base, f)[:cut], getattr(step, f)[start:][keep]]) for f in SIGHTING_ARRAYS
         }
+        if needed:
+            arrays["z_widening"][cut:] = 1.0
         landmarks = base.landmarks[:cut] + tuple(lid for lid, ok in zip(ids, keep) if ok)
         a.resolved = replace(step, landmarks=landmarks, **arrays)
         return a.resolved, cut
