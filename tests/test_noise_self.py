@@ -187,3 +187,35 @@ def test_cli_noise_self_refuses_a_scale_and_stdin(args: tuple[str, ...], stdin: 
     result = cli("replay", *args, stdin=stdin)
     assert result.returncode == 2
     assert len(result.stderr.strip().splitlines()) == 1 and message in result.stderr
+
+
+def _widened(events, factors: tuple[float, float]) -> list:
+    """The events with each landmark sighting's variances widened by ``factors`` (range, bearing), as its line says,
+    and the header saying ``sightings_correlated`` (MRCLAM's conversion, errors here independent)."""
+    f = np.asarray(factors)
+    out = []
+    for e in events:
+        if isinstance(e, Header):
+            e = dataclasses.replace(e, meta={**e.meta, "sightings_correlated": True})
+        elif isinstance(e, Observation) and e.landmark is not None:
+            e = dataclasses.replace(e, sigma=tuple(np.asarray(e.sigma) * np.sqrt(f)), widened=tuple(f))
+        out.append(e)
+    return out
+
+
+@pytest.mark.parametrize("declared, applied", [(1.0, (1.0, 1.1)), (0.09, (9.4, 12.8))], ids=["right", "sensor 0.3x"])
+def test_widened_sightings_read_against_their_own_covariances_rescale_a_sensor_declared_too_sure(
+    declared: float, applied: tuple[float, float]
+) -> None:
+    """Sightings widened 25x / 16x by their lines: against the widened covariances the fit reads ~1/20 and applies
+    nothing (the widening is the source's); against their own it reads the factor the sensor is off by and applies it
+    where above 1 (11.1 for 0.3x: within 15%), and nothing where declared right."""
+    world = _widened(_declared(grid_world(GridConfig(poses=150, seed=3)), (1.0, declared)), (25.0, 16.0))
+    told: list = []
+    replay(world, replay_config({"noise": "self", "estimators": "ekf"}), on_noise_fit=told.append)
+    (fit,) = told
+    assert fit.sightings_correlated and fit.sensor_scale < 0.1 / declared
+    assert fit.own_sensor_scale is not None and applied[0] <= fit.applied_sensor_scale <= applied[1], fit
+    assert fit.applied_sensor_scale == max(1.0, fit.own_sensor_scale)
+    assert "sensor scale against the sightings' own covariances" in describe(fit)
+    assert with_noise_fit(replay_config({}), fit).frontend.sensor_noise_scale == fit.applied_sensor_scale

@@ -32,6 +32,15 @@ Only sightings with a landmark id are used: associating sightings without one de
 being fitted (every gate is drawn with them), so a fit on such associations would check itself. A stream with no
 sighting with an id is refused.
 
+A source whose sightings are widened for the correlation of repeated sightings (header ``sightings_correlated``)
+gets its sensor scale and biases measured and shown, not applied: the fit sees each sighting as independent and takes
+the widening for an overstatement (MRCLAM reads 0.007-0.023). Where the lines also say by how much each was widened
+(``widened``: :meth:`~online_slam.frontend.pose.Step.z_own_cov`), :func:`own_sensor_scale` fits the scale again
+against the sightings' own covariances, and a scale above 1 there is applied: the errors the landmarks' positions
+absorb (those alike over a landmark's sightings) only lower that reading (MRCLAM declared right: 0.20-0.51), so a
+reading above 1 says the sensor is declared too sure by at least that much (MRCLAM declared 0.3x: 2.1-5.6, against
+the 11.1 it is off by). Below 1 it says nothing, and nothing is applied.
+
 What it cannot see: errors correlated in time (a slip that lasts, one landmark's errors alike for a while) look to
 it like independent ones, and a component of a covariance off against the others (range against bearing) is
 scaled with them.
@@ -153,11 +162,17 @@ class SelfFit:
     repeated sightings: the sensor scale and the biases are measured and shown, not applied. The fit sees each
     sighting as independent: it takes the widening for an overstatement, and a landmark's errors that stay alike for
     a while for a bias; applied on MRCLAM, both made every estimator overconfident (docs/commands.md)."""
+    own_sensor_scale: float | None = None
+    """For correlated sightings whose lines say their widening: the sensor scale fitted against their own
+    covariances (:func:`own_sensor_scale`), a lower bound of the scale the sensor is off by; None: not fitted."""
 
     @property
     def applied_sensor_scale(self) -> float:
-        """The sensor scale a replay applies: :attr:`sensor_scale`, or 1 for correlated sightings."""
-        return 1.0 if self.sightings_correlated else self.sensor_scale
+        """The sensor scale a replay applies: :attr:`sensor_scale`; for correlated sightings, :attr:`own_sensor_scale`
+        where it is above 1, else 1 (see the module's docstring)."""
+        if not self.sightings_correlated:
+            return self.sensor_scale
+        return max(1.0, self.own_sensor_scale or 1.0)
 
     @property
     def sensor_bias(self) -> tuple[SensorBias, ...]:
@@ -250,6 +265,19 @@ def fit_self(steps: Iterable[Step], config: SelfFitConfig | None = None, initial
             judged = [] if key in judged else [*judged, key]  # back to an earlier set: it cycles; judge no more
     close = int(np.sum(data.reach <= cfg.min_range_sigmas * math.sqrt(state.scales[1])))
     return _result(data, state, iterations, converged, float(norm.isf(cfg.bias_false_alarm / 2.0)), close)
+
+
+def own_sensor_scale(
+    steps: Iterable[Step], config: SelfFitConfig | None = None, initial: Estimate | None = None
+) -> float | None:
+    """The sensor scale :func:`fit_self` reads with each sighting's covariance divided by its widening (its own,
+    :meth:`~online_slam.frontend.pose.Step.z_own_cov`); None when no sighting says it was widened. Arguments as
+    :func:`fit_self`'s."""
+    steps = list(steps)
+    if all((step.z_widening == 1.0).all() for step in steps):
+        return None
+    own = [dataclasses.replace(s, z_cov=s.z_own_cov(), z_widening=np.ones_like(s.z_widening)) for s in steps]
+    return fit_self(own, config, initial).sensor_scale
 
 
 def _data(steps: Iterable[Step], min_sightings: int, initial: Estimate | None) -> _Data:
@@ -497,6 +525,15 @@ def describe(fit: SelfFit) -> str:
             "  sensor scale and biases not applied: the source's header says sightings_correlated (its sigmas are "
             "widened on purpose for the correlation of repeated sightings)"
         )
+        if fit.own_sensor_scale is not None:
+            verdict = (
+                "above 1: the sensor is declared too sure by at least that much, applied"
+                if fit.own_sensor_scale > 1.0
+                else "not above 1: says nothing, as the landmarks absorb errors alike over their sightings"
+            )
+            lines.append(
+                f"  sensor scale against the sightings' own covariances {fit.own_sensor_scale:.3g} ({verdict})"
+            )
     rows = [("sensor", "sightings", "range bias", "bearing bias")]
     for b in fit.biases:
         cells = (

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from online_slam.errors import OnlineSlamError
 from online_slam.evaluation.noise_fit import NoiseFit, fit_noise
-from online_slam.evaluation.noise_self import SelfFit, fit_self
+from online_slam.evaluation.noise_self import SelfFit, fit_self, own_sensor_scale
 from online_slam.frontend.steps import FrontEnd, Step
 from online_slam.pipeline.config import ReplayConfig, make_estimator
 from online_slam.pipeline.source import open_events
@@ -53,18 +53,30 @@ def fit_source_noise(
     opened = open_events(source, dataclasses.replace(config, frontend=plain, association="known"))
     frontend = FrontEnd(plain)
     steps = frontend.steps(opened.events)
-    fit: Fit = fit_noise(steps, frontend.truth) if mode == "fit" else _fit_self(list(steps), config)
-    correlated = frontend.header is not None and bool(frontend.header.meta.get("sightings_correlated"))
-    return dataclasses.replace(fit, sightings_correlated=correlated), source
+    if mode == "fit":
+        fit: Fit = fit_noise(steps, frontend.truth)
+        return dataclasses.replace(fit, sightings_correlated=_correlated(frontend)), source
+    listed = list(steps)  # read to the end: the header is known
+    return _fit_self(listed, config, _correlated(frontend)), source
 
 
-def _fit_self(steps: list[Step], config: ReplayConfig) -> SelfFit:
+def _correlated(frontend: FrontEnd) -> bool:
+    """Whether the source's header says ``sightings_correlated``."""
+    return frontend.header is not None and bool(frontend.header.meta.get("sightings_correlated"))
+
+
+def _fit_self(steps: list[Step], config: ReplayConfig, correlated: bool) -> SelfFit:
     """``--noise self`` on the steps, started from the estimate of an EKF of the replay's settings over them (the
-    batch from composed odometry can stop in a poor minimum; the EKF costs a small part of the fit)."""
+    batch from composed odometry can stop in a poor minimum; the EKF costs a small part of the fit); for correlated
+    sightings, also against their own covariances (:func:`~online_slam.evaluation.noise_self.own_sensor_scale`)."""
     ekf = make_estimator("ekf", config.with_association("known"))
     for step in steps:
         ekf.step(step)
-    return fit_self(steps, initial=ekf.finish())
+    initial = ekf.finish()
+    fit = dataclasses.replace(fit_self(steps, initial=initial), sightings_correlated=correlated)
+    if correlated:
+        fit = dataclasses.replace(fit, own_sensor_scale=own_sensor_scale(steps, initial=initial))
+    return fit
 
 
 def with_noise_fit(config: ReplayConfig, fit: Fit) -> ReplayConfig:
