@@ -10,9 +10,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_limits
 
 from online_slam.factors.graph import FactorGraph, evaluate
 from online_slam.geometry import wrap
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # As many workers as cores: each worker's BLAS on one thread, and the processes its tests start (OpenBLAS's
+    # threads spin while they wait: two per worker on two cores, test_circle_smoother and test_outlier_worlds took
+    # 67 s, on one 57 s). The estimators hold it to one thread anyway while they work.
+    threadpool_limits(limits=1, user_api="blas")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 DATA_VARIABLE = "ONLINE_SLAM_DATA"
 SHARED_DATA = Path(os.environ.get(DATA_VARIABLE) or Path(__file__).resolve().parents[2] / "shared" / "data")
