@@ -1,6 +1,7 @@
 """``--noise self`` measured: the noise calibrated from the data alone, against the truth of what was misdeclared.
 
-- ``simulated``: the grid world (defaults: 2000 poses; ``--poses``), seeds 7..7+N-1, drawn with its true sigmas and
+- ``simulated``: the grid world (or ``--world waypoint``, the random-waypoint world; 2000 poses, ``--poses``), seeds
+  ``--first-seed`` (7) on, drawn with its true sigmas and
   declared with 0.3x and 3x the sigma, odometry and sensor separately (each covariance times 0.09 or 9, built with
   :func:`~online_slam.frontend.noise.scaled_event`). For each: the recovered scale's relative error against the true
   one (1/0.09 or 1/9), and the EKF's and the smoother's online RMSE and mean NEES replayed with ``--noise self``,
@@ -10,7 +11,7 @@
   sensor scale and biases applied too), and the stream with its odometry or its sightings' covariances times 0.09
   or 9, replayed as declared and with ``--noise self``.
 
-One replay at a time: ``python -m benchmarks.noise_self simulated [--seeds 20] [--poses 2000]`` and
+One replay at a time: ``python -m benchmarks.noise_self simulated [--world grid] [--seeds 20] [--poses 2000]`` and
 ``python -m benchmarks.noise_self mrclam [--folder PATH] [--streams 1,2,3,4,5,all]``. Each replay's line is printed
 as it finishes, then the summary.
 """
@@ -33,7 +34,7 @@ from online_slam.pipeline import replay
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.noise import Fit, with_noise_fit
 from online_slam.sources.events import Event
-from online_slam.sources.worlds import GridConfig, grid_world
+from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, waypoint_world
 
 FOLDER = "../shared/data/MRCLAM_Dataset6"
 MISDECLARED = {
@@ -92,12 +93,21 @@ def self_config(config: ReplayConfig) -> ReplayConfig:
 
 
 # -- simulated ------------------------------------------------------------------------------------------------
-def simulated(seeds: int, poses: int, say: Callable[[str], None] = print) -> dict[str, dict[str, float]]:
+WORLDS: dict[str, Callable[[int, int], Iterable[Event]]] = {
+    "grid": lambda poses, seed: grid_world(GridConfig(poses=poses, seed=seed)),
+    "waypoint": lambda poses, seed: waypoint_world(WaypointConfig(poses=poses, seed=seed)),
+}
+"""The simulated worlds, by (poses, seed)."""
+
+
+def simulated(
+    seeds: int, poses: int, say: Callable[[str], None] = print, world: str = "grid", first_seed: int = GridConfig.seed
+) -> dict[str, dict[str, float]]:
     """Every seed and misdeclaration (see the module's docstring); the summary per misdeclaration."""
     config = ReplayConfig(estimators=ONLINE)
     rows: dict[str, list[tuple[float, float, Figures, Figures]]] = {name: [] for name in MISDECLARED}
-    for seed in range(GridConfig.seed, GridConfig.seed + seeds):
-        events = list(grid_world(GridConfig(poses=poses, seed=seed)))
+    for seed in range(first_seed, first_seed + seeds):
+        events = list(WORLDS[world](poses, seed))
         right = figures(events, config)
         say(f"seed {seed} declared right: {right.line()}")
         for name, factors in MISDECLARED.items():
@@ -157,13 +167,15 @@ def main(argv: Sequence[str] | None = None) -> None:
     """Run one part (see the module's docstring)."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.noise_self", description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=("simulated", "mrclam"))
-    parser.add_argument("--seeds", type=int, default=20, help="simulated: grid seeds (from 7)")
-    parser.add_argument("--poses", type=int, default=GridConfig.poses, help="simulated: poses of the grid")
+    parser.add_argument("--world", choices=tuple(WORLDS), default="grid", help="simulated: the world")
+    parser.add_argument("--seeds", type=int, default=20, help="simulated: seeds")
+    parser.add_argument("--first-seed", type=int, default=GridConfig.seed, help="simulated: the first seed")
+    parser.add_argument("--poses", type=int, default=GridConfig.poses, help="simulated: poses of the world")
     parser.add_argument("--folder", default=FOLDER, help="mrclam: the Dataset 6 folder")
     parser.add_argument("--streams", default="1,2,3,4,5,all", help="mrclam: robots (1..5) and/or all")
     args = parser.parse_args(argv)
     if args.part == "simulated":
-        simulated(args.seeds, args.poses, lambda text: print(text, flush=True))
+        simulated(args.seeds, args.poses, lambda text: print(text, flush=True), args.world, args.first_seed)
     else:
         mrclam(args.folder, args.streams.split(","), lambda text: print(text, flush=True))
 

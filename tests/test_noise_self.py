@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -203,6 +204,7 @@ def _widened(events, factors: tuple[float, float]) -> list:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("declared, applied", [(1.0, (1.0, 1.1)), (0.09, (9.4, 12.8))], ids=["right", "sensor 0.3x"])
 def test_widened_sightings_read_against_their_own_covariances_rescale_a_sensor_declared_too_sure(
     declared: float, applied: tuple[float, float]
@@ -219,3 +221,15 @@ def test_widened_sightings_read_against_their_own_covariances_rescale_a_sensor_d
     assert fit.applied_sensor_scale == max(1.0, fit.own_sensor_scale)
     assert "sensor scale against the sightings' own covariances" in describe(fit)
     assert with_noise_fit(replay_config({}), fit).frontend.sensor_noise_scale == fit.applied_sensor_scale
+
+
+@pytest.mark.slow
+def test_the_benchmark_measures_the_waypoint_world_too(capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m benchmarks.noise_self simulated --world waypoint``: one short seed, every misdeclaration."""
+    from benchmarks.noise_self import main
+
+    main(["simulated", "--world", "waypoint", "--seeds", "1", "--first-seed", "3", "--poses", "80"])
+    out = capsys.readouterr().out
+    assert "seed 3 declared right" in out and "worst / median over 1 seeds" in out
+    errors = [float(e) for e in re.findall(r"scale error ([-+]\d\.\d+)", out)]
+    assert len(errors) == 4 and max(map(abs, errors)) < 0.3, out
