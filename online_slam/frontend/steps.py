@@ -292,8 +292,9 @@ class FrontEnd:
             declared = event.meta.get("sensors") or {}
             self.sensors = {name: tuple(float(v) for v in spec["pose"]) for name, spec in declared.items()}
 
-    def _widened(self) -> bool:
-        """The header says the sightings' covariances are widened for errors correlated in time."""
+    @property
+    def sightings_correlated(self) -> bool:
+        """The header (so far) says the sightings' covariances are widened for errors correlated in time."""
         return self.header is not None and bool(self.header.meta.get("sightings_correlated"))
 
     def _decorrelated(self, fix: Position | Heading) -> Position | Heading:
@@ -415,7 +416,8 @@ class FrontEnd:
     ) -> PendingStep:
         """Begin a pose after the newest of all robots."""
         pose = PendingStep(index=self._tail().index + 1, t=t, t_begin=t_begin, odometry=delta, odometry_cov=cov,
-                           robot=robot, closed=closed, mounted=bool(self.sensors), widened=self._widened())  # fmt: skip
+                           robot=robot, closed=closed, mounted=bool(self.sensors),
+                           widened=self.sightings_correlated)  # fmt: skip
         self.later.append(pose)
         return pose
 
@@ -498,7 +500,7 @@ class FrontEnd:
             prior_cov=prior_cov,
             robot=robot,
             mounted=bool(self.sensors),
-            widened=self._widened(),
+            widened=self.sightings_correlated,
         )
         if self.pending is None:
             self.pending = begun

@@ -55,14 +55,9 @@ def fit_source_noise(
     steps = frontend.steps(opened.events)
     if mode == "fit":
         fit: Fit = fit_noise(steps, frontend.truth)
-        return dataclasses.replace(fit, sightings_correlated=_correlated(frontend)), source
+        return dataclasses.replace(fit, sightings_correlated=frontend.sightings_correlated), source
     listed = list(steps)  # read to the end: the header is known
-    return _fit_self(listed, config, _correlated(frontend)), source
-
-
-def _correlated(frontend: FrontEnd) -> bool:
-    """Whether the source's header says ``sightings_correlated``."""
-    return frontend.header is not None and bool(frontend.header.meta.get("sightings_correlated"))
+    return _fit_self(listed, config, frontend.sightings_correlated), source
 
 
 def _fit_self(steps: list[Step], config: ReplayConfig, correlated: bool) -> SelfFit:
@@ -73,10 +68,8 @@ def _fit_self(steps: list[Step], config: ReplayConfig, correlated: bool) -> Self
     for step in steps:
         ekf.step(step)
     initial = ekf.finish()
-    fit = dataclasses.replace(fit_self(steps, initial=initial), sightings_correlated=correlated)
-    if correlated:
-        fit = dataclasses.replace(fit, own_sensor_scale=own_sensor_scale(steps, initial=initial))
-    return fit
+    own = own_sensor_scale(steps, initial=initial) if correlated else None
+    return dataclasses.replace(fit_self(steps, initial=initial), sightings_correlated=correlated, own_sensor_scale=own)
 
 
 def with_noise_fit(config: ReplayConfig, fit: Fit) -> ReplayConfig:
