@@ -18,8 +18,6 @@ from online_slam.sources.events import Event, Observation, Odometry
 from online_slam.sources.stream import write_stream
 from online_slam.sources.worlds import WaypointConfig, waypoint_world
 
-REPLAY = Path(__file__).resolve().parents[1] / "replay"
-
 
 def _turns_in_degrees(e: Event) -> Event | None:
     if isinstance(e, Odometry):
@@ -106,18 +104,13 @@ def test_most_lines_skipped_give_one_warning_and_few_skip_lines(streams: dict[st
     assert cli("replay", str(degrees), "--on-error", "skip", "--estimators", "ekf", "--strict").returncode == 2
 
 
-SLOW = pytest.mark.slow
-SHIPPED = ["clean", "square", pytest.param("grid", marks=SLOW), *(
-    pytest.param(p.name, marks=SLOW) if "victoria" in p.name else p.name for p in sorted(REPLAY.glob("*.jsonl*"))
-)]  # fmt: skip
+# The streams shipped in replay/ are checked by tests/test_shipped_replays.py, inside the replay it runs anyway.
+CLEAN = ["clean", "square", pytest.param("grid", marks=pytest.mark.slow)]
 
 
-@pytest.mark.parametrize("source", SHIPPED)
+@pytest.mark.parametrize("source", CLEAN)
 def test_clean_streams_raise_no_false_alarm(streams: dict[str, Path], source: str) -> None:
-    if source == "clean":
-        path: str | Path = streams["clean"]
-    else:
-        path = REPLAY / source if (REPLAY / source).exists() else source
+    path: str | Path = streams["clean"] if source == "clean" else source
     warned: list[str] = []
     results = replay(path, ReplayConfig(estimators=("ekf",)), on_warning=warned.append)
     assert warned == [] and results.warning is None
