@@ -3,10 +3,11 @@
 A robot never comes with a correct noise model. Each stream is replayed as declared and with its odometry or its
 sightings' covariances declared 0.09x or 9x (sigmas 0.3x or 3x; the data unchanged, through the front-end's
 ``odometry_noise_scale`` / ``sensor_noise_scale``), on 2000-pose simulated worlds (the grid at two seeds, the
-random-waypoint world) and on MRCLAM Dataset 6's robots when the folder is there. The figures against the target
-"nothing diverges": every estimator's online error within 3x of the correctly declared stream's, the smoother's
-final within 1.5x of the batch's on the same stream. Each case runs with ``--adapt-noise`` off (the default) and
-``on`` (the default: the EKF and the smoother adapt the declared noise to their innovations).
+random-waypoint world, the circle with range-bearing sightings, three robots meeting) and on MRCLAM Dataset 6's
+robots when the folder is there. The figures against the target "nothing diverges": every estimator's online error
+within 3x of the correctly declared stream's, the smoother's final within 1.5x of the batch's on the same stream.
+Each case runs with ``--adapt-noise`` off and ``on`` (the default: the EKF and the smoother adapt the declared noise
+to their innovations).
 ``python -m benchmarks --only misdeclared``.
 """
 
@@ -24,7 +25,15 @@ from online_slam.frontend.steps import FrontEndConfig
 from online_slam.options import replay_config
 from online_slam.pipeline import replay
 from online_slam.sources.events import Event
-from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, waypoint_world
+from online_slam.sources.meet import MeetConfig, meet_world
+from online_slam.sources.worlds import (
+    CircleConfig,
+    GridConfig,
+    WaypointConfig,
+    circle_world,
+    grid_world,
+    waypoint_world,
+)
 
 MODES = ("off", "on")
 """``--no-adapt-noise`` and ``--adapt-noise`` (the default), as the table labels them."""
@@ -40,8 +49,10 @@ WORLDS: dict[str, Callable[[], Iterable[Event]]] = {
     "grid seed 7": lambda: grid_world(GridConfig(seed=7)),
     "grid seed 11": lambda: grid_world(GridConfig(seed=11)),
     "waypoint 2000": lambda: waypoint_world(WaypointConfig(poses=2000)),
+    "circle 2000": lambda: circle_world(CircleConfig(poses=2000, model="range-bearing")),
+    "meet 3 x 667": lambda: meet_world(MeetConfig(poses=667)),
 }
-"""The simulated worlds, 2000 poses each."""
+"""The simulated worlds, 2000 poses each (the meet world: three robots sighting each other, 667 poses each)."""
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,7 @@
 """``--noise self`` measured: the noise calibrated from the data alone, against the truth of what was misdeclared.
 
-- ``simulated``: the grid world (or ``--world waypoint``, the random-waypoint world; 2000 poses, ``--poses``), seeds
+- ``simulated``: the grid world (or ``--world``: ``waypoint``, ``circle`` with range-bearing sightings, ``meet``:
+  three robots of ``--poses`` / 3 poses each; 2000 poses, ``--poses``), seeds
   ``--first-seed`` (7) on, drawn with its true sigmas and
   declared with 0.3x and 3x the sigma, odometry and sensor separately (each covariance times 0.09 or 9, built with
   :func:`~online_slam.frontend.noise.scaled_event`). For each: the recovered scale's relative error against the true
@@ -34,7 +35,15 @@ from online_slam.pipeline import replay
 from online_slam.pipeline.config import ReplayConfig
 from online_slam.pipeline.noise import Fit, with_noise_fit
 from online_slam.sources.events import Event
-from online_slam.sources.worlds import GridConfig, WaypointConfig, grid_world, waypoint_world
+from online_slam.sources.meet import MeetConfig, meet_world
+from online_slam.sources.worlds import (
+    CircleConfig,
+    GridConfig,
+    WaypointConfig,
+    circle_world,
+    grid_world,
+    waypoint_world,
+)
 
 FOLDER = "../shared/data/MRCLAM_Dataset6"
 MISDECLARED = {
@@ -96,6 +105,8 @@ def self_config(config: ReplayConfig) -> ReplayConfig:
 WORLDS: dict[str, Callable[[int, int], Iterable[Event]]] = {
     "grid": lambda poses, seed: grid_world(GridConfig(poses=poses, seed=seed)),
     "waypoint": lambda poses, seed: waypoint_world(WaypointConfig(poses=poses, seed=seed)),
+    "circle": lambda poses, seed: circle_world(CircleConfig(poses=poses, seed=seed, model="range-bearing")),
+    "meet": lambda poses, seed: meet_world(MeetConfig(poses=poses // 3, seed=seed)),
 }
 """The simulated worlds, by (poses, seed)."""
 

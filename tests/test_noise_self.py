@@ -224,11 +224,13 @@ def test_widened_sightings_read_against_their_own_covariances_rescale_a_sensor_d
 
 
 @pytest.mark.slow
-def test_the_benchmark_measures_the_waypoint_world_too(capsys: pytest.CaptureFixture[str]) -> None:
-    """``python -m benchmarks.noise_self simulated --world waypoint``: one short seed, every misdeclaration."""
+@pytest.mark.parametrize("world", ["waypoint", "meet"])
+def test_the_benchmark_measures_the_other_worlds_too(world: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m benchmarks.noise_self simulated --world W``: one short seed, every misdeclaration; ``meet`` is
+    three robots sighting each other (their robot sightings scaled with the landmarks')."""
     from benchmarks.noise_self import main
 
-    main(["simulated", "--world", "waypoint", "--seeds", "1", "--first-seed", "3", "--poses", "80"])
+    main(["simulated", "--world", world, "--seeds", "1", "--first-seed", "3", "--poses", "80"])
     out = capsys.readouterr().out
     assert "seed 3 declared right" in out and "worst / median over 1 seeds" in out
     errors = [float(e) for e in re.findall(r"scale error ([-+]\d\.\d+)", out)]
