@@ -1,12 +1,11 @@
 """``--noise self`` measured: the noise calibrated from the data alone, against the truth of what was misdeclared.
 
 - ``simulated``: the grid world (or ``--world``: ``waypoint``, ``circle`` with range-bearing sightings, ``meet``:
-  three robots of ``--poses`` / 3 poses each; 2000 poses, ``--poses``), seeds
-  ``--first-seed`` (7) on, drawn with its true sigmas and
-  declared with 0.3x and 3x the sigma, odometry and sensor separately (each covariance times 0.09 or 9, built with
-  :func:`~online_slam.frontend.noise.scaled_event`). For each: the recovered scale's relative error against the true
-  one (1/0.09 or 1/9), and the EKF's and the smoother's online RMSE and mean NEES replayed with ``--noise self``,
-  beside the stream declared right.
+  three robots of ``--poses`` / 3 poses each; 2000 poses, ``--poses``), seeds ``--first-seed`` (7) on, drawn with its
+  true sigmas and declared with 0.3x and 3x the sigma, odometry and sensor separately (each covariance times 0.09
+  or 9, built with :func:`~online_slam.frontend.noise.scaled_event`). For each: the recovered scale's relative error
+  against the true one (1/0.09 or 1/9), and the EKF's and the smoother's online RMSE and mean NEES replayed with
+  ``--noise self``, beside the stream declared right.
 - ``mrclam``: Dataset 6, each robot and all five: the built-in model (fitted against Vicon), ``--noise self`` as it
   is (a stream that says ``sightings_correlated`` gets the odometry scale only), ``--noise self`` the other way (its
   sensor scale and biases applied too), and the stream with its odometry or its sightings' covariances times 0.09
