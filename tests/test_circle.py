@@ -171,12 +171,15 @@ def test_fej_keeps_first_estimates_and_maps_the_null_space_through_placement() -
 @pytest.mark.parametrize(
     "linearization, consistent", [("standard", False), ("fej", True), ("oc", True), ("invariant", True)]
 )
-def test_twenty_run_anees_fails_for_the_standard_ekf_and_passes_for_the_consistent_ones(
+def test_ten_run_anees_fails_for_the_standard_ekf_and_passes_for_the_consistent_ones(
     linearization: str, consistent: bool
 ) -> None:
-    """esde's world, 20 seeded runs (~8 s of CPU each linearization): the standard EKF is overconfident, FEJ, OC
-    and invariant inside the 95% band (measured: 5.99, 3.43, 3.42, 3.41; band 2.02 .. 4.16)."""
-    anees, low, high = circle_anees(ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization)))
+    """esde's world, 10 seeded runs (100..109; ~4 s of CPU each linearization): the standard EKF is overconfident,
+    FEJ, OC and invariant inside the 95% band (measured: 6.48, 3.50, 3.50, 3.49; band 1.68 .. 4.70). esde's 20 runs
+    (100..119) read 5.90, 3.12, 3.12 (band 2.02 .. 4.16): ``python -m benchmarks --only circle``. Cut to 200 poses the
+    standard EKF is not yet overconfident (3.84 at 20 runs): the drift that makes it so takes the whole 400."""
+    config = ReplayConfig(estimators=("ekf",), ekf=EkfConfig(linearization=linearization))
+    anees, low, high = circle_anees(config, seeds=tuple(range(100, 110)))
     assert (low <= anees <= high) == consistent and anees >= low, anees
 
 

@@ -130,7 +130,10 @@ def test_every_estimator_converges_on_position_sightings() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "events",
-    [lambda: grid_world(XY_GRID), lambda: mixed(grid_world(GridConfig(poses=300, seed=5)))],
+    [
+        lambda: grid_world(dataclasses.replace(XY_GRID, poses=150)),
+        lambda: mixed(grid_world(GridConfig(poses=150, seed=5))),
+    ],
     ids=["xy", "mixed"],
 )
 def test_window_covering_the_stream_equals_batch(events) -> None:

@@ -40,7 +40,7 @@ def rmse(poses: np.ndarray, fe: FrontEnd) -> float:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("events", [square_world, lambda: grid_world(GridConfig(poses=300, seed=5))])
+@pytest.mark.parametrize("events", [square_world, lambda: grid_world(GridConfig(poses=150, seed=5))])
 def test_window_covering_the_stream_equals_batch(events) -> None:
     fe, _, final, _, batch, _ = run(events(), SmootherConfig(window=WindowConfig(size=10_000)))
     assert np.max(np.linalg.norm(final.poses[:, :2] - batch.poses[:, :2], axis=1)) <= 1e-6
