@@ -277,8 +277,11 @@ def test_mrclams_sightings_declared_too_sure_show_against_their_own_covariance()
 @pytest.mark.slow
 def test_the_cli_takes_the_flag_and_says_what_it_adapted(tmp_path) -> None:  # noqa: ANN001
     """On by default (``--adapt-noise`` says so again); ``--no-adapt-noise`` turns it off."""
-    out = tmp_path / "r.json"
-    done = run_cli("replay", "grid", "--adapt-noise", "--estimators", "ekf", "--odometry-noise-scale", "0.01",
+    from online_slam.sources import write_stream
+
+    out, stream = tmp_path / "r.json", tmp_path / "grid300.jsonl"
+    write_stream(stream, grid_world(GridConfig(poses=300)))
+    done = run_cli("replay", str(stream), "--adapt-noise", "--estimators", "ekf", "--odometry-noise-scale", "0.01",
                    "--json", str(out))  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert "ekf: noise adapted to its innovations: odometry covariance x" in done.stdout

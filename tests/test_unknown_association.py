@@ -302,10 +302,10 @@ def test_replay_resumed_from_a_checkpoint_scores_association_as_the_whole_run(tm
     from online_slam.pipeline import Checkpointing
 
     path = tmp_path / "grid.jsonl"
-    write_stream(path, contaminate(grid_world(replace(SMALL, poses=230)), Contamination(clutter=0.1, seed=4)))
+    write_stream(path, contaminate(grid_world(replace(SMALL, poses=140)), Contamination(clutter=0.1, seed=4)))
     config = ReplayConfig(association="jcbb")
     # the checkpointed run stands for the whole one (resumed == uninterrupted replay: tests/test_resume.py)
-    whole = replay(path, config, checkpoint=Checkpointing(tmp_path / "ck", every=100))  # the last at step 200
+    whole = replay(path, config, checkpoint=Checkpointing(tmp_path / "ck", every=100))  # the last at step 100
     resumed = replay(path, config, resume=tmp_path / "ck")
     for name in ("ekf", "smoother", "batch"):
         a, b = whole.estimators[name], resumed.estimators[name]
