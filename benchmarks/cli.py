@@ -48,6 +48,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--circle-runs", type=int, default=100, help="circle: Monte Carlo runs (esde's 100)")
     p.add_argument("--timing-seeds", type=int, default=12, help="timing: seeded worlds per comparison (12)")
     p.add_argument(
+        "--wrong-ids",
+        default="0.05,0.1,0.2",
+        help="robust: fractions of sightings given a wrong id, each beside the clean stream (default 0.05,0.1,0.2)",
+    )
+    p.add_argument("--scans", type=int, default=20, help="association: random scans per map and scan size (20)")
+    p.add_argument(
         "--workers", type=int, default=None, help="circle, heldout: processes for the runs (default: all cores)"
     )
     p.add_argument("--soak-poses", type=int, default=100_000, help="soak: poses of the long stream (100,000)")

@@ -169,8 +169,10 @@ def _recording(args: argparse.Namespace, world: GridConfig) -> None:
 def _association(args: argparse.Namespace, world: GridConfig) -> None:
     from benchmarks.association import time_association
 
-    rows = time_association()
-    print("association without ids: time per scan (median of 20 random scans) and share paired right")
+    rows = time_association(scans=max(1, args.scans))
+    print(
+        f"association without ids: time per scan (median of {max(1, args.scans)} random scans) and share paired right"
+    )
     print(f"{'landmarks':>10}{'sightings':>11}{'nn ms':>9}{'nn right':>10}{'jcbb ms':>10}{'jcbb right':>12}")
     pairs = {(r.landmarks, r.sightings, r.method): r for r in rows}
     for m, k in sorted({(r.landmarks, r.sightings) for r in rows}):
@@ -224,7 +226,13 @@ def _soak(args: argparse.Namespace, world: GridConfig) -> None:
 def _robust(args: argparse.Namespace, world: GridConfig) -> None:
     from benchmarks.robustness import run_robustness
 
-    rows = run_robustness(world)
+    try:
+        levels = sorted({0.0, *(float(v) for v in args.wrong_ids.split(",") if v.strip())})
+    except ValueError:
+        raise OnlineSlamError(f"--wrong-ids: expected fractions like 0.05,0.1, got {args.wrong_ids!r}") from None
+    if not all(0.0 <= v < 1.0 for v in levels):
+        raise OnlineSlamError(f"--wrong-ids: fractions must be in [0, 1), got {args.wrong_ids!r}")
+    rows = run_robustness(world, tuple(levels))
     print(f"robustness: grid world, {world.poses} poses, a fraction of sightings given a wrong landmark id; default")
     print("flags; GTSAM iSAM2 with a Cauchy(3) kernel on the observations, same streams (position RMSE, m)")
     head = f"{'wrong ids':>10}{'EKF online':>12}{'smoother online':>17}{'smoother final':>16}{'batch final':>13}"

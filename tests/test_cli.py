@@ -319,7 +319,7 @@ def test_benchmarks_print_ratio_against_gtsam(tmp_path: Path) -> None:
     pytest.importorskip("gtsam", reason="the 'peers' extra (gtsam) is not installed")
     done = benchmarks(
         "--poses", "100", "--repeats", "1", "--fuzz-cases", "20", "--recording-source", "square",
-        "--landmarks", "50,500", "--windows", "20",
+        "--landmarks", "50,500", "--windows", "20", "--wrong-ids", "0.1", "--scans", "5",
         data=tmp_path,  # no real data: the bag section reads replay/'s 45 s excerpt, not all of Victoria Park
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
