@@ -108,20 +108,23 @@ def _joint_distance(belief: Belief, z: np.ndarray, R: np.ndarray, pairs: list[tu
     return float(v @ np.linalg.solve(S, v))
 
 
-def test_jcbb_incremental_joint_distance_equals_the_explicit_one(rng) -> None:
-    """The Schur-complement updates along the search give the same joint distance as one 2m x 2m solve."""
+@pytest.mark.parametrize("mapped, seen", [(12, 6), (20, 15)])
+def test_jcbb_incremental_joint_distance_equals_the_explicit_one(rng, mapped: int, seen: int) -> None:
+    """The Schur-complement updates along the search give the same joint distance as one 2m x 2m solve. With 15
+    sightings a scan's S_H^-1 updated by blocks (as it once was) lost all precision: -12.8 against 56.7, wrong
+    pairings; the Cholesky factor grown by block rows keeps it."""
     for _ in range(5):
-        landmarks = rng.uniform(-10, 10, (12, 2))
+        landmarks = rng.uniform(-10, 10, (mapped, 2))
         n = 3 + 2 * len(landmarks)
         A = rng.normal(size=(n, 6)) * 0.05
         cov = A @ A.T + np.diag(np.r_[[0.04, 0.04, 0.002], np.full(n - 3, 0.01)])
         b = Belief(np.array([0.2, -0.1, 0.05]), landmarks, cov)
-        seen = rng.choice(len(landmarks), 6, replace=False)
-        z = range_bearing(np.zeros(3)[None, :], landmarks[seen]) + rng.normal(0, [0.05, 0.01], (6, 2))
-        R = np.stack([R1] * 6)
+        picked = rng.choice(len(landmarks), seen, replace=False)
+        z = range_bearing(np.zeros(3)[None, :], landmarks[picked]) + rng.normal(0, [0.05, 0.01], (seen, 2))
+        R = np.stack([R1] * seen)
         result = jcbb(b, z, R)
         pairs = [(i, int(j)) for i, j in enumerate(result.landmark) if j >= 0]
-        assert len(pairs) >= 4
+        assert len(pairs) >= 2 * seen // 3
         assert result.joint_distance == pytest.approx(_joint_distance(b, z, R, pairs), rel=1e-8)
 
 
