@@ -267,8 +267,8 @@ def _pair_covariances(P: Array, p: Predictions, candidates: list[list[int]]) -> 
     G[np.arange(len(pair_i))[:, None, None], np.arange(2)[None, :, None], placed[:, None, :]] = p.J_l[
         p.row[pair_i], pair_j
     ]
-    G = G.reshape(2 * len(pair_i), len(columns))
-    return G @ P[np.ix_(columns, columns)] @ G.T, q_of
+    rows = G.reshape(2 * len(pair_i), len(columns))
+    return rows @ P[np.ix_(columns, columns)] @ rows.T, q_of
 
 
 def associate(
