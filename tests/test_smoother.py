@@ -274,18 +274,18 @@ def test_relinearized_prior_information_is_the_history_marginal_at_the_new_estim
 
 @pytest.mark.slow
 def test_global_relinearization_revises_the_history_on_a_long_run() -> None:
-    events = list(grid_world(GridConfig(poses=600, seed=5)))
+    events = list(grid_world(GridConfig(poses=400, seed=5)))
     fe, _, frozen, _, batch, _ = run(
         events, SmootherConfig(window=WindowConfig(size=10), global_solve=GlobalConfig(every=0))
     )
     _, smoother, revised, _, _, _ = run(
         events, SmootherConfig(window=WindowConfig(size=10), global_solve=GlobalConfig(every=100, delay=0))
     )
-    assert smoother.relinearization.solves == 7  # every 100 steps of 600, solved at once, and at the end
+    assert smoother.relinearization.solves == 5  # every 100 steps of 400, solved at once, and at the end
     ratio_frozen = rmse(frozen.poses, fe) / rmse(batch.poses, fe)
     ratio_revised = rmse(revised.poses, fe) / rmse(batch.poses, fe)
     print(f"final RMSE / batch: window alone {ratio_frozen:.3f}, with global relinearization {ratio_revised:.3f}")
-    assert ratio_revised <= 1.02 and ratio_revised < ratio_frozen
+    assert ratio_revised <= 1.02 and ratio_revised < ratio_frozen  # measured: 1.000 and 2.08
 
 
 @pytest.mark.slow
@@ -294,22 +294,22 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
     tmp_path: Path, linearization: str
 ) -> None:
     """The hand-over step is fixed, so results never depend on thread timing; a checkpoint taken while a global
-    solve is pending carries its result (in memory, and through a file), and the run continues identically."""
+    solve is pending carries its result (through a file: the in-memory state is the same tree before it is
+    written), and the run continues identically."""
     steps = list(FrontEnd().steps(grid_world(GridConfig(poses=200, seed=5))))
     config = SmootherConfig(
         window=WindowConfig(size=10), global_solve=GlobalConfig(every=50, delay=30), linearization=linearization
     )
 
-    def run_all(cut: int | None = None, through_file: bool = False) -> np.ndarray:
+    def run_all(cut: int | None = None) -> np.ndarray:
         smoother = SlidingWindowSmoother(config)
         for k, step in enumerate(steps):
             if k == cut:  # a global solve started at step 150 is pending until 180
                 assert smoother.relinearization.job is not None
                 state = smoother.state_dict()
                 assert smoother.relinearization.job.result is not None  # finished, its result saved
-                if through_file:
-                    write_checkpoint(tmp_path / "smoother.ckpt", "test", state)
-                    state = read_checkpoint(tmp_path / "smoother.ckpt", "test")
+                write_checkpoint(tmp_path / "smoother.ckpt", "test", state)
+                state = read_checkpoint(tmp_path / "smoother.ckpt", "test")
                 smoother = SlidingWindowSmoother(config)
                 smoother.load_state(state)
                 assert smoother.relinearization.job is not None and smoother.relinearization.job.thread is None
@@ -319,7 +319,6 @@ def test_background_global_relinearization_is_deterministic_and_survives_a_check
     first, again = run_all(), run_all()
     np.testing.assert_array_equal(first, again)
     np.testing.assert_array_equal(first, run_all(cut=160))
-    np.testing.assert_array_equal(first, run_all(cut=160, through_file=True))
 
 
 def test_state_dict_is_the_tree_of_the_state_and_load_state_rebuilds_it() -> None:
