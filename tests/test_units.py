@@ -104,8 +104,9 @@ def test_most_lines_skipped_give_one_warning_and_few_skip_lines(streams: dict[st
     assert cli("replay", str(degrees), "--on-error", "skip", "--estimators", "ekf", "--strict").returncode == 2
 
 
-# The streams shipped in replay/ are checked by tests/test_shipped_replays.py, inside the replay it runs anyway.
-CLEAN = ["clean", "square", pytest.param("grid", marks=pytest.mark.slow)]
+# The streams shipped in replay/ are checked by tests/test_shipped_replays.py, and the 2000-pose grid by
+# tests/test_smoother.py::test_window_20_on_the_2000_pose_grid, inside the replays they run anyway.
+CLEAN = ["clean", "square"]
 
 
 @pytest.mark.parametrize("source", CLEAN)

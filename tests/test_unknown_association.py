@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from inprocess import run_cli
 
 from online_slam import Slam
 from online_slam.estimators.landmark_book import AssociationConfig, LandmarkBook
@@ -147,10 +146,9 @@ FIGURES = ("final_rmse_m", "endpoint_gap_m", "landmark_rmse_m", "online_rmse_m",
 def test_simulate_no_ids_scores_as_the_built_in_world_replayed_under_jcbb(tmp_path: Path) -> None:
     """``simulate --no-ids`` keeps each id as hidden truth: replaying the file scores association and landmark
     RMSE exactly as replaying the built-in world (ids hidden from the estimators by ``--association jcbb``)."""
-    cli = [sys.executable, "-m", "online_slam"]
 
     def run(*args: object) -> None:
-        proc = subprocess.run([*cli, *map(str, args)], capture_output=True, text=True, timeout=300)
+        proc = run_cli(*map(str, args))
         assert proc.returncode == 0, proc.stderr
 
     run("simulate", "square", "--no-ids", "-o", tmp_path / "s.jsonl")
@@ -187,12 +185,7 @@ def test_cli_association_flag_and_table(tmp_path: Path) -> None:
     stream = tmp_path / "grid.jsonl"
     write_stream(stream, grid_world(replace(SMALL, poses=120)))
     out = tmp_path / "r.json"
-    proc = subprocess.run(
-        [sys.executable, "-m", "online_slam", "replay", str(stream), "--association", "nn", "--json", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    proc = run_cli("replay", str(stream), "--association", "nn", "--json", str(out))
     assert proc.returncode == 0, proc.stderr
     assert "association right, mapped/true" in proc.stdout
     assert "smoother: every sighting paired again at the end:" in proc.stdout
@@ -210,19 +203,14 @@ def test_cli_new_density_option(tmp_path: Path) -> None:
     stream = tmp_path / "grid.jsonl"
     write_stream(stream, grid_world(replace(SMALL, poses=80)))
     out = tmp_path / "r.json"
-    base = [sys.executable, "-m", "online_slam", "replay", str(stream), "--association", "jcbb", "--quiet"]
-    proc = subprocess.run(
-        [*base, "--estimators", "ekf,smoother", "--new-density", "0.05", "--json", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    base = ["replay", str(stream), "--association", "jcbb", "--quiet"]
+    proc = run_cli(*base, "--estimators", "ekf,smoother", "--new-density", "0.05", "--json", str(out))
     assert proc.returncode == 0, proc.stderr
     document = json.loads(out.read_text())
     for name in ("ekf", "smoother"):
         association = document["estimators"][name]["association"]
         assert association["unlikely_pairings"] >= 0 and association["accuracy"] > 0.9, association
-    bad = subprocess.run([*base, "--new-density", "-1"], capture_output=True, text=True, timeout=300)
+    bad = run_cli(*base, "--new-density", "-1")
     assert bad.returncode != 0 and "new_density" in bad.stderr and "Traceback" not in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1
 
