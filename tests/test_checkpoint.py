@@ -245,7 +245,7 @@ def test_every_state_a_replay_saves_is_rebuilt_by_its_types(
 ) -> None:
     """Checkpoints every 7 steps of varied runs read back as their dataclasses, and every estimator's state as its
     own (a wrong type hint fails here; the extra smoother has a background global solve pending at some)."""
-    events: Any = grid_world(GridConfig(poses=120, seed=4))
+    events: Any = grid_world(GridConfig(poses=80, seed=4))  # marginalization begins at pose 21
     if world == "contaminated":
         events = contaminate(events, Contamination(wrong_ids=0.1, clutter=0.2, seed=2))
     if world == "without ids":
@@ -265,4 +265,4 @@ def test_every_state_a_replay_saves_is_rebuilt_by_its_types(
 
     monkeypatch.setattr(run, "write_checkpoint", write_and_read)
     replay(list(events), config, checkpoint=Checkpointing(tmp_path, 7), validate=False)
-    assert read == list(range(7, 121, 7))
+    assert read == list(range(7, 81, 7))
