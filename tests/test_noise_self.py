@@ -70,10 +70,11 @@ def test_redundancy_traces_and_step_equal_the_dense_computation() -> None:
     np.testing.assert_allclose(cov, N_inv[-4:, -4:], rtol=1e-9, atol=1e-14)
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("seed", [1, 2])
 @pytest.mark.parametrize("name", list(MISDECLARED))
 def test_the_self_fit_recovers_a_misdeclared_scale(name: str, seed: int) -> None:
-    """Drawn with the grid's sigmas, declared with 0.3x or 3x of them: the fit finds the true scale within 15%."""
+    """Drawn with the grid's sigmas, declared with 0.3x or 3x of them: the fit finds the true scale within 15%
+    (two seeds each; 20 seeds of 2000-pose worlds: ``python -m benchmarks.noise_self simulated``)."""
     factors = MISDECLARED[name]
     fit = _fit(_declared(grid_world(GridConfig(poses=800, landmarks=80, seed=seed)), factors))
     assert fit.converged and fit.increments == 799 and not fit.without_id
