@@ -264,10 +264,11 @@ def test_mrclams_sightings_declared_too_sure_show_against_their_own_covariance()
     for correlation (median 20-34x), the innovations showed 2-4% of it: the EKF's sensor scale stayed at 1 and its
     online error read 3.2x the stream declared right (0.139 against 0.043 m, NEES 39). Against each sighting's own
     (its line's ``widened``), the scale rises toward the truth (11.1; 8.2 measured): 0.107 m, 2.5x, NEES 20.5.
-    Declared right, the sensor scale stays at 1."""
+    Declared right, the sensor scale stays at 1. Those figures are the whole run's; the suite replays its first
+    half (8.8 and 2.46x)."""
     runs = {}
     for sensor in (1.0, 0.09):
-        config = replay_config({"robot": 3, "estimators": "ekf", "sensor_noise_scale": sensor})
+        config = replay_config({"robot": 3, "estimators": "ekf", "sensor_noise_scale": sensor, "half": "first"})
         runs[sensor] = replay(SHARED_DATA / "MRCLAM_Dataset6", config).estimators["ekf"]
     assert runs[1.0].details["adapted_noise"][1] == 1.0
     assert runs[0.09].details["adapted_noise"][1] > 5.0
