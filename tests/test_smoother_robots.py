@@ -104,12 +104,12 @@ def test_robot_sightings_alone_pull_a_drifting_robot_back() -> None:
 
 
 def test_a_resumed_multi_robot_replay_equals_the_uninterrupted_one(tmp_path: Path) -> None:
-    """Checkpoints every 250 of 600 steps; resumed from the last one (a global solve pending in it)."""
+    """Checkpoints every 250 of 360 steps; resumed from the last one (the global solve started at 240 pending)."""
     config = ReplayConfig(
         estimators=("smoother",),
         smoother=SmootherConfig(window=WindowConfig(size=15, distance=0.0), global_solve=GlobalConfig(every=40)),
     )
-    events = list(meet_world(MeetConfig(poses=200)))
+    events = list(meet_world(MeetConfig(poses=120)))
     whole = replay(events, config, checkpoint=Checkpointing(tmp_path, 250))
     resumed = replay(events, config, resume=tmp_path)
     assert whole.estimators["smoother"].details["global_solves"] > 3
