@@ -169,10 +169,9 @@ def _recording(args: argparse.Namespace, world: GridConfig) -> None:
 def _association(args: argparse.Namespace, world: GridConfig) -> None:
     from benchmarks.association import time_association
 
-    rows = time_association(scans=max(1, args.scans))
-    print(
-        f"association without ids: time per scan (median of {max(1, args.scans)} random scans) and share paired right"
-    )
+    scans = max(1, args.scans)
+    rows = time_association(scans=scans)
+    print(f"association without ids: time per scan (median of {scans} random scans) and share paired right")
     print(f"{'landmarks':>10}{'sightings':>11}{'nn ms':>9}{'nn right':>10}{'jcbb ms':>10}{'jcbb right':>12}")
     pairs = {(r.landmarks, r.sightings, r.method): r for r in rows}
     for m, k in sorted({(r.landmarks, r.sightings) for r in rows}):

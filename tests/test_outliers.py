@@ -41,8 +41,8 @@ def test_contamination_is_seeded_marked_and_leaves_the_clean_draws_alone() -> No
 
 @pytest.mark.slow
 def test_no_estimator_reads_the_marks(clean_and_dirty) -> None:
-    """The contaminated stream's first 100 s (a third: a quarter of the CPU of the whole stream again) with and
-    without its marks; the hidden true ids of its first 70 s without ids."""
+    """The contaminated stream's first 100 s (a third of it) replayed with and without its marks; the hidden true
+    ids of its first 70 s without ids."""
     _, _, events = clean_and_dirty
     assert "truth_outlier" not in {f.name for f in dataclasses.fields(Step)}
     head = events[: next(i for i, e in enumerate(events) if getattr(e, "t", 0) > 100)]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import zipfile
 from pathlib import Path
@@ -340,17 +341,17 @@ junk = st.one_of(
 def _warm_slam(estimator: str) -> Slam:
     """A fresh copy of an engine fed the square's first 61 events (built once per estimator: hypothesis asks
     hundreds of times)."""
-    if estimator not in _WARM:
-        slam = Slam(estimator)
-        for k, event in enumerate(square_world()):
-            if k > 60:
-                break
-            slam.add(event)
-        _WARM[estimator] = slam
-    return copy.deepcopy(_WARM[estimator])
+    return copy.deepcopy(_warmed(estimator))
 
 
-_WARM: dict[str, Slam] = {}
+@functools.cache
+def _warmed(estimator: str) -> Slam:
+    slam = Slam(estimator)
+    for k, event in enumerate(square_world()):
+        if k > 60:
+            break
+        slam.add(event)
+    return slam
 
 
 def _fingerprint(slam: Slam) -> tuple:

@@ -19,6 +19,7 @@ EKF-SLAM builds it from the state block alone, with a fixed threshold of 2.0).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -221,13 +222,15 @@ def jcbb(
                 w = dtrtrs(L, GPG[rows, b : b + 2], lower=1)[0]  # L^-1 cov(nu_H, nu_b) (LAPACK's: no wrapper)
                 s = s - w.T @ w  # the Schur complement: the new innovation's covariance given the hypothesis'
                 e = e - w.T @ y
-            # 2 x 2 Cholesky factor of s; not positive definite: no such pairing
-            l00 = np.sqrt(s[0, 0]) if s[0, 0] > 0.0 else 0.0
-            l10 = s[1, 0] / l00 if l00 > 0.0 else 0.0
-            d = s[1, 1] - l10 * l10
-            if not (l00 > 0.0 and d > 0.0 and np.isfinite(d)):
+            # 2 x 2 Cholesky factor of s; not positive definite (NaN included): no such pairing
+            if not s[0, 0] > 0.0:
                 continue
-            l11 = np.sqrt(d)
+            l00 = math.sqrt(s[0, 0])
+            l10 = s[1, 0] / l00
+            d = s[1, 1] - l10 * l10
+            if not (d > 0.0 and math.isfinite(d)):
+                continue
+            l11 = math.sqrt(d)
             y0 = e[0] / l00
             y1 = (e[1] - l10 * y0) / l11
             joint = distance + y0 * y0 + y1 * y1
@@ -257,17 +260,16 @@ def _pair_covariances(P: Array, p: Predictions, candidates: list[list[int]]) -> 
     k, M = len(candidates), p.J_p.shape[1]
     pair_i = np.array([i for i, row in enumerate(candidates) for _ in row], dtype=np.int64)
     pair_j = np.array([j for row in candidates for j in row], dtype=np.int64)
+    Q, model = len(pair_i), p.row[pair_i]
     q_of = np.full((k, M), -1, dtype=np.int64)
-    q_of[pair_i, pair_j] = np.arange(len(pair_i))
+    q_of[pair_i, pair_j] = np.arange(Q)
     landmarks, slot = np.unique(pair_j, return_inverse=True)
     columns = np.concatenate([np.arange(3), (3 + 2 * landmarks[:, None] + np.arange(2)).ravel()])
-    G = np.zeros((len(pair_i), 2, len(columns)))
-    G[:, :, :3] = p.J_p[p.row[pair_i], pair_j]
+    G = np.zeros((Q, 2, len(columns)))
+    G[:, :, :3] = p.J_p[model, pair_j]
     placed = 3 + 2 * slot.reshape(-1)[:, None] + np.arange(2)  # (Q, 2): the landmark's columns in G
-    G[np.arange(len(pair_i))[:, None, None], np.arange(2)[None, :, None], placed[:, None, :]] = p.J_l[
-        p.row[pair_i], pair_j
-    ]
-    rows = G.reshape(2 * len(pair_i), len(columns))
+    G[np.arange(Q)[:, None, None], np.arange(2)[None, :, None], placed[:, None, :]] = p.J_l[model, pair_j]
+    rows = G.reshape(2 * Q, len(columns))
     return rows @ P[np.ix_(columns, columns)] @ rows.T, q_of
 
 
