@@ -10,9 +10,13 @@
   is (a stream that says ``sightings_correlated`` gets the odometry scale only), ``--noise self`` the other way (its
   sensor scale and biases applied too), and the stream with its odometry or its sightings' covariances times 0.09
   or 9, replayed as declared and with ``--noise self``.
+- ``own``: Dataset 6's robots declared right: the sensor scale each reads against its sightings' own covariances,
+  their geometric mean (the model's ``own_scale_level``) and how far each reading is from it, and from the other four
+  robots' mean (left out).
 
-One replay at a time: ``python -m benchmarks.noise_self simulated [--world grid] [--seeds 20] [--poses 2000]`` and
-``python -m benchmarks.noise_self mrclam [--folder PATH] [--streams 1,2,3,4,5,all]``. Each replay's line is printed
+One replay at a time: ``python -m benchmarks.noise_self simulated [--world grid] [--seeds 20] [--poses 2000]``,
+``python -m benchmarks.noise_self mrclam [--folder PATH] [--streams 1,2,3,4,5,all]`` and
+``python -m benchmarks.noise_self own [--folder PATH]``. Each replay's line is printed
 as it finishes, then the summary.
 """
 
@@ -32,7 +36,7 @@ from online_slam.importers.mrclam.reader import read_mrclam
 from online_slam.importers.mrclam.robots import read_mrclam_robots
 from online_slam.pipeline import replay
 from online_slam.pipeline.config import ReplayConfig
-from online_slam.pipeline.noise import Fit, with_noise_fit
+from online_slam.pipeline.noise import Fit, fit_source_noise, with_noise_fit
 from online_slam.sources.events import Event
 from online_slam.sources.meet import MeetConfig, meet_world
 from online_slam.sources.worlds import (
@@ -173,19 +177,40 @@ def mrclam(folder: str, streams: Sequence[str], say: Callable[[str], None] = pri
             say(f"{stream} {name} --noise self: {figures(wrong, self_config(config)).line()}")
 
 
+def own(folder: str, robots: Sequence[int] = (1, 2, 3, 4, 5), say: Callable[[str], None] = print) -> dict[int, float]:
+    """Each robot's own-covariance reading declared right (``--noise self``'s fit; no replay), their geometric mean
+    and each reading's factor from it and from the other robots' mean."""
+    readings: dict[int, float] = {}
+    for robot in robots:
+        fit, _ = fit_source_noise(list(read_mrclam(folder, robot)), self_config(ReplayConfig()))
+        assert isinstance(fit, SelfFit) and fit.own_sensor_scale is not None  # MRCLAM's lines say their widening
+        readings[robot] = fit.own_sensor_scale
+        say(f"robot {robot}: own-covariance sensor scale {fit.own_sensor_scale:.4g}")
+    logs = {r: float(np.log(v)) for r, v in readings.items()}
+    level = float(np.exp(np.mean(list(logs.values()))))
+    say(f"geometric mean (own_scale_level) {level:.4g}")
+    for robot, value in logs.items():
+        others = [v for r, v in logs.items() if r != robot]
+        out = float(np.exp(abs(value - np.mean(others)))) if others else 1.0
+        say(f"robot {robot}: {np.exp(abs(value - np.log(level))):.3g}x from the level, {out:.3g}x from the others'")
+    return readings
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Run one part (see the module's docstring)."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.noise_self", description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=("simulated", "mrclam"))
+    parser.add_argument("part", choices=("simulated", "mrclam", "own"))
     parser.add_argument("--world", choices=tuple(WORLDS), default="grid", help="simulated: the world")
     parser.add_argument("--seeds", type=int, default=20, help="simulated: seeds")
     parser.add_argument("--first-seed", type=int, default=GridConfig.seed, help="simulated: the first seed")
     parser.add_argument("--poses", type=int, default=GridConfig.poses, help="simulated: poses of the world")
-    parser.add_argument("--folder", default=FOLDER, help="mrclam: the Dataset 6 folder")
+    parser.add_argument("--folder", default=FOLDER, help="mrclam, own: the Dataset 6 folder")
     parser.add_argument("--streams", default="1,2,3,4,5,all", help="mrclam: robots (1..5) and/or all")
     args = parser.parse_args(argv)
     if args.part == "simulated":
         simulated(args.seeds, args.poses, lambda text: print(text, flush=True), args.world, args.first_seed)
+    elif args.part == "own":
+        own(args.folder, say=lambda text: print(text, flush=True))
     else:
         mrclam(args.folder, args.streams.split(","), lambda text: print(text, flush=True))
 

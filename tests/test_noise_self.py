@@ -4,14 +4,17 @@ worlds drawn with known noise and declared wrong, the front-end's bias correctio
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import SHARED_DATA, needs_data
 
-from online_slam.errors import OnlineSlamError
+from online_slam.errors import InputError, OnlineSlamError
 from online_slam.evaluation.noise_self import SelfFit, describe, fit_self
 from online_slam.frontend import FrontEnd, FrontEndConfig
 from online_slam.frontend.noise import MIN_RANGE, scaled_event, unbiased_event
@@ -21,9 +24,12 @@ from online_slam.pipeline.noise import with_noise_fit
 from online_slam.solvers.redundancy import gauss_newton, group_traces
 from online_slam.sources.events import Header, Observation, Scan
 from online_slam.sources.meet import MeetConfig, meet_world
+from online_slam.sources.stream import parse_lines
 from online_slam.sources.timing import TimingConfig, timing_world
 from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, square_world, without_ids
 from tests.test_cli import cli
+
+REPLAY = Path(__file__).resolve().parents[1] / "replay"
 
 MISDECLARED = {
     "odometry 0.3x": (0.09, 1.0),
@@ -191,37 +197,94 @@ def test_cli_noise_self_refuses_a_scale_and_stdin(args: tuple[str, ...], stdin: 
     assert len(result.stderr.strip().splitlines()) == 1 and message in result.stderr
 
 
-def _widened(events, factors: tuple[float, float]) -> list:
+def _widened(events, factors: tuple[float, float], level: dict | None = None) -> list:
     """The events with each landmark sighting's variances widened by ``factors`` (range, bearing), as its line says,
-    and the header saying ``sightings_correlated`` (MRCLAM's conversion, errors here independent)."""
+    and the header saying ``sightings_correlated`` (MRCLAM's conversion, errors here independent), and
+    ``sightings_own_scale`` when ``level`` is given."""
     f = np.asarray(factors)
+    own = {} if level is None else {"sightings_own_scale": level}
     out = []
     for e in events:
         if isinstance(e, Header):
-            e = dataclasses.replace(e, meta={**e.meta, "sightings_correlated": True})
+            e = dataclasses.replace(e, meta={**e.meta, "sightings_correlated": True, **own})
         elif isinstance(e, Observation) and e.landmark is not None:
             e = dataclasses.replace(e, sigma=tuple(np.asarray(e.sigma) * np.sqrt(f)), widened=tuple(f))
         out.append(e)
     return out
 
 
+LEVEL = {"level": 1.0, "spread": 2.5}
+"""A declared level for the simulated widened sightings: their errors are independent, so declared right their own
+reading is 1."""
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("declared, applied", [(1.0, (1.0, 1.1)), (0.09, (9.4, 12.8))], ids=["right", "sensor 0.3x"])
-def test_widened_sightings_read_against_their_own_covariances_rescale_a_sensor_declared_too_sure(
-    declared: float, applied: tuple[float, float]
+@pytest.mark.parametrize(
+    "declared, level, applied",
+    [(1.0, LEVEL, (1.0, 1.0)), (0.09, None, (9.4, 12.8)), (9.0, LEVEL, (0.111 / 1.15, 0.111 * 1.15))],
+    ids=["right", "sensor 0.3x without level", "sensor 3x"],
+)
+def test_widened_sightings_read_against_their_own_covariances_rescale_a_misdeclared_sensor(
+    declared: float, level: dict | None, applied: tuple[float, float]
 ) -> None:
     """Sightings widened 25x / 16x by their lines: against the widened covariances the fit reads ~1/20 and applies
-    nothing (the widening is the source's); against their own it reads the factor the sensor is off by and applies it
-    where above 1 (11.1 for 0.3x: within 15%), and nothing where declared right."""
-    world = _widened(_declared(grid_world(GridConfig(poses=150, seed=3)), (1.0, declared)), (25.0, 16.0))
+    nothing (the widening is the source's); against their own it reads the factor the sensor is off by (11.1 for
+    0.3x, 0.111 for 3x: within 15%). Without a declared level a reading above 1 is applied as it is; with one, the
+    reading over the level beyond its spread, and nothing within it (declared right)."""
+    world = _widened(_declared(grid_world(GridConfig(poses=150, seed=3)), (1.0, declared)), (25.0, 16.0), level)
     told: list = []
     replay(world, replay_config({"noise": "self", "estimators": "ekf"}), on_noise_fit=told.append)
     (fit,) = told
     assert fit.sightings_correlated and fit.sensor_scale < 0.1 / declared
     assert fit.own_sensor_scale is not None and applied[0] <= fit.applied_sensor_scale <= applied[1], fit
-    assert fit.applied_sensor_scale == max(1.0, fit.own_sensor_scale)
+    assert fit.own_level == (None if level is None else (1.0, 2.5))
     assert "sensor scale against the sightings' own covariances" in describe(fit)
     assert with_noise_fit(replay_config({}), fit).frontend.sensor_noise_scale == fit.applied_sensor_scale
+
+
+def _own(reading: float | None, level: tuple[float, float] | None) -> SelfFit:
+    """A fit of correlated sightings with this own-covariance reading and declared level (the rest immaterial)."""
+    return SelfFit(10, 20, 0, 0, 0, 0, 0.8, 0.02, 25.0, 30.0, (), 3, True, True, reading, level)
+
+
+@pytest.mark.parametrize(
+    "reading, level, applied, verdict",
+    [
+        (None, (0.3, 2.5), 1.0, None),
+        (0.4, None, 1.0, "not above 1: says nothing"),
+        (3.0, None, 3.0, "above 1: the sensor is declared too sure by at least that much, applied"),
+        (0.3 * 2.5, (0.3, 2.5), 1.0, "within 2.5x of the source's level for sightings declared right 0.3"),
+        (0.3 / 2.5, (0.3, 2.5), 1.0, "says nothing, not applied"),
+        (0.3 * 2.6, (0.3, 2.5), 2.6, "2.6x the source's level for sightings declared right 0.3, beyond 2.5x: applied"),
+        (0.03, (0.3, 2.5), 0.1, "0.1x the source's level"),
+    ],
+)
+def test_the_own_reading_is_applied_beyond_the_declared_spread_about_the_level(
+    reading: float | None, level: tuple[float, float] | None, applied: float, verdict: str | None
+) -> None:
+    fit = _own(reading, level)
+    assert fit.applied_sensor_scale == pytest.approx(applied, rel=1e-12)
+    assert fit.flags().endswith(f"--sensor-noise-scale {applied:.4g}")
+    text = describe(fit)
+    assert (verdict in text) if verdict else "own covariances" not in text
+
+
+@pytest.mark.parametrize(
+    "value, field",
+    [
+        (0.3, "sightings_own_scale"),
+        ({"level": 0.3}, "sightings_own_scale"),
+        ({"level": 0.0, "spread": 2.0}, "sightings_own_scale.level"),
+        ({"level": 0.3, "spread": 0.5}, "sightings_own_scale.spread"),
+        ({"level": "a", "spread": 2.0}, "sightings_own_scale.level"),
+        ({"level": 0.3, "spread": float("inf")}, "sightings_own_scale.spread"),
+    ],
+)
+def test_a_bad_declared_own_scale_is_one_line(value: object, field: str) -> None:
+    header = json.dumps({"type": "header", "format": "online-slam", "version": 1, "sightings_own_scale": value})
+    with pytest.raises(InputError) as caught:
+        list(parse_lines("s.jsonl", [header]))
+    assert caught.value.field == field and caught.value.line == 1
 
 
 @pytest.mark.slow
@@ -237,3 +300,34 @@ def test_the_benchmark_measures_the_other_worlds_too(world: str, capsys: pytest.
     assert "seed 3 declared right" in out and "worst / median over 1 seeds" in out
     errors = [float(e) for e in re.findall(r"scale error ([-+]\d\.\d+)", out)]
     assert len(errors) == 4 and max(map(abs, errors)) < 0.3, out
+
+
+@pytest.mark.slow
+def test_the_shipped_mrclam_stream_declared_3x_too_unsure_is_rescaled_by_its_declared_level() -> None:
+    """MRCLAM robot 1 as shipped (its header declares the own reading's level, 0.318), sightings declared 3x too
+    unsure: the own reading (0.039) is beyond 2.5x below the level, so 0.123 is applied (0.111 is right) and the
+    EKF reads as declared right (1.01x; 1.22x with nothing applied)."""
+    from online_slam.sources import read_stream
+
+    events = list(read_stream(REPLAY / "mrclam6_robot1.jsonl.gz"))
+    config = replay_config({"estimators": "ekf"})
+    right = replay(events, config).estimators["ekf"]
+    told: list = []
+    wrong = replay(_declared(events, (1.0, 9.0)), replay_config({"estimators": "ekf", "noise": "self"}),
+                   on_noise_fit=told.append).estimators["ekf"]  # fmt: skip
+    (fit,) = told
+    assert fit.own_level == (0.318, 2.5) and 0.111 / 1.5 < fit.applied_sensor_scale < 0.111 * 1.5, fit
+    assert "beyond 2.5x: applied" in describe(fit)
+    assert wrong.online_rmse_m < 1.1 * right.online_rmse_m and wrong.nees_mean < 6.0
+
+
+@pytest.mark.slow
+@needs_data("MRCLAM_Dataset6")
+def test_the_own_benchmark_reads_robot_1_where_the_level_was_measured(capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m benchmarks.noise_self own`` on one robot: its reading (0.349, one of the five the conversion's
+    level 0.318 is the geometric mean of)."""
+    from benchmarks.noise_self import own
+
+    readings = own(str(SHARED_DATA / "MRCLAM_Dataset6"), robots=(1,))
+    assert readings[1] == pytest.approx(0.3486, rel=0.02)
+    assert "geometric mean (own_scale_level) 0.34" in capsys.readouterr().out

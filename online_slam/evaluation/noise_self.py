@@ -36,10 +36,13 @@ A source whose sightings are widened for the correlation of repeated sightings (
 gets its sensor scale and biases measured and shown, not applied: the fit sees each sighting as independent and takes
 the widening for an overstatement (MRCLAM reads 0.007-0.023). Where the lines also say by how much each was widened
 (``widened``: :meth:`~online_slam.frontend.pose.Step.z_own_cov`), :func:`own_sensor_scale` fits the scale again
-against the sightings' own covariances, and a scale above 1 there is applied: the errors the landmarks' positions
-absorb (those alike over a landmark's sightings) only lower that reading (MRCLAM declared right: 0.20-0.51), so a
-reading above 1 says the sensor is declared too sure by at least that much (MRCLAM declared 0.3x: 2.1-5.6, against
-the 11.1 it is off by). Below 1 it says nothing, and nothing is applied.
+against the sightings' own covariances. The errors the landmarks' positions absorb (those alike over a landmark's
+sightings) lower that reading, by as much as the source's errors are alike, which the data alone cannot tell (MRCLAM
+declared right: 0.20-0.51). A source that declares the level its sightings read when declared right (header
+``sightings_own_scale``: level and spread; MRCLAM 0.318 and 2.5) gets the reading over the level applied where the
+reading is beyond the spread either way (MRCLAM declared 0.3x reads 2.1-5.6, 3x 0.022-0.056), and nothing within
+it. Without a declared level, a reading above 1 is applied (a lower bound of the factor the sensor is off by), and
+nothing below.
 
 What it cannot see: errors correlated in time (a slip that lasts, one landmark's errors alike for a while) look to
 it like independent ones, and a component of a covariance off against the others (range against bearing) is
@@ -164,15 +167,26 @@ class SelfFit:
     a while for a bias; applied on MRCLAM, both made every estimator overconfident (docs/commands.md)."""
     own_sensor_scale: float | None = None
     """For correlated sightings whose lines say their widening: the sensor scale fitted against their own
-    covariances (:func:`own_sensor_scale`), a lower bound of the scale the sensor is off by; None: not fitted."""
+    covariances (:func:`own_sensor_scale`); None: not fitted."""
+    own_level: tuple[float, float] | None = None
+    """The source's ``(level, spread)`` (header ``sightings_own_scale``): what :attr:`own_sensor_scale` reads on the
+    source declared right, and the factor either way about it within which a reading says nothing. None: not
+    declared; a reading then counts only above 1, as a lower bound."""
 
     @property
     def applied_sensor_scale(self) -> float:
-        """The sensor scale a replay applies: :attr:`sensor_scale`; for correlated sightings, :attr:`own_sensor_scale`
-        where it is above 1, else 1 (see the module's docstring)."""
+        """The sensor scale a replay applies: :attr:`sensor_scale`; for correlated sightings, their own reading over
+        the declared level where beyond the spread about it (else 1); without a declared level, the reading where
+        above 1 (else 1). See the module's docstring."""
         if not self.sightings_correlated:
             return self.sensor_scale
-        return max(1.0, self.own_sensor_scale or 1.0)
+        own = self.own_sensor_scale
+        if own is None:
+            return 1.0
+        if self.own_level is None:
+            return max(1.0, own)
+        level, spread = self.own_level
+        return 1.0 if level / spread <= own <= level * spread else own / level
 
     @property
     def sensor_bias(self) -> tuple[SensorBias, ...]:
@@ -526,13 +540,8 @@ def describe(fit: SelfFit) -> str:
             "widened on purpose for the correlation of repeated sightings)"
         )
         if fit.own_sensor_scale is not None:
-            verdict = (
-                "above 1: the sensor is declared too sure by at least that much, applied"
-                if fit.own_sensor_scale > 1.0
-                else "not above 1: says nothing, as the landmarks absorb errors alike over their sightings"
-            )
             lines.append(
-                f"  sensor scale against the sightings' own covariances {fit.own_sensor_scale:.3g} ({verdict})"
+                f"  sensor scale against the sightings' own covariances {fit.own_sensor_scale:.3g} ({_verdict(fit)})"
             )
     rows = [("sensor", "sightings", "range bias", "bearing bias")]
     for b in fit.biases:
@@ -550,6 +559,20 @@ def describe(fit: SelfFit) -> str:
     biased = " and the biases marked * taken off" if fit.sensor_bias else ""
     lines.append(f"replaying with {fit.flags()}{biased}")
     return "\n".join(lines)
+
+
+def _verdict(fit: SelfFit) -> str:
+    """What the own-covariance reading says, as :attr:`SelfFit.applied_sensor_scale` takes it."""
+    own = fit.own_sensor_scale or 1.0
+    if fit.own_level is None:
+        if own > 1.0:
+            return "above 1: the sensor is declared too sure by at least that much, applied"
+        return "not above 1: says nothing, as the landmarks absorb errors alike over their sightings"
+    level, spread = fit.own_level
+    where = f"the source's level for sightings declared right {level:.3g}"
+    if level / spread <= own <= level * spread:
+        return f"within {spread:.3g}x of {where}: says nothing, not applied"
+    return f"{own / level:.3g}x {where}, beyond {spread:.3g}x: applied"
 
 
 def _bias_cell(value: float, sd: float, unit: str, significant: bool) -> str:

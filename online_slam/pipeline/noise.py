@@ -57,19 +57,26 @@ def fit_source_noise(
         fit: Fit = fit_noise(steps, frontend.truth)
         return dataclasses.replace(fit, sightings_correlated=frontend.sightings_correlated), source
     listed = list(steps)  # read to the end: the header is known
-    return _fit_self(listed, config, frontend.sightings_correlated), source
+    return _fit_self(listed, config, frontend), source
 
 
-def _fit_self(steps: list[Step], config: ReplayConfig, correlated: bool) -> SelfFit:
+def _fit_self(steps: list[Step], config: ReplayConfig, frontend: FrontEnd) -> SelfFit:
     """``--noise self`` on the steps, started from the estimate of an EKF of the replay's settings over them (the
     batch from composed odometry can stop in a poor minimum; the EKF costs a small part of the fit); for correlated
-    sightings, also against their own covariances (:func:`~online_slam.evaluation.noise_self.own_sensor_scale`)."""
+    sightings, also against their own covariances (:func:`~online_slam.evaluation.noise_self.own_sensor_scale`),
+    read against the level the header declares for them."""
     ekf = make_estimator("ekf", config.with_association("known"))
     for step in steps:
         ekf.step(step)
     initial = ekf.finish()
+    correlated = frontend.sightings_correlated
     own = own_sensor_scale(steps, initial=initial) if correlated else None
-    return dataclasses.replace(fit_self(steps, initial=initial), sightings_correlated=correlated, own_sensor_scale=own)
+    return dataclasses.replace(
+        fit_self(steps, initial=initial),
+        sightings_correlated=correlated,
+        own_sensor_scale=own,
+        own_level=frontend.sightings_own_scale if correlated else None,
+    )
 
 
 def with_noise_fit(config: ReplayConfig, fit: Fit) -> ReplayConfig:

@@ -338,8 +338,22 @@ class EventValidator(ScanRules, RobotRules):
         if "fix_correlation_s" in meta and (isinstance(tau, bool) or not isinstance(tau, (int, float))
                                             or not 0.0 <= tau < math.inf):  # fmt: skip
             raise self.fail(line, "fix_correlation_s", f"expected seconds >= 0 (a finite number), got {show(tau)}")
+        if "sightings_own_scale" in meta:
+            self._own_scale(meta["sightings_own_scale"], line)
         self._pending.seen_content = True
         return Header(name=name, meta=meta, version=VERSION)
+
+    def _own_scale(self, own: Any, line: int) -> None:
+        """The header's ``sightings_own_scale``: ``{"level": L > 0, "spread": S >= 1}``, both finite."""
+        field_name = "sightings_own_scale"
+        if not isinstance(own, dict) or set(own) != {"level", "spread"}:
+            raise self.fail(line, field_name, f'expected {{"level": L, "spread": S}}, got {show(own)}')
+        for key, low in (("level", 0.0), ("spread", 1.0)):
+            value = own[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value < math.inf \
+                    or (key == "level" and value == 0.0):  # fmt: skip
+                bound = "> 0" if key == "level" else ">= 1"
+                raise self.fail(line, f"{field_name}.{key}", f"expected a finite number {bound}, got {show(value)}")
 
     def _sensors(self, sensors: Any, line: int) -> dict[str, dict[str, list[float]]]:
         """The header's ``sensors``: ``{name: {"pose": [x, y, theta]}}``, each pose the sensor's in the robot frame."""

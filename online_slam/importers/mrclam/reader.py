@@ -92,6 +92,15 @@ class MrclamNoise:
     ``c1 exp(-dt / tau1) + c2 exp(-dt / tau2)`` as ``(c1, tau1, c2, tau2)`` (seconds); all zero: independent."""
     bearing_correlation: tuple[float, float, float, float] = (0.158, 1.02, 0.417, 13.0)
     """The same for bearing errors."""
+    own_scale_level: float = 0.318
+    """The sensor scale ``--noise self`` reads against a stream's own sighting covariances (each ``widened``
+    divided out) when the stream is declared right: the share of their variance the batch's residuals keep, the
+    rest taken up by the landmarks and poses (errors alike over a landmark's sightings, the camera's errors beyond
+    Vicon's). Geometric mean of Dataset 6's five robots, 0.197-0.509 (``python -m benchmarks.noise_self own``);
+    the header's ``sightings_own_scale``."""
+    own_scale_spread: float = 2.5
+    """The factor either way about ``own_scale_level`` within which a reading says nothing: Dataset 6's robots read
+    within 1.61x of the level; with one robot left out, within 1.82x of the other four's."""
     range_sigma: float = 0.0
     """Range standard deviation at zero range, m (the sigma of a sighting is this plus ``range_sigma_per_m``
     times its measured range), pooled over the robots: a robot with a camera (``cameras``) uses the camera's."""
@@ -116,6 +125,13 @@ def noise_meta(noise: MrclamNoise) -> dict:
     meta = {k: list(v) if isinstance(v, tuple) else v for k, v in noise.__dict__.items()}
     meta["cameras"] = [dict(camera.__dict__) for camera in noise.cameras]
     return meta
+
+
+def own_scale_meta(noise: MrclamNoise) -> dict:
+    """The header's ``sightings_own_scale`` (none when the sightings are not widened: :func:`correlates`)."""
+    if not correlates(noise):
+        return {}
+    return {"sightings_own_scale": {"level": noise.own_scale_level, "spread": noise.own_scale_spread}}
 
 
 def correlates(noise: MrclamNoise) -> bool:
@@ -488,6 +504,7 @@ def read_mrclam(
             "dropped_unknown_barcodes": data.dropped_unknown,
             "noise": noise_meta(cfg),
             "sightings_correlated": correlates(cfg),
+            **own_scale_meta(cfg),
             **sensors,
         },
     )

@@ -36,6 +36,7 @@ from online_slam.importers.mrclam.reader import (
     load_robot,
     noise_meta,
     odometry_increments,
+    own_scale_meta,
 )
 from online_slam.importers.mrclam.sightings import camera_of, camera_sightings, mounting, widened_field
 from online_slam.sources.events import Event, Header, LandmarkTruth, Observation, Odometry, Start, Truth
@@ -164,6 +165,7 @@ def read_mrclam_robots(
             "start": "each robot's Vicon pose at its first pose time",
             "noise": noise_meta(cfg),
             "sightings_correlated": correlates(cfg),
+            **own_scale_meta(cfg),
             **_sensors(cfg),
         },
     )
