@@ -305,20 +305,17 @@ def test_the_benchmark_measures_the_other_worlds_too(world: str, capsys: pytest.
 @pytest.mark.slow
 def test_the_shipped_mrclam_stream_declared_3x_too_unsure_is_rescaled_by_its_declared_level() -> None:
     """MRCLAM robot 1 as shipped (its header declares the own reading's level, 0.318), sightings declared 3x too
-    unsure: the own reading (0.039) is beyond 2.5x below the level, so 0.123 is applied (0.111 is right) and the
-    EKF reads as declared right (1.01x; 1.22x with nothing applied)."""
+    unsure: the own reading (0.039) is beyond 2.5x below the level, so 0.123 is applied (0.111 is right); replayed
+    so, the EKF reads as declared right (1.01x; 1.22x with nothing applied: benchmarks/RESULTS.md)."""
+    from online_slam.pipeline.noise import fit_source_noise
     from online_slam.sources import read_stream
 
-    events = list(read_stream(REPLAY / "mrclam6_robot1.jsonl.gz"))
-    config = replay_config({"estimators": "ekf"})
-    right = replay(events, config).estimators["ekf"]
-    told: list = []
-    wrong = replay(_declared(events, (1.0, 9.0)), replay_config({"estimators": "ekf", "noise": "self"}),
-                   on_noise_fit=told.append).estimators["ekf"]  # fmt: skip
-    (fit,) = told
-    assert fit.own_level == (0.318, 2.5) and 0.111 / 1.5 < fit.applied_sensor_scale < 0.111 * 1.5, fit
+    events = _declared(read_stream(REPLAY / "mrclam6_robot1.jsonl.gz"), (1.0, 9.0))
+    fit, _ = fit_source_noise(events, replay_config({"estimators": "ekf", "noise": "self"}))
+    assert isinstance(fit, SelfFit) and fit.own_level == (0.318, 2.5)
+    assert fit.own_sensor_scale == pytest.approx(0.039, rel=0.1)
+    assert fit.applied_sensor_scale == pytest.approx(fit.own_sensor_scale / 0.318, rel=1e-12)
     assert "beyond 2.5x: applied" in describe(fit)
-    assert wrong.online_rmse_m < 1.1 * right.online_rmse_m and wrong.nees_mean < 6.0
 
 
 @pytest.mark.slow
