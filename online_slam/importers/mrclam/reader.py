@@ -97,7 +97,8 @@ class MrclamNoise:
     divided out) when the stream is declared right: the share of their variance the batch's residuals keep, the
     rest taken up by the landmarks and poses (errors alike over a landmark's sightings, the camera's errors beyond
     Vicon's). Geometric mean of Dataset 6's five robots, 0.197-0.509 (``python -m benchmarks.noise_self own``);
-    the header's ``sightings_own_scale``."""
+    the header's ``sightings_own_scale``. A refit (``--refit``, ``--fit-half``) keeps it: it needs the batch's
+    self-fit of every robot, not Vicon."""
     own_scale_spread: float = 2.5
     """The factor either way about ``own_scale_level`` within which a reading says nothing: Dataset 6's robots read
     within 1.61x of the level; with one robot left out, within 1.82x of the other four's."""
