@@ -11,8 +11,8 @@
   sensor scale and biases applied too), and the stream with its odometry or its sightings' covariances times 0.09
   or 9, replayed as declared and with ``--noise self``.
 - ``own``: Dataset 6's robots declared right: the sensor scale each reads against its sightings' own covariances,
-  their geometric mean (the model's ``own_scale_level``) and how far each reading is from it, and from the other four
-  robots' mean (left out).
+  their range (the model's ``own_scale_range``), and how far each reading falls outside the other robots' range
+  (left out).
 
 One replay at a time: ``python -m benchmarks.noise_self simulated [--world grid] [--seeds 20] [--poses 2000]``,
 ``python -m benchmarks.noise_self mrclam [--folder PATH] [--streams 1,2,3,4,5,all]`` and
@@ -178,21 +178,20 @@ def mrclam(folder: str, streams: Sequence[str], say: Callable[[str], None] = pri
 
 
 def own(folder: str, robots: Sequence[int] = (1, 2, 3, 4, 5), say: Callable[[str], None] = print) -> dict[int, float]:
-    """Each robot's own-covariance reading declared right (``--noise self``'s fit; no replay), their geometric mean
-    and each reading's factor from it and from the other robots' mean."""
+    """Each robot's own-covariance reading declared right (``--noise self``'s fit; no replay), their range, and the
+    factor by which each reading falls outside the other robots' range (1: inside)."""
     readings: dict[int, float] = {}
     for robot in robots:
         fit, _ = fit_source_noise(list(read_mrclam(folder, robot)), self_config(ReplayConfig()))
         assert isinstance(fit, SelfFit) and fit.own_sensor_scale is not None  # MRCLAM's lines say their widening
         readings[robot] = fit.own_sensor_scale
         say(f"robot {robot}: own-covariance sensor scale {fit.own_sensor_scale:.4g}")
-    logs = {r: float(np.log(v)) for r, v in readings.items()}
-    level = float(np.exp(np.mean(list(logs.values()))))
-    say(f"geometric mean (own_scale_level) {level:.4g}")
-    for robot, value in logs.items():
-        others = [v for r, v in logs.items() if r != robot]
-        out = float(np.exp(abs(value - np.mean(others)))) if others else 1.0
-        say(f"robot {robot}: {np.exp(abs(value - np.log(level))):.3g}x from the level, {out:.3g}x from the others'")
+    say(f"range (own_scale_range) {min(readings.values()):.4g} - {max(readings.values()):.4g}")
+    for robot, value in readings.items():
+        others = [v for r, v in readings.items() if r != robot]
+        if others:
+            out = max(1.0, min(others) / value, value / max(others))
+            say(f"robot {robot}: {out:.3g}x outside the other robots' range {min(others):.4g} - {max(others):.4g}")
     return readings
 
 

@@ -213,8 +213,8 @@ def _widened(events, factors: tuple[float, float], level: dict | None = None) ->
     return out
 
 
-LEVEL = {"level": 1.0, "spread": 2.5}
-"""A declared level for the simulated widened sightings: their errors are independent, so declared right their own
+LEVEL = {"range": [1.0, 1.0], "spread": 2.5}
+"""A declared range for the simulated widened sightings: their errors are independent, so declared right their own
 reading is 1."""
 
 
@@ -229,40 +229,43 @@ def test_widened_sightings_read_against_their_own_covariances_rescale_a_misdecla
 ) -> None:
     """Sightings widened 25x / 16x by their lines: against the widened covariances the fit reads ~1/20 and applies
     nothing (the widening is the source's); against their own it reads the factor the sensor is off by (11.1 for
-    0.3x, 0.111 for 3x: within 15%). Without a declared level a reading above 1 is applied as it is; with one, the
-    reading over the level beyond its spread, and nothing within it (declared right)."""
+    0.3x, 0.111 for 3x: within 15%). Without a declared range a reading above 1 is applied as it is; with one, the
+    reading over its low end beyond the range and its spread, and nothing within (declared right)."""
     world = _widened(_declared(grid_world(GridConfig(poses=150, seed=3)), (1.0, declared)), (25.0, 16.0), level)
     told: list = []
     replay(world, replay_config({"noise": "self", "estimators": "ekf"}), on_noise_fit=told.append)
     (fit,) = told
     assert fit.sightings_correlated and fit.sensor_scale < 0.1 / declared
     assert fit.own_sensor_scale is not None and applied[0] <= fit.applied_sensor_scale <= applied[1], fit
-    assert fit.own_level == (None if level is None else (1.0, 2.5))
+    assert fit.own_range == (None if level is None else (1.0, 1.0, 2.5))
     assert "sensor scale against the sightings' own covariances" in describe(fit)
     assert with_noise_fit(replay_config({}), fit).frontend.sensor_noise_scale == fit.applied_sensor_scale
 
 
-def _own(reading: float | None, level: tuple[float, float] | None) -> SelfFit:
-    """A fit of correlated sightings with this own-covariance reading and declared level (the rest immaterial)."""
-    return SelfFit(10, 20, 0, 0, 0, 0, 0.8, 0.02, 25.0, 30.0, (), 3, True, True, reading, level)
+def _own(reading: float | None, declared: tuple[float, float, float] | None) -> SelfFit:
+    """A fit of correlated sightings with this own-covariance reading and declared range (the rest immaterial)."""
+    return SelfFit(10, 20, 0, 0, 0, 0, 0.8, 0.02, 25.0, 30.0, (), 3, True, True, reading, declared)
+
+
+RANGE = (0.2, 0.5, 1.6)
 
 
 @pytest.mark.parametrize(
-    "reading, level, applied, verdict",
+    "reading, declared, applied, verdict",
     [
-        (None, (0.3, 2.5), 1.0, None),
+        (None, RANGE, 1.0, None),
         (0.4, None, 1.0, "not above 1: says nothing"),
         (3.0, None, 3.0, "above 1: the sensor is declared too sure by at least that much, applied"),
-        (0.3 * 2.5, (0.3, 2.5), 1.0, "within 2.5x of the source's level for sightings declared right 0.3"),
-        (0.3 / 2.5, (0.3, 2.5), 1.0, "says nothing, not applied"),
-        (0.3 * 2.6, (0.3, 2.5), 2.6, "2.6x the source's level for sightings declared right 0.3, beyond 2.5x: applied"),
-        (0.03, (0.3, 2.5), 0.1, "0.1x the source's level"),
+        (0.5 * 1.6, RANGE, 1.0, "within 1.6x of the source's range for sightings declared right 0.2-0.5: says nothing"),
+        (0.2 / 1.6, RANGE, 1.0, "says nothing, not applied"),
+        (0.5 * 1.7, RANGE, 4.25, "beyond 1.6x of the source's range for sightings declared right 0.2-0.5: 4.25x its"),
+        (0.02, RANGE, 0.1, "0.1x its low end applied"),
     ],
 )
-def test_the_own_reading_is_applied_beyond_the_declared_spread_about_the_level(
-    reading: float | None, level: tuple[float, float] | None, applied: float, verdict: str | None
+def test_the_own_reading_is_applied_over_the_declared_ranges_low_end_beyond_its_spread(
+    reading: float | None, declared: tuple[float, float, float] | None, applied: float, verdict: str | None
 ) -> None:
-    fit = _own(reading, level)
+    fit = _own(reading, declared)
     assert fit.applied_sensor_scale == pytest.approx(applied, rel=1e-12)
     assert fit.flags().endswith(f"--sensor-noise-scale {applied:.4g}")
     text = describe(fit)
@@ -273,11 +276,14 @@ def test_the_own_reading_is_applied_beyond_the_declared_spread_about_the_level(
     "value, field",
     [
         (0.3, "sightings_own_scale"),
-        ({"level": 0.3}, "sightings_own_scale"),
-        ({"level": 0.0, "spread": 2.0}, "sightings_own_scale.level"),
-        ({"level": 0.3, "spread": 0.5}, "sightings_own_scale.spread"),
-        ({"level": "a", "spread": 2.0}, "sightings_own_scale.level"),
-        ({"level": 0.3, "spread": float("inf")}, "sightings_own_scale.spread"),
+        ({"range": [0.2, 0.5]}, "sightings_own_scale"),
+        ({"range": [0.0, 0.5], "spread": 2.0}, "sightings_own_scale.range"),
+        ({"range": [0.5, 0.2], "spread": 2.0}, "sightings_own_scale.range"),
+        ({"range": [0.2], "spread": 2.0}, "sightings_own_scale.range"),
+        ({"range": ["a", 0.5], "spread": 2.0}, "sightings_own_scale.range"),
+        ({"range": [0.2, 0.5], "spread": 0.5}, "sightings_own_scale.spread"),
+        ({"range": [0.2, 0.5], "spread": float("inf")}, "sightings_own_scale.spread"),
+        ({"range": [0.2, 0.5], "spread": True}, "sightings_own_scale.spread"),
     ],
 )
 def test_a_bad_declared_own_scale_is_one_line(value: object, field: str) -> None:
@@ -303,28 +309,29 @@ def test_the_benchmark_measures_the_other_worlds_too(world: str, capsys: pytest.
 
 
 @pytest.mark.slow
-def test_the_shipped_mrclam_stream_declared_3x_too_unsure_is_rescaled_by_its_declared_level() -> None:
-    """MRCLAM robot 1 as shipped (its header declares the own reading's level, 0.318), sightings declared 3x too
-    unsure: the own reading (0.039) is beyond 2.5x below the level, so 0.123 is applied (0.111 is right); replayed
-    so, the EKF reads as declared right (1.01x; 1.22x with nothing applied: benchmarks/RESULTS.md)."""
+def test_the_shipped_mrclam_stream_declared_3x_too_unsure_is_rescaled_by_its_declared_range() -> None:
+    """MRCLAM robot 1 as shipped (its header declares the own readings of streams declared right, 0.197-0.509),
+    sightings declared 3x too unsure: the own reading (0.039) is more than 1.6x below the range, so 0.199 is applied
+    (0.111 is right); replayed so, the EKF reads about as declared right (1.05x; 1.22x with nothing applied:
+    benchmarks/RESULTS.md)."""
     from online_slam.pipeline.noise import fit_source_noise
     from online_slam.sources import read_stream
 
     events = _declared(read_stream(REPLAY / "mrclam6_robot1.jsonl.gz"), (1.0, 9.0))
     fit, _ = fit_source_noise(events, replay_config({"estimators": "ekf", "noise": "self"}))
-    assert isinstance(fit, SelfFit) and fit.own_level == (0.318, 2.5)
+    assert isinstance(fit, SelfFit) and fit.own_range == (0.197, 0.509, 1.6)
     assert fit.own_sensor_scale == pytest.approx(0.039, rel=0.1)
-    assert fit.applied_sensor_scale == pytest.approx(fit.own_sensor_scale / 0.318, rel=1e-12)
-    assert "beyond 2.5x: applied" in describe(fit)
+    assert fit.applied_sensor_scale == pytest.approx(fit.own_sensor_scale / 0.197, rel=1e-12)
+    assert "its low end applied" in describe(fit)
 
 
 @pytest.mark.slow
 @needs_data("MRCLAM_Dataset6")
-def test_the_own_benchmark_reads_robot_1_where_the_level_was_measured(capsys: pytest.CaptureFixture[str]) -> None:
-    """``python -m benchmarks.noise_self own`` on one robot: its reading (0.349, one of the five the conversion's
-    level 0.318 is the geometric mean of)."""
+def test_the_own_benchmark_reads_robot_1_inside_the_declared_range(capsys: pytest.CaptureFixture[str]) -> None:
+    """``python -m benchmarks.noise_self own`` on one robot: its reading (0.349, inside the conversion's range
+    0.197-0.509 of the five)."""
     from benchmarks.noise_self import own
 
     readings = own(str(SHARED_DATA / "MRCLAM_Dataset6"), robots=(1,))
     assert readings[1] == pytest.approx(0.3486, rel=0.02)
-    assert "geometric mean (own_scale_level) 0.34" in capsys.readouterr().out
+    assert "range (own_scale_range) 0.3486 - 0.3486" in capsys.readouterr().out

@@ -38,11 +38,12 @@ the widening for an overstatement (MRCLAM reads 0.007-0.023). Where the lines al
 (``widened``: :meth:`~online_slam.frontend.pose.Step.z_own_cov`), :func:`own_sensor_scale` fits the scale again
 against the sightings' own covariances. The errors the landmarks' positions absorb (those alike over a landmark's
 sightings) lower that reading, by as much as the source's errors are alike, which the data alone cannot tell (MRCLAM
-declared right: 0.20-0.51). A source that declares the level its sightings read when declared right (header
-``sightings_own_scale``: level and spread; MRCLAM 0.318 and 2.5) gets the reading over the level applied where the
-reading is beyond the spread either way (MRCLAM declared 0.3x reads 2.1-5.6, 3x 0.022-0.056), and nothing within
-it. Without a declared level, a reading above 1 is applied (a lower bound of the factor the sensor is off by), and
-nothing below.
+declared right: 0.197-0.509). A source that declares the range its streams declared right read (header
+``sightings_own_scale``: range and spread; MRCLAM 0.197-0.509 and 1.6) gets a reading beyond the range and its spread
+applied over the range's low end (MRCLAM declared 0.3x reads 2.1-5.6, 3x 0.022-0.056), and nothing within. The low
+end: a stream read against the lowest is rescaled least too sure (none on Dataset 6) and at most high / low (2.6x)
+too unsure. Without a declared range, a reading above 1 is applied (a lower bound of the factor the sensor is off
+by), and nothing below.
 
 What it cannot see: errors correlated in time (a slip that lasts, one landmark's errors alike for a while) look to
 it like independent ones, and a component of a covariance off against the others (range against bearing) is
@@ -168,25 +169,25 @@ class SelfFit:
     own_sensor_scale: float | None = None
     """For correlated sightings whose lines say their widening: the sensor scale fitted against their own
     covariances (:func:`own_sensor_scale`); None: not fitted."""
-    own_level: tuple[float, float] | None = None
-    """The source's ``(level, spread)`` (header ``sightings_own_scale``): what :attr:`own_sensor_scale` reads on the
-    source declared right, and the factor either way about it within which a reading says nothing. None: not
-    declared; a reading then counts only above 1, as a lower bound."""
+    own_range: tuple[float, float, float] | None = None
+    """The source's ``(low, high, spread)`` (header ``sightings_own_scale``): the lowest and highest
+    :attr:`own_sensor_scale` its streams declared right read, and the factor beyond them within which a reading
+    still says nothing. None: not declared; a reading then counts only above 1, as a lower bound."""
 
     @property
     def applied_sensor_scale(self) -> float:
         """The sensor scale a replay applies: :attr:`sensor_scale`; for correlated sightings, their own reading over
-        the declared level where beyond the spread about it (else 1); without a declared level, the reading where
-        above 1 (else 1). See the module's docstring."""
+        the low end of the declared range where beyond the range and its spread (else 1); without a declared range,
+        the reading where above 1 (else 1). See the module's docstring."""
         if not self.sightings_correlated:
             return self.sensor_scale
         own = self.own_sensor_scale
         if own is None:
             return 1.0
-        if self.own_level is None:
+        if self.own_range is None:
             return max(1.0, own)
-        level, spread = self.own_level
-        return 1.0 if level / spread <= own <= level * spread else own / level
+        low, high, spread = self.own_range
+        return 1.0 if low / spread <= own <= high * spread else own / low
 
     @property
     def sensor_bias(self) -> tuple[SensorBias, ...]:
@@ -564,15 +565,15 @@ def describe(fit: SelfFit) -> str:
 def _verdict(fit: SelfFit) -> str:
     """What the own-covariance reading says, as :attr:`SelfFit.applied_sensor_scale` takes it."""
     own = fit.own_sensor_scale or 1.0
-    if fit.own_level is None:
+    if fit.own_range is None:
         if own > 1.0:
             return "above 1: the sensor is declared too sure by at least that much, applied"
         return "not above 1: says nothing, as the landmarks absorb errors alike over their sightings"
-    level, spread = fit.own_level
-    where = f"the source's level for sightings declared right {level:.3g}"
-    if level / spread <= own <= level * spread:
+    low, high, spread = fit.own_range
+    where = f"the source's range for sightings declared right {low:.3g}-{high:.3g}"
+    if low / spread <= own <= high * spread:
         return f"within {spread:.3g}x of {where}: says nothing, not applied"
-    return f"{own / level:.3g}x {where}, beyond {spread:.3g}x: applied"
+    return f"beyond {spread:.3g}x of {where}: {own / low:.3g}x its low end applied"
 
 
 def _bias_cell(value: float, sd: float, unit: str, significant: bool) -> str:

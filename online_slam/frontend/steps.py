@@ -298,11 +298,12 @@ class FrontEnd:
         return self.header is not None and bool(self.header.meta.get("sightings_correlated"))
 
     @property
-    def sightings_own_scale(self) -> tuple[float, float] | None:
-        """The header's ``sightings_own_scale`` as ``(level, spread)`` (the sensor scale a stream declared right
-        reads against its sightings' own covariances, and the factor either way that says nothing); None: none."""
+    def sightings_own_scale(self) -> tuple[float, float, float] | None:
+        """The header's ``sightings_own_scale`` as ``(low, high, spread)``: the sensor scales streams declared right
+        read against their sightings' own covariances, and the factor beyond them that still says nothing; None:
+        none."""
         own = None if self.header is None else self.header.meta.get("sightings_own_scale")
-        return None if own is None else (float(own["level"]), float(own["spread"]))
+        return None if own is None else (float(own["range"][0]), float(own["range"][1]), float(own["spread"]))
 
     def _decorrelated(self, fix: Position | Heading) -> Position | Heading:
         """The fix with its covariance widened for its correlation with the robot's previous one of its kind

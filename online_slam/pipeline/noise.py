@@ -64,7 +64,7 @@ def _fit_self(steps: list[Step], config: ReplayConfig, frontend: FrontEnd) -> Se
     """``--noise self`` on the steps, started from the estimate of an EKF of the replay's settings over them (the
     batch from composed odometry can stop in a poor minimum; the EKF costs a small part of the fit); for correlated
     sightings, also against their own covariances (:func:`~online_slam.evaluation.noise_self.own_sensor_scale`),
-    read against the level the header declares for them."""
+    read against the range the header declares for them."""
     ekf = make_estimator("ekf", config.with_association("known"))
     for step in steps:
         ekf.step(step)
@@ -75,7 +75,7 @@ def _fit_self(steps: list[Step], config: ReplayConfig, frontend: FrontEnd) -> Se
         fit_self(steps, initial=initial),
         sightings_correlated=correlated,
         own_sensor_scale=own,
-        own_level=frontend.sightings_own_scale if correlated else None,
+        own_range=frontend.sightings_own_scale if correlated else None,
     )
 
 

@@ -344,16 +344,17 @@ class EventValidator(ScanRules, RobotRules):
         return Header(name=name, meta=meta, version=VERSION)
 
     def _own_scale(self, own: Any, line: int) -> None:
-        """The header's ``sightings_own_scale``: ``{"level": L > 0, "spread": S >= 1}``, both finite."""
-        field_name = "sightings_own_scale"
-        if not isinstance(own, dict) or set(own) != {"level", "spread"}:
-            raise self.fail(line, field_name, f'expected {{"level": L, "spread": S}}, got {show(own)}')
-        for key, low in (("level", 0.0), ("spread", 1.0)):
-            value = own[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value < math.inf \
-                    or (key == "level" and value == 0.0):  # fmt: skip
-                bound = "> 0" if key == "level" else ">= 1"
-                raise self.fail(line, f"{field_name}.{key}", f"expected a finite number {bound}, got {show(value)}")
+        """The header's ``sightings_own_scale``: ``{"range": [low, high], "spread": S}``, 0 < low <= high, S >= 1,
+        all finite."""
+        name = "sightings_own_scale"
+        if not isinstance(own, dict) or set(own) != {"range", "spread"}:
+            raise self.fail(line, name, f'expected {{"range": [low, high], "spread": S}}, got {show(own)}')
+        span, spread = own["range"], own["spread"]
+        if not (isinstance(span, list) and len(span) == 2 and all(_finite(v) for v in span)
+                and 0.0 < span[0] <= span[1]):  # fmt: skip
+            raise self.fail(line, f"{name}.range", f"expected [low, high] with 0 < low <= high, got {show(span)}")
+        if not (_finite(spread) and spread >= 1.0):
+            raise self.fail(line, f"{name}.spread", f"expected a finite number >= 1, got {show(spread)}")
 
     def _sensors(self, sensors: Any, line: int) -> dict[str, dict[str, list[float]]]:
         """The header's ``sensors``: ``{name: {"pose": [x, y, theta]}}``, each pose the sensor's in the robot frame."""
@@ -553,3 +554,8 @@ def until_end(
         if type(event) is End:
             return
         yield event
+
+
+def _finite(value: Any) -> bool:
+    """A finite number (not a bool)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)

@@ -92,16 +92,16 @@ class MrclamNoise:
     ``c1 exp(-dt / tau1) + c2 exp(-dt / tau2)`` as ``(c1, tau1, c2, tau2)`` (seconds); all zero: independent."""
     bearing_correlation: tuple[float, float, float, float] = (0.158, 1.02, 0.417, 13.0)
     """The same for bearing errors."""
-    own_scale_level: float = 0.318
-    """The sensor scale ``--noise self`` reads against a stream's own sighting covariances (each ``widened``
-    divided out) when the stream is declared right: the share of their variance the batch's residuals keep, the
-    rest taken up by the landmarks and poses (errors alike over a landmark's sightings, the camera's errors beyond
-    Vicon's). Geometric mean of Dataset 6's five robots, 0.197-0.509 (``python -m benchmarks.noise_self own``);
-    the header's ``sightings_own_scale``. A refit (``--refit``, ``--fit-half``) keeps it: it needs the batch's
-    self-fit of every robot, not Vicon."""
-    own_scale_spread: float = 2.5
-    """The factor either way about ``own_scale_level`` within which a reading says nothing: Dataset 6's robots read
-    within 1.61x of the level; with one robot left out, within 1.82x of the other four's."""
+    own_scale_range: tuple[float, float] = (0.197, 0.509)
+    """The sensor scales ``--noise self`` reads against a stream's own sighting covariances (each ``widened``
+    divided out) when the stream is declared right, lowest and highest: the share of their variance the batch's
+    residuals keep, the rest taken up by the landmarks and poses (errors alike over a landmark's sightings, the
+    camera's errors beyond Vicon's). Dataset 6's five robots (``python -m benchmarks.noise_self own``); the
+    header's ``sightings_own_scale``. A refit (``--refit``, ``--fit-half``) keeps it: it needs the batch's self-fit of
+    every robot, not Vicon."""
+    own_scale_spread: float = 1.6
+    """The factor beyond ``own_scale_range`` (below its low end, above its high end) within which a reading still
+    says nothing: each half of Dataset 6 replayed alone reads within 1.23x of the range."""
     range_sigma: float = 0.0
     """Range standard deviation at zero range, m (the sigma of a sighting is this plus ``range_sigma_per_m``
     times its measured range), pooled over the robots: a robot with a camera (``cameras``) uses the camera's."""
@@ -132,7 +132,7 @@ def own_scale_meta(noise: MrclamNoise) -> dict:
     """The header's ``sightings_own_scale`` (none when the sightings are not widened: :func:`correlates`)."""
     if not correlates(noise):
         return {}
-    return {"sightings_own_scale": {"level": noise.own_scale_level, "spread": noise.own_scale_spread}}
+    return {"sightings_own_scale": {"range": list(noise.own_scale_range), "spread": noise.own_scale_spread}}
 
 
 def correlates(noise: MrclamNoise) -> bool:
