@@ -168,7 +168,7 @@ def test_correlated_sightings_keep_their_sigmas_and_have_no_bias_taken_off() -> 
     (fit,) = told
     assert fit.sightings_correlated and fit.biases[0].significant == (True, True)
     assert fit.applied_sensor_scale == 1.0 and fit.sensor_bias == ()
-    assert "sensor scale and biases not applied" in describe(fit)
+    assert "that sensor scale and the biases not applied" in describe(fit)
     frontend = with_noise_fit(replay_config({}), fit).frontend
     assert frontend.sensor_bias == () and frontend.sensor_noise_scale == 1.0
     assert frontend.odometry_noise_scale == fit.odometry_scale

@@ -537,8 +537,8 @@ def describe(fit: SelfFit) -> str:
     lines.append(f"  sensor scale {fit.sensor_scale:.3g} (redundancy {fit.sensor_redundancy:.0f})")
     if fit.sightings_correlated:
         lines.append(
-            "  sensor scale and biases not applied: the source's header says sightings_correlated (its sigmas are "
-            "widened on purpose for the correlation of repeated sightings)"
+            "  that sensor scale and the biases not applied: the source's header says sightings_correlated (its "
+            "sigmas are widened on purpose for the correlation of repeated sightings)"
         )
         if fit.own_sensor_scale is not None:
             lines.append(
