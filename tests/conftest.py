@@ -23,6 +23,8 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 DATA_VARIABLE = "ONLINE_SLAM_DATA"
+REPLAY = Path(__file__).resolve().parents[1] / "replay"
+"""The streams shipped with the project (replay/)."""
 SHARED_DATA = Path(os.environ.get(DATA_VARIABLE) or Path(__file__).resolve().parents[2] / "shared" / "data")
 """The real datasets: ``$ONLINE_SLAM_DATA``, by default ``../shared/data`` beside the repository."""
 REAL_DATA_SKIP = "real data: "

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import assert_close
+from conftest import REPLAY, assert_close
 
 import online_slam
 from benchmarks.bags import VP_OPTIONS, write_stream_bag
@@ -28,7 +28,6 @@ from online_slam.pipeline import ReplayConfig
 from online_slam.sources.events import Header, Observation, Odometry, Position, Start, Truth
 from online_slam.sources.worlds import square_world
 
-REPLAY = Path(__file__).resolve().parents[1] / "replay"
 RAW = REPLAY / "victoria_park_raw_45s"
 BAGS = [REPLAY / "victoria_park_45s.mcap", REPLAY / "victoria_park_45s.bag"]
 SIGMA = (0.06, 0.013962634015954637)  # the square world's sighting noise

@@ -7,12 +7,11 @@ import dataclasses
 import json
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import SHARED_DATA, needs_data
+from conftest import REPLAY, SHARED_DATA, needs_data
 
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.evaluation.noise_self import SelfFit, describe, fit_self
@@ -28,8 +27,6 @@ from online_slam.sources.stream import parse_lines
 from online_slam.sources.timing import TimingConfig, timing_world
 from online_slam.sources.worlds import Contamination, GridConfig, contaminate, grid_world, square_world, without_ids
 from tests.test_cli import cli
-
-REPLAY = Path(__file__).resolve().parents[1] / "replay"
 
 MISDECLARED = {
     "odometry 0.3x": (0.09, 1.0),
@@ -197,12 +194,12 @@ def test_cli_noise_self_refuses_a_scale_and_stdin(args: tuple[str, ...], stdin: 
     assert len(result.stderr.strip().splitlines()) == 1 and message in result.stderr
 
 
-def _widened(events, factors: tuple[float, float], level: dict | None = None) -> list:
+def _widened(events, factors: tuple[float, float], own_scale: dict | None = None) -> list:
     """The events with each landmark sighting's variances widened by ``factors`` (range, bearing), as its line says,
     and the header saying ``sightings_correlated`` (MRCLAM's conversion, errors here independent), and
-    ``sightings_own_scale`` when ``level`` is given."""
+    ``sightings_own_scale`` when ``own_scale`` is given."""
     f = np.asarray(factors)
-    own = {} if level is None else {"sightings_own_scale": level}
+    own = {} if own_scale is None else {"sightings_own_scale": own_scale}
     out = []
     for e in events:
         if isinstance(e, Header):
@@ -213,31 +210,31 @@ def _widened(events, factors: tuple[float, float], level: dict | None = None) ->
     return out
 
 
-LEVEL = {"range": [1.0, 1.0], "spread": 2.5}
+OWN_SCALE = {"range": [1.0, 1.0], "spread": 2.5}
 """A declared range for the simulated widened sightings: their errors are independent, so declared right their own
 reading is 1."""
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "declared, level, applied",
-    [(1.0, LEVEL, (1.0, 1.0)), (0.09, None, (9.4, 12.8)), (9.0, LEVEL, (0.111 / 1.15, 0.111 * 1.15))],
-    ids=["right", "sensor 0.3x without level", "sensor 3x"],
+    "declared, own_scale, applied",
+    [(1.0, OWN_SCALE, (1.0, 1.0)), (0.09, None, (9.4, 12.8)), (9.0, OWN_SCALE, (0.111 / 1.15, 0.111 * 1.15))],
+    ids=["right", "sensor 0.3x without a range", "sensor 3x"],
 )
 def test_widened_sightings_read_against_their_own_covariances_rescale_a_misdeclared_sensor(
-    declared: float, level: dict | None, applied: tuple[float, float]
+    declared: float, own_scale: dict | None, applied: tuple[float, float]
 ) -> None:
     """Sightings widened 25x / 16x by their lines: against the widened covariances the fit reads ~1/20 and applies
     nothing (the widening is the source's); against their own it reads the factor the sensor is off by (11.1 for
     0.3x, 0.111 for 3x: within 15%). Without a declared range a reading above 1 is applied as it is; with one, the
     reading over its low end beyond the range and its spread, and nothing within (declared right)."""
-    world = _widened(_declared(grid_world(GridConfig(poses=150, seed=3)), (1.0, declared)), (25.0, 16.0), level)
+    world = _widened(_declared(grid_world(GridConfig(poses=150, seed=3)), (1.0, declared)), (25.0, 16.0), own_scale)
     told: list = []
     replay(world, replay_config({"noise": "self", "estimators": "ekf"}), on_noise_fit=told.append)
     (fit,) = told
     assert fit.sightings_correlated and fit.sensor_scale < 0.1 / declared
     assert fit.own_sensor_scale is not None and applied[0] <= fit.applied_sensor_scale <= applied[1], fit
-    assert fit.own_range == (None if level is None else (1.0, 1.0, 2.5))
+    assert fit.own_range == (None if own_scale is None else (1.0, 1.0, 2.5))
     assert "sensor scale against the sightings' own covariances" in describe(fit)
     assert with_noise_fit(replay_config({}), fit).frontend.sensor_noise_scale == fit.applied_sensor_scale
 

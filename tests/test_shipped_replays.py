@@ -7,7 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
-from conftest import SHARED_DATA, assert_close, needs_data
+from conftest import REPLAY, SHARED_DATA, assert_close, needs_data
 
 import online_slam
 from online_slam.estimators import BatchConfig, SmootherConfig
@@ -15,7 +15,6 @@ from online_slam.estimators.smoother import WindowConfig
 from online_slam.pipeline import ReplayConfig
 from online_slam.sources import read_stream, square_world, write_stream
 
-REPLAY = Path(__file__).resolve().parents[1] / "replay"
 STREAMS = sorted(p for p in REPLAY.iterdir() if p.name.endswith((".jsonl", ".jsonl.gz")))
 
 

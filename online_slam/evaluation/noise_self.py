@@ -186,8 +186,7 @@ class SelfFit:
             return 1.0
         if self.own_range is None:
             return max(1.0, own)
-        low, high, spread = self.own_range
-        return 1.0 if low / spread <= own <= high * spread else own / low
+        return own / self.own_range[0] if _beyond(own, self.own_range) else 1.0
 
     @property
     def sensor_bias(self) -> tuple[SensorBias, ...]:
@@ -571,9 +570,15 @@ def _verdict(fit: SelfFit) -> str:
         return "not above 1: says nothing, as the landmarks absorb errors alike over their sightings"
     low, high, spread = fit.own_range
     where = f"the source's range for sightings declared right {low:.3g}-{high:.3g}"
-    if low / spread <= own <= high * spread:
+    if not _beyond(own, fit.own_range):
         return f"within {spread:.3g}x of {where}: says nothing, not applied"
     return f"beyond {spread:.3g}x of {where}: {own / low:.3g}x its low end applied"
+
+
+def _beyond(own: float, own_range: tuple[float, float, float]) -> bool:
+    """Whether an own-covariance reading lies more than the spread outside the declared ``(low, high, spread)``."""
+    low, high, spread = own_range
+    return not low / spread <= own <= high * spread
 
 
 def _bias_cell(value: float, sd: float, unit: str, significant: bool) -> str:

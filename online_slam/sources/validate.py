@@ -350,10 +350,10 @@ class EventValidator(ScanRules, RobotRules):
         if not isinstance(own, dict) or set(own) != {"range", "spread"}:
             raise self.fail(line, name, f'expected {{"range": [low, high], "spread": S}}, got {show(own)}')
         span, spread = own["range"], own["spread"]
-        if not (isinstance(span, list) and len(span) == 2 and all(_finite(v) for v in span)
+        if not (isinstance(span, list) and len(span) == 2 and all(finite(v) for v in span)
                 and 0.0 < span[0] <= span[1]):  # fmt: skip
             raise self.fail(line, f"{name}.range", f"expected [low, high] with 0 < low <= high, got {show(span)}")
-        if not (_finite(spread) and spread >= 1.0):
+        if not (finite(spread) and spread >= 1.0):
             raise self.fail(line, f"{name}.spread", f"expected a finite number >= 1, got {show(spread)}")
 
     def _sensors(self, sensors: Any, line: int) -> dict[str, dict[str, list[float]]]:
@@ -554,8 +554,3 @@ def until_end(
         if type(event) is End:
             return
         yield event
-
-
-def _finite(value: Any) -> bool:
-    """A finite number (not a bool)."""
-    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
