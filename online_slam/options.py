@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 from online_slam.errors import ConfigError
 from online_slam.importers import registry
+from online_slam.option_values import bools, list_of
 from online_slam.sources.address import on_error_of
 from online_slam.sources.worlds import WORLDS
 from online_slam.wording import counted
@@ -552,14 +553,16 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> argpar
     text = f"{told} (default: {shown})" if shown and option.kind is not bool else told
     kw: dict[str, Any] = {"help": text.replace("%", "%%")}
     if option.kind is bool:
-        if listed:
-            kw.update(action="store_const", const=(True,))
+        if listed:  # alone: on; or the values to run, e.g. ``--adapt-noise true,false``
+            kw.update(nargs="?", const=(True,), type=bools, metavar="{true,false}[,...]")
         else:  # on by default: --no-NAME turns it off
             flag = argparse.BooleanOptionalAction if option.value is True else "store_true"
             kw.update(action=flag, default=option.default)
     elif listed:
         values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
-        kw.update(type=_list_of(option), metavar=f"{values}[,...]")
+        kw.update(
+            type=list_of(option.parse or option.kind, option.kind.__name__, option.choices), metavar=f"{values}[,...]"
+        )
     else:
         kw.update(type=option.parse or option.kind, metavar=option.metavar, choices=option.choices or None)
         kw["default"] = option.value
@@ -570,26 +573,6 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> argpar
     if option.positional and option.metavar is None:
         kw.pop("metavar", None)
     return group.add_argument(*filter(None, (option.short, option.flag)), **kw)
-
-
-def _list_of(option: Option) -> Callable[[str], tuple]:
-    """argparse type of a comma-separated list of the option's values."""
-
-    def parse(text: str) -> tuple:
-        try:
-            items = tuple((option.parse or option.kind)(v.strip()) for v in text.split(",") if v.strip())
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"expected comma-separated {option.kind.__name__}s, got {text!r}"
-            ) from None
-        if not items:
-            raise argparse.ArgumentTypeError("expected at least one value")
-        for item in items:
-            if option.choices and item not in option.choices:
-                raise argparse.ArgumentTypeError(f"{item!r} is not one of {', '.join(option.choices)}")
-        return items
-
-    return parse
 
 
 # -- docs -----------------------------------------------------------------------------------------------------

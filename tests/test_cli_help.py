@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import REPLAY
 
 from tests.test_cli import cli
 
@@ -92,6 +93,41 @@ def test_connect_without_a_viewer_stops_before_the_replay(tmp_path: Path) -> Non
 def test_robot_with_a_source_without_robots_is_refused() -> None:
     line = one_error(cli("replay", "square", "--robot", "2"))  # was ignored
     assert "square: --robot applies to mrclam data, not to a built-in world" in line
+
+
+@pytest.mark.parametrize(
+    "world",
+    [
+        ("grid", "--poses", "0"),
+        ("grid", "--poses", "1"),
+        ("waypoint", "--poses", "-5"),
+        ("waypoint", "--landmarks", "0"),
+    ],
+)
+def test_a_world_too_small_to_simulate_is_one_line(world: tuple[str, ...], tmp_path: Path) -> None:
+    """The world's own check raised a ValueError past the command's (a traceback, exit 1)."""
+    out = tmp_path / "w.jsonl"
+    line = one_error(cli("simulate", *world, "-o", str(out)))
+    assert "simulate: a world needs poses >= 2 and landmarks >= 1" in line and not out.exists()
+
+
+def test_a_map_out_without_the_smoother_or_the_ekf_is_refused_before_the_replay(tmp_path: Path) -> None:
+    """It replayed the whole source, printed the table, and only then refused the map."""
+    out = tmp_path / "m.json"
+    done = cli("replay", "square", "--estimators", "batch", "--map-out", str(out))
+    line = one_error(done)
+    assert "--map-out: the map's covariances come from the smoother or the EKF" in line
+    assert done.stdout == "" and not out.exists()
+
+
+def test_a_line_cut_short_names_the_column_where_it_ends(tmp_path: Path) -> None:
+    """A line missing its closing brace was reported at column 1 (the parser's position past the line's newline)."""
+    lines = (REPLAY / "square.jsonl").read_text(encoding="utf-8").splitlines()
+    cut = lines[2].rstrip().removesuffix("}")
+    path = tmp_path / "cut.jsonl"
+    path.write_text("\n".join([*lines[:2], cut, *lines[3:6]]) + "\n", encoding="utf-8")
+    line = one_error(cli("replay", str(path)))
+    assert f"cut.jsonl:3: invalid JSON (Expecting ',' delimiter at column {len(cut) + 1})" in line
 
 
 def test_a_folder_of_gtsam_text_says_which_file_to_pass(tmp_path: Path) -> None:

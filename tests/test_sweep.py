@@ -172,3 +172,15 @@ def test_parquet_output_round_trips_and_resumes(cells, local_rows, tmp_path: Pat
     rows = read_rows(out)
     assert len(rows) == 9
     assert_same(rows, [r for r in local_rows if r["cell"] in {c.key for c in cells[:3]}])
+
+
+def test_a_yes_no_option_sweeps_its_values(tmp_path: Path) -> None:
+    """``--adapt-noise`` in a sweep was a bare flag that could only say yes (the default): it takes values now."""
+    out = tmp_path / "s.csv"
+    done = run_cli("sweep", "square", "--estimators", "ekf", "--workers", "1", "--adapt-noise", "true,false",
+                   "-o", str(out), "--quiet")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    with out.open(newline="") as f:
+        assert sorted(row["adapt_noise"] for row in csv.DictReader(f)) == ["False", "True"]
+    refused = run_cli("sweep", "square", "--adapt-noise", "maybe", "-o", str(out))
+    assert refused.returncode == 2 and "expected comma-separated true or false, got 'maybe'" in refused.stderr

@@ -202,6 +202,8 @@ def run(args: argparse.Namespace) -> int:
         check_writable("--emit", args.emit)
     if args.map_out:
         check_writable("--map-out", args.map_out)
+        if not {"smoother", "ekf"} & set(config.estimators):  # refused before the run, not after it
+            raise OnlineSlamError("--map-out: the map's covariances come from the smoother or the EKF; run one")
     if args.rrd and not str(args.rrd).endswith(".rrd"):
         raise OnlineSlamError(f"--rrd: expected a path ending in .rrd, got {args.rrd!r}")
     if args.resume and (args.rrd or args.connect):

@@ -129,10 +129,15 @@ def run(args: argparse.Namespace) -> int:
             }.items()
             if v is not None
         }
-        if isinstance(base, GridConfig):
-            config: GridConfig | WaypointConfig = replace(base, blocks=args.blocks, block_size=args.block_size, **shape)
-        else:
-            config = replace(base, size=args.size, max_turn=args.max_turn, min_range=args.min_range, **shape)
+        try:  # a config checks its own values (poses >= 2, landmarks >= 1, a known model)
+            if isinstance(base, GridConfig):
+                config: GridConfig | WaypointConfig = replace(
+                    base, blocks=args.blocks, block_size=args.block_size, **shape
+                )
+            else:
+                config = replace(base, size=args.size, max_turn=args.max_turn, min_range=args.min_range, **shape)
+        except ValueError as exc:
+            raise OnlineSlamError(f"simulate: {exc}") from None
         values = [*config.odometry_sigma, *config.sensor_sigma, *config.xy_sigma]
         if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
             raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")

@@ -135,7 +135,9 @@ class EventValidator(ScanRules, RobotRules):
         try:
             record = json.loads(text)
         except json.JSONDecodeError as exc:
-            raise self.fail(line, "", f"invalid JSON ({exc.msg} at column {exc.colno})") from None
+            # the line's own column: past its end (its newline kept, the parser's next line) is its length + 1
+            column = exc.colno if exc.lineno == 1 else len(text.split("\n", 1)[0].rstrip("\r")) + 1
+            raise self.fail(line, "", f"invalid JSON ({exc.msg} at column {column})") from None
         except RecursionError:
             raise self.fail(line, "", "invalid JSON (nested too deeply)") from None
         return self.parse_record(record, line)

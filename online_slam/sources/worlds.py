@@ -175,8 +175,8 @@ def grid_world(config: GridConfig | None = None) -> Iterator[Event]:
     """
     c = config or GridConfig()
     per_block = round(c.block_size / c.step)
-    if c.poses < 1 or c.blocks < 1 or per_block < 1 or not np.isclose(per_block * c.step, c.block_size):
-        raise ValueError("grid world needs poses >= 1, blocks >= 1 and a step that divides block_size")
+    if c.poses < 2 or c.blocks < 1 or per_block < 1 or not np.isclose(per_block * c.step, c.block_size):
+        raise ValueError("grid world needs poses >= 2, blocks >= 1 and a step that divides block_size")
     rng = np.random.default_rng(c.seed)
     size = c.blocks * c.block_size
     margin = c.block_size / 2
@@ -255,8 +255,8 @@ def waypoint_world(config: WaypointConfig | None = None) -> Iterator[Event]:
         Stream-v1 events, truth included.
     """
     c = config or WaypointConfig()
-    if c.poses < 1 or c.step <= 0 or c.max_turn <= 0 or c.size <= 2 * c.sensor_range or c.sensor_range <= 0:
-        raise ValueError("waypoint world needs poses >= 1, step and max_turn > 0, size > 2 x sensor range > 0")
+    if c.poses < 2 or c.step <= 0 or c.max_turn <= 0 or c.size <= 2 * c.sensor_range or c.sensor_range <= 0:
+        raise ValueError("waypoint world needs poses >= 2, step and max_turn > 0, size > 2 x sensor range > 0")
     if not 0.0 <= c.min_range < c.sensor_range:
         raise ValueError("waypoint world needs 0 <= min range < sensor range")
     rng = np.random.default_rng(c.seed)
