@@ -222,9 +222,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            lands=("dataset.format",), commands=("replay", "compare")),
     *_dataset_options(),
     Option("noise", "the noise the source declares (builtin), fitted to its truth (fit), or to its own data (self: "
-           "no truth; each sensor's bias too) (replay: print the figures, then replay with them; compare: the same in "
-           "every run, unprinted)", "input", ("replay",), choices=("builtin", "fit", "self"), unset="builtin",
-           lands=("dataset.noise",), commands=("replay", "compare")),
+           "no truth; each sensor's bias too) (replay: print the figures, then replay with them; compare: each run "
+           "fitted on its own data, unprinted)", "input", ("replay",), choices=("builtin", "fit", "self"),
+           unset="builtin", lands=("dataset.noise",), commands=("replay", "compare")),
     _estimator("odometry_noise_scale", "multiply every odometry covariance of the source by S (a sigma by "
                "sqrt(S)), e.g. as --noise fit prints it", "input", "front-end",
                ("FrontEndConfig", "odometry_noise_scale"), metavar="S", positive=True,
