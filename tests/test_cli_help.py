@@ -130,6 +130,21 @@ def test_a_line_cut_short_names_the_column_where_it_ends(tmp_path: Path) -> None
     assert f"cut.jsonl:3: invalid JSON (Expecting ',' delimiter at column {len(cut) + 1})" in line
 
 
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        (("simulate", "square", "--seed", "-1"), "simulate: --seed: expected an integer >= 0, got -1"),
+        (("simulate", "grid", "--outlier-seed", "-2"), "simulate: --outlier-seed: expected an integer >= 0, got -2"),
+        (("compare", "square", "--runs", "0"), "compare: --runs: expected an integer >= 1, got 0"),
+        (("compare", "square", "--workers", "0"), "compare: --workers: expected an integer >= 1, got 0"),
+        (("compare", "square", "--peer", "ideal"), "compare: --peer ideal runs beside Monte Carlo runs: give --runs 2"),
+    ],
+)
+def test_a_bad_count_names_its_flag(args: tuple[str, ...], said: str, tmp_path: Path) -> None:
+    """They said 'expected non-negative integer' or 'runs and workers must be >= 1', naming no flag."""
+    assert said in one_error(cli(*args, "-o" if args[0] == "simulate" else "--json", str(tmp_path / "out")))
+
+
 def test_a_folder_of_gtsam_text_says_which_file_to_pass(tmp_path: Path) -> None:
     (tmp_path / "victoria.txt").write_text("ODOMETRY 0 1 1.0 0.0 0.0 1 0 0 1 0 1\n")
     line = one_error(cli("replay", str(tmp_path)))

@@ -99,6 +99,9 @@ def run(args: argparse.Namespace) -> int:
     output = args.output or "-"
     if args.world == "circle" and args.model is not None:
         args = argparse.Namespace(**{**vars(args), "world": CIRCLE_WORLDS[args.model], "model": None})
+    for flag, value in (("--seed", args.seed), ("--outlier-seed", args.outlier_seed)):
+        if value is not None and value < 0:
+            raise OnlineSlamError(f"simulate: {flag}: expected an integer >= 0, got {value}")
     if args.delay and args.world != "timing" or not 0.0 <= args.delay < math.inf:
         raise OnlineSlamError("simulate: --delay is the timing world's, seconds >= 0")
     if args.world not in ("grid", "waypoint"):
