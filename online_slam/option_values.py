@@ -7,27 +7,26 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 YES_NO = {"true": True, "on": True, "yes": True, "1": True, "false": False, "off": False, "no": False, "0": False}
-"""The words :func:`bools` reads (case aside)."""
+"""The words :func:`yes_no` reads (case aside)."""
 
 
-def bools(text: str) -> tuple[bool, ...]:
-    """A comma-separated list of yes/no values (``true,false``; on/off, yes/no, 1/0 too), e.g. a sweep's
-    ``--adapt-noise true,false``."""
-    items = [v.strip().lower() for v in text.split(",") if v.strip()]
-    if not items or any(v not in YES_NO for v in items):
-        raise argparse.ArgumentTypeError(f"expected comma-separated true or false, got {text!r}")
-    return tuple(YES_NO[v] for v in items)
+def yes_no(text: str) -> bool:
+    """One of :data:`YES_NO`'s words (case aside) -> its value; ValueError for any other."""
+    try:
+        return YES_NO[text.lower()]
+    except KeyError:
+        raise ValueError(text) from None
 
 
-def list_of(parse: Callable[[str], Any], kind: str, choices: Sequence[Any] = ()) -> Callable[[str], tuple]:
-    """A comma-separated list of values, each read by ``parse`` (``kind`` names them in errors) and, with
-    ``choices``, one of them."""
+def list_of(parse: Callable[[str], Any], kinds: str, choices: Sequence[Any] = ()) -> Callable[[str], tuple]:
+    """A comma-separated list of values, each read by ``parse`` (``kinds`` names them in errors, e.g. ``ints``)
+    and, with ``choices``, one of them."""
 
     def read(text: str) -> tuple:
         try:
             items = tuple(parse(v.strip()) for v in text.split(",") if v.strip())
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected comma-separated {kind}s, got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected comma-separated {kinds}, got {text!r}") from None
         if not items:
             raise argparse.ArgumentTypeError("expected at least one value")
         for item in items:
@@ -36,3 +35,8 @@ def list_of(parse: Callable[[str], Any], kind: str, choices: Sequence[Any] = ())
         return items
 
     return read
+
+
+bools = list_of(yes_no, "true or false")
+"""A comma-separated list of yes/no values (``true,false``; on/off, yes/no, 1/0 too), e.g. a sweep's
+``--adapt-noise true,false``."""

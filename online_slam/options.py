@@ -560,9 +560,8 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> argpar
             kw.update(action=flag, default=option.default)
     elif listed:
         values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
-        kw.update(
-            type=list_of(option.parse or option.kind, option.kind.__name__, option.choices), metavar=f"{values}[,...]"
-        )
+        read = list_of(option.parse or option.kind, f"{option.kind.__name__}s", option.choices)
+        kw.update(type=read, metavar=f"{values}[,...]")
     else:
         kw.update(type=option.parse or option.kind, metavar=option.metavar, choices=option.choices or None)
         kw["default"] = option.value

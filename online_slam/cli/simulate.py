@@ -142,8 +142,8 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise OnlineSlamError(f"simulate: {exc}") from None
         values = [*config.odometry_sigma, *config.sensor_sigma, *config.xy_sigma]
-        if min(values) <= 0 or not np.all(np.isfinite(values)) or config.landmarks < 1 or config.sensor_range <= 0:
-            raise OnlineSlamError("simulate: noise sigmas, sensor range and landmark count must be positive")
+        if min(values) <= 0 or not np.all(np.isfinite(values)) or config.sensor_range <= 0:
+            raise OnlineSlamError("simulate: noise sigmas and sensor range must be positive")
         try:
             events = grid_world(config) if isinstance(config, GridConfig) else waypoint_world(config)
             first = next(events)  # the world's own checks run on the first draw
