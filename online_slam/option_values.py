@@ -23,12 +23,15 @@ def list_of(parse: Callable[[str], Any], kinds: str, choices: Sequence[Any] = ()
     and, with ``choices``, one of them."""
 
     def read(text: str) -> tuple:
+        parts = [v.strip() for v in text.split(",")]
+        if not any(parts):
+            raise argparse.ArgumentTypeError("expected at least one value")
+        if not all(parts):  # "10,,20": a value left out, not a list of two
+            raise argparse.ArgumentTypeError(f"expected comma-separated {kinds}, got an empty item in {text!r}")
         try:
-            items = tuple(parse(v.strip()) for v in text.split(",") if v.strip())
+            items = tuple(parse(v) for v in parts)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected comma-separated {kinds}, got {text!r}") from None
-        if not items:
-            raise argparse.ArgumentTypeError("expected at least one value")
         for item in items:
             if choices and item not in choices:
                 raise argparse.ArgumentTypeError(f"{item!r} is not one of {', '.join(map(str, choices))}")

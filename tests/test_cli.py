@@ -240,6 +240,7 @@ def test_truncated_gzip_gives_one_line_and_exit_2(tmp_path: Path) -> None:
         (["compare", "square", "--estimators", "ekf", "--window", "5,10"], "--window: a setting of the smoother"),
         (["compare", "square", "--window", "0"], "--window: window must be >= 1"),  # was a traceback
         (["compare", "square", "--window", "5,x"], "expected comma-separated ints"),
+        (["compare", "square", "--window", "10,,20"], "got an empty item in '10,,20'"),  # was read as 10,20
         (["replay", "--align", "SE2"], "invalid choice 'SE2' (did you mean se2?)"),  # was 23 lines of usage
         (["replay", "--window-max", "0"], "--window-max: "),
         (["sweep", "square", "--robust", "huber,tukey", "--quiet"], "'tukey' is not one of"),
