@@ -1,4 +1,4 @@
-"""argparse types of the values a command's list options take: comma-separated values, yes/no words."""
+"""argparse types of the values a command's options take: comma-separated values, yes/no words, numbers > 0."""
 
 from __future__ import annotations
 
@@ -16,6 +16,20 @@ def yes_no(text: str) -> bool:
         return YES_NO[text.lower()]
     except KeyError:
         raise ValueError(text) from None
+
+
+def positive(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """``parse``, refusing a value that is not > 0 (an option's ``positive``: told at parsing, for every command
+    that takes the option)."""
+
+    def read(text: str) -> Any:
+        value = parse(text)
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+        return value
+
+    read.__name__ = getattr(parse, "__name__", "value")  # argparse's "invalid float value: 'x'"
+    return read
 
 
 def list_of(parse: Callable[[str], Any], kinds: str, choices: Sequence[Any] = ()) -> Callable[[str], tuple]:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 from online_slam.errors import ConfigError
 from online_slam.importers import registry
-from online_slam.option_values import bools, list_of
+from online_slam.option_values import bools, list_of, positive
 from online_slam.sources.address import on_error_of
 from online_slam.sources.worlds import WORLDS
 from online_slam.wording import counted
@@ -112,7 +112,8 @@ class Option:
     unit: str = ""
     """Unit of a number (``rad`` defaults are shown in degrees too)."""
     positive: bool = False
-    """The value must be > 0."""
+    """The value must be > 0: refused as the command line is parsed (every command that takes it, list items
+    too) and by :func:`replay_config`."""
     commands: tuple[str, ...] = ("replay", "compare", "sweep")
     """Commands that take it."""
     nargs: str | None = None
@@ -381,9 +382,9 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
            "run's)", "live/checkpoint", ("cli",), metavar="DIR", commands=("replay",)),
     # -- runs -----------------------------------------------------------------------------------------------
     Option("runs", "noise seeds per simulated world (compare: Monte Carlo runs)", "runs", ("cli",), kind=int,
-           field=("CompareConfig", "runs"), metavar="N", commands=("compare", "sweep")),
+           field=("CompareConfig", "runs"), metavar="N", commands=("compare", "sweep"), positive=True),
     Option("workers", "processes (compare: Monte Carlo runs; sweep: local cluster)", "runs", ("cli",), kind=int,
-           metavar="N", unset="all cores", commands=("compare", "sweep")),
+           metavar="N", unset="all cores", commands=("compare", "sweep"), positive=True),
     Option("scheduler", "a running Dask scheduler, e.g. tcp://host:8786", "runs", ("cli",), metavar="ADDRESS",
            unset="a local cluster", commands=("sweep",)),
     Option("peer", "with --runs: also run on every run's stream, and report beside the estimators' ANEES, share in "
@@ -552,6 +553,7 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> argpar
     told = for_command(option.help, command)
     text = f"{told} (default: {shown})" if shown and option.kind is not bool else told
     kw: dict[str, Any] = {"help": text.replace("%", "%%")}
+    parse = positive(option.parse or option.kind) if option.positive else option.parse or option.kind
     if option.kind is bool:
         if listed:  # alone: on; or the values to run, e.g. ``--adapt-noise true,false``
             kw.update(nargs="?", const=(True,), type=bools, metavar="{true,false}[,...]")
@@ -560,10 +562,10 @@ def add_option(group: Any, option: Option, listed: bool, command: str) -> argpar
             kw.update(action=flag, default=option.default)
     elif listed:
         values = "{" + ",".join(option.choices) + "}" if option.choices else option.metavar or "N"
-        read = list_of(option.parse or option.kind, f"{option.kind.__name__}s", option.choices)
+        read = list_of(parse, f"{option.kind.__name__}s", option.choices)
         kw.update(type=read, metavar=f"{values}[,...]")
     else:
-        kw.update(type=option.parse or option.kind, metavar=option.metavar, choices=option.choices or None)
+        kw.update(type=parse, metavar=option.metavar, choices=option.choices or None)
         kw["default"] = option.value
     if option.nargs is not None:
         kw["nargs"] = option.nargs

@@ -135,14 +135,16 @@ def test_a_line_cut_short_names_the_column_where_it_ends(tmp_path: Path) -> None
     [
         (("simulate", "square", "--seed", "-1"), "simulate: --seed: expected an integer >= 0, got -1"),
         (("simulate", "grid", "--outlier-seed", "-2"), "simulate: --outlier-seed: expected an integer >= 0, got -2"),
-        (("compare", "square", "--runs", "0"), "compare: --runs: expected an integer >= 1, got 0"),
-        (("compare", "square", "--workers", "0"), "compare: --workers: expected an integer >= 1, got 0"),
+        (("compare", "square", "--runs", "0"), "argument --runs: must be > 0, got 0"),
+        (("compare", "square", "--workers", "0"), "argument --workers: must be > 0, got 0"),
+        (("sweep", "square", "--workers", "0"), "argument --workers: must be > 0, got 0"),  # was all cores, silently
         (("compare", "square", "--peer", "ideal"), "compare: --peer ideal runs beside Monte Carlo runs: give --runs 2"),
     ],
 )
 def test_a_bad_count_names_its_flag(args: tuple[str, ...], said: str, tmp_path: Path) -> None:
     """They said 'expected non-negative integer' or 'runs and workers must be >= 1', naming no flag."""
-    assert said in one_error(cli(*args, "-o" if args[0] == "simulate" else "--json", str(tmp_path / "out")))
+    out = ("-o" if args[0] in ("simulate", "sweep") else "--json", str(tmp_path / "out"))
+    assert said in one_error(cli(*args, *out))
 
 
 def test_a_folder_of_gtsam_text_says_which_file_to_pass(tmp_path: Path) -> None:

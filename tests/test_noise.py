@@ -146,7 +146,7 @@ def test_cli_scales_and_noise_fit(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (("--odometry-noise-scale", "0"), "--odometry-noise-scale: must be > 0, got 0.0"),
+        (("--odometry-noise-scale", "0"), "argument --odometry-noise-scale: must be > 0, got 0"),
         (("--sensor-noise-scale", "inf"), "--sensor-noise-scale: sensor_noise_scale must be a finite number > 0"),
         (("--sensor-noise-scale", "x"), "argument --sensor-noise-scale: invalid float value: 'x'"),
         (("--noise", "fit", "--odometry-noise-scale", "2"), "--noise fit fits the scale; give one or the other"),

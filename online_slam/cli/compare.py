@@ -39,9 +39,6 @@ def run(args: argparse.Namespace) -> int:
     names = tuple(n for n in base.estimators if n != "smoother")
     if len(names) == len(base.estimators):  # no smoother asked for
         windows, ks = (), ()
-    for flag, value in (("--runs", args.runs), ("--workers", args.workers)):  # CompareConfig says runs, workers
-        if value is not None and value < 1:
-            raise OnlineSlamError(f"compare: {flag}: expected an integer >= 1, got {value}")
     if args.peer and args.runs < 2:
         raise OnlineSlamError(f"compare: --peer {args.peer[0]} runs beside Monte Carlo runs: give --runs 2 or more")
     try:
