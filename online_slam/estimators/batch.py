@@ -27,9 +27,18 @@ from online_slam.factors.graph import (
 from online_slam.factors.robust import outlier_threshold
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.least_squares import SolveResult, solve
+from online_slam.sources.events import GeneratedId
 from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
+
+
+def paired_ids(ids: tuple, origin: NDArray[np.int64]) -> tuple:
+    """The ids of a pairing's landmarks: ``ids[origin]``, and for a landmark it added (origin -1) a fresh one,
+    numbered after the highest :class:`~online_slam.sources.events.GeneratedId` in ``ids``."""
+    first = 1 + max((lid.number for lid in ids if isinstance(lid, GeneratedId)), default=-1)
+    added = np.cumsum(origin < 0) - 1
+    return tuple(ids[o] if o >= 0 else GeneratedId(first + int(k)) for o, k in zip(origin, added))
 
 
 def median_landmarks(graph: FactorGraph, poses: NDArray[np.float64], landmarks: NDArray[np.float64]) -> NDArray:
@@ -172,15 +181,15 @@ class BatchEstimator(LoggedEstimator):
         bound = outlier_threshold(self.config.reject_false_alarm)
         used = np.flatnonzero(index >= 0)  # first the sightings the estimate used, then every one
         for only in (used, None) if len(used) else ():  # (the log holds each sighting once, in the stream's order)
-            ids = estimate.landmark_ids
             paired = self.log.pair_again(estimate.poses, estimate.landmarks, bound, self.config.solver, only)
             if paired is None:
                 break
+            ids = paired_ids(estimate.landmark_ids, paired.origin)
             likeliest = np.full(n_sightings, -1, dtype=np.int64)
             likeliest[used if only is not None else slice(None)] = paired.likeliest
             labels = [ids[k] if k >= 0 else None for k in likeliest]
             if only is None:
-                estimate = replace(estimate, poses=paired.poses, landmarks=paired.landmarks)
+                estimate = replace(estimate, poses=paired.poses, landmark_ids=ids, landmarks=paired.landmarks)
                 break
             graph = self.log.graph(labels=likeliest, n_landmarks=len(ids), ids=ids)
             start = Estimate(initial.estimator, paired.poses, ids, paired.landmarks)

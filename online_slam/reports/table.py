@@ -207,8 +207,9 @@ def notes(results: Results) -> list[str]:
             out.append(f"{name}: took the {d['initial']}'s final as it is (every sighting paired again there)")
         elif again:
             moved, dropped = counted(again["moved"], "sighting"), again["landmarks_dropped"]
+            added = again.get("landmarks_added", 0)
             out.append(f"{name}: every sighting paired again at the end: {moved} paired otherwise than online, "
-                       f"{dropped} landmarks dropped ({again['solve_s']:.1f} s)")  # fmt: skip
+                       f"{dropped} landmarks dropped, {added} added ({again['solve_s']:.1f} s)")  # fmt: skip
         if "iterations" in d:
             state = "converged" if d.get("converged") else "NOT converged"
             out.append(

@@ -8,8 +8,12 @@ likelihood (and an outlier class at the rejection bound), the weighted least-squ
 weights computed again (EM), the sightings' noise first inflated by a temperature that falls to 1 (deterministic
 annealing: Ueda & Nakano 1998), which lets the estimate leave the basin its own pairings dug. Then each sighting
 goes to the landmark that takes the majority of its weight, if one does (one landmark per scan), the others staying
-weighed; solved again until the pairing holds. The result replaces the estimate only if it has the lower objective
-(:func:`objective`): annealing may also end in a worse basin. Why: benchmarks/RESULTS.md, "Pairing again at the end".
+weighed; solved again until the pairing holds. Then the map itself is mended
+(:mod:`~online_slam.solvers.landmark_moves`): landmarks stacked on one spot are placed apart again, landmarks are born
+where sightings that lost their scan's landmark gather, and landmarks near each other that no scans pick together are
+merged, each followed by the hard rounds. The result replaces the estimate only if it has the lower objective
+(:func:`objective`): annealing may also end in a worse basin. Why: benchmarks/RESULTS.md, "Pairing again at the end"
+and "Landmarks born, merged and unstacked".
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from scipy.special import logsumexp, softmax
 from online_slam.factors.graph import FactorGraph, evaluate, sighting_chi2
 from online_slam.models.observation import landmark_from_sighting
 from online_slam.solvers.config import SolverConfig
+from online_slam.solvers.landmark_moves import births, distinct, merged_away, reseeded, stacked_groups
 from online_slam.solvers.least_squares import solve
 
 Array = NDArray[np.float64]
@@ -43,6 +48,8 @@ WEIGHT_FLOOR = 1e-3
 """Weights below this are left out of the solve."""
 HARD_ROUNDS = 10
 """Most majority pairings solved in turn before the pairing holds."""
+BIRTH_ROUNDS = 3
+"""Rounds of births (:func:`~online_slam.solvers.landmark_moves.births`), each followed by the hard rounds."""
 
 
 @dataclass(frozen=True)
@@ -71,6 +78,9 @@ class Pairing:
     """Each sighting's landmark where one takes the majority of its weight (one per scan), else -1, shape (k,)."""
     likeliest: Index
     """Each sighting's likeliest landmark (``index`` where it has one; -1: an outlier), shape (k,)."""
+    origin: Index
+    """Each landmark's row in the landmarks given (-1: one the pairing added), shape (M',); rows missing from it
+    were merged into another."""
 
 
 def _candidates(s: Sightings, poses: Array, landmarks: Array) -> tuple[Index, Array]:
@@ -140,6 +150,61 @@ def _solve(
     return result.poses, landmarks
 
 
+def _points(s: Sightings, poses: Array, rows: Index | slice = slice(None)) -> Array:
+    """Where sightings ``rows`` put their landmarks, (j, 2)."""
+    return landmark_from_sighting(poses[s.pose[rows]], s.z[rows], s.model[rows])
+
+
+def _scale(s: Sightings, poses: Array, landmarks: Array, bound: float) -> float:
+    """How far the paired sightings' points lie from their landmarks, as a standard deviation per axis, m: their
+    median distance over ``sqrt(2 ln 2)`` (a Rayleigh's median). Their covariances would not do: a stream may widen
+    them for what they share in time, not for how far apart one scan's sightings lie."""
+    pick = _paired(s, poses, landmarks, bound)[0]
+    rows = np.flatnonzero(pick >= 0)
+    if not len(rows):
+        return 0.0
+    miss = np.hypot(*(_points(s, poses, rows) - landmarks[pick[rows]]).T)
+    return float(np.median(miss)) / np.sqrt(2.0 * np.log(2.0))
+
+
+def _unstacked(
+    s: Sightings, poses: Array, landmarks: Array, bound: float, scale: float
+) -> tuple[Array, NDArray[np.bool_]] | None:
+    """The landmarks with each stacked group placed again by k-means of its sightings' points, as many as one
+    scan's sightings there say (:func:`~online_slam.solvers.landmark_moves.distinct`), and which to keep (the
+    group's others are merged away); None if none is stacked."""
+    groups = stacked_groups(landmarks, scale)
+    if not groups:
+        return None
+    _, _, w, near = _paired(s, poses, landmarks, bound)
+    best = near[np.arange(len(near)), np.argmax(w, axis=1)]
+    landmarks, keep = landmarks.copy(), np.ones(len(landmarks), dtype=bool)
+    for group in groups:
+        rows = np.flatnonzero(np.isin(best, group))
+        k = distinct(s.pose[rows], len(group)) if len(rows) else len(group)
+        if len(rows) >= k:
+            landmarks[group[:k]] = reseeded(_points(s, poses, rows), k)
+            keep[group[k:]] = False
+    return landmarks, keep
+
+
+def _hard(
+    base: FactorGraph, s: Sightings, poses: Array, landmarks: Array, bound: float, solver: SolverConfig
+) -> tuple[Array, Array]:
+    """The majority pairing solved in turn until it holds (the others weighed)."""
+    index = np.full(len(s.z), -2, dtype=np.int64)
+    for _ in range(HARD_ROUNDS):
+        pick, _, w, near = _paired(s, poses, landmarks, bound)
+        if np.array_equal(pick, index):
+            break
+        index = pick
+        sure = np.flatnonzero(index >= 0)
+        k, c = np.nonzero((w > WEIGHT_FLOOR) & (index < 0)[:, None])  # the others as weighed
+        rows, landmark = np.r_[sure, k], np.r_[index[sure], near[k, c]]
+        poses, landmarks = _solve(base, s, rows, landmark, np.r_[np.ones(len(sure)), w[k, c]], poses, landmarks, solver)
+    return poses, landmarks
+
+
 def repair(
     base: FactorGraph, s: Sightings, poses: Array, landmarks: Array, bound: float, solver: SolverConfig
 ) -> Pairing:
@@ -158,7 +223,7 @@ def repair(
     """
     none = np.full(len(s.z), -1, dtype=np.int64)
     if len(s.z) == 0 or len(landmarks) == 0:
-        return Pairing(poses, landmarks, none, none)
+        return Pairing(poses, landmarks, none, none, np.arange(len(landmarks)))
     start = objective(base, s, poses, landmarks, bound)
     before = poses, landmarks
     for temperature in TEMPERATURES:
@@ -167,17 +232,28 @@ def repair(
             w = _weights(d2, bound, temperature)
             k, c = np.nonzero(w > WEIGHT_FLOOR)
             poses, landmarks = _solve(base, s, k, near[k, c], w[k, c] / temperature, poses, landmarks, solver)
-    index = np.full(len(s.z), -2, dtype=np.int64)
-    for _ in range(HARD_ROUNDS):
-        pick, _, w, near = _paired(s, poses, landmarks, bound)
-        if np.array_equal(pick, index):
+    poses, landmarks = _hard(base, s, poses, landmarks, bound, solver)
+    origin = np.arange(len(landmarks))
+    scale = _scale(s, poses, landmarks, bound)  # 0 (nothing paired): no moves
+    if scale > 0 and (unstacked := _unstacked(s, poses, landmarks, bound, scale)) is not None:
+        placed, keep = unstacked
+        poses, landmarks = _hard(base, s, poses, placed[keep], bound, solver)
+        origin = origin[keep]
+    for _ in range(BIRTH_ROUNDS if scale > 0 else 0):
+        pick, _, w, _ = _paired(s, poses, landmarks, bound)
+        losers = np.flatnonzero((w.max(axis=1) > MAJORITY) & (pick < 0))  # lost to a surer sighting of the scan
+        born = births(_points(s, poses, losers), s.pose[losers], landmarks, scale)
+        if not len(born):
             break
-        index = pick
-        sure = np.flatnonzero(index >= 0)
-        k, c = np.nonzero((w > WEIGHT_FLOOR) & (index < 0)[:, None])  # the others as weighed
-        rows, landmark = np.r_[sure, k], np.r_[index[sure], near[k, c]]
-        poses, landmarks = _solve(base, s, rows, landmark, np.r_[np.ones(len(sure)), w[k, c]], poses, landmarks, solver)
+        poses, landmarks = _hard(base, s, poses, np.vstack([landmarks, born]), bound, solver)
+        origin = np.r_[origin, np.full(len(born), -1)]
+    drop = merged_away(landmarks, _paired(s, poses, landmarks, bound)[0], s.pose, scale) if scale > 0 else origin[:0]
+    if len(drop):
+        keep = np.ones(len(landmarks), dtype=bool)
+        keep[drop] = False
+        poses, landmarks = _hard(base, s, poses, landmarks[keep], bound, solver)
+        origin = origin[keep]
     if objective(base, s, poses, landmarks, bound) > start:  # annealing may end in a worse basin: keep the start
-        poses, landmarks = before
+        (poses, landmarks), origin = before, np.arange(len(before[1]))
     pick, likeliest, _, _ = _paired(s, poses, landmarks, bound)
-    return Pairing(poses, landmarks, pick, likeliest)
+    return Pairing(poses, landmarks, pick, likeliest, origin)
