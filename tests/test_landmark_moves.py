@@ -5,18 +5,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from test_pairing import BOUND, _solved, _world
+from test_pairing import BOUND, _odometry, _solved, _world
 
-from online_slam.geometry.se2 import compose
 from online_slam.solvers.landmark_moves import births, distinct, merged_away, reseeded, stacked_groups
 from online_slam.solvers.pairing import repair
-
-
-def _odometry(graph) -> np.ndarray:
-    poses = np.zeros((graph.n_poses, 3))
-    for i in range(graph.n_poses - 1):
-        poses[i + 1] = compose(poses[i], graph.odo_delta[i])
-    return poses
 
 
 def _nearest(estimated: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

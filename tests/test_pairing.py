@@ -49,6 +49,14 @@ def _solved(graph: FactorGraph, s: Sightings, labels: np.ndarray, start: np.ndar
     return solve(g, start, landmarks)
 
 
+def _odometry(graph: FactorGraph) -> np.ndarray:
+    """The poses the odometry composes from the first (at the origin), (n, 3)."""
+    poses = np.zeros((graph.n_poses, 3))
+    for i in range(graph.n_poses - 1):
+        poses[i + 1] = compose(poses[i], graph.odo_delta[i])
+    return poses
+
+
 def _rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a[:, :2] - b[:, :2]) ** 2, axis=1))))
 
@@ -59,9 +67,7 @@ def test_a_run_paired_one_landmark_along_is_paired_right_again(seed: int) -> Non
     its neighbour (as an online pairing does once it is off), and the solution settled where those pairings agree
     with it. Paired again, the run reads as it does with the true pairing."""
     truth, landmarks, graph, s, true_label = _world(seed)
-    odometry = np.zeros_like(truth)
-    for i in range(80):
-        odometry[i + 1] = compose(odometry[i], graph.odo_delta[i])
+    odometry = _odometry(graph)
     wrong = true_label.copy()
     half = (true_label < 10) & (s.pose < 40)  # each pair's first landmark, seen from the first half
     wrong[half] += 10

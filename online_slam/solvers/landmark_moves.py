@@ -108,17 +108,14 @@ def merged_away(landmarks: Array, pick: Index, scan: Index, scale: float) -> Ind
     if not len(pairs):
         return np.zeros(0, dtype=np.int64)
     used = pick >= 0
-    seen = {(int(a), int(b)) for a, b in zip(scan[used], pick[used])}  # (scan, landmark) picked
-    by_landmark: dict[int, set[int]] = {}
-    for a, b in seen:
-        by_landmark.setdefault(b, set()).add(a)
+    picked = coo_matrix((np.ones(int(used.sum())), (scan[used], pick[used])), shape=(scan.max() + 1, len(landmarks)))
+    picked = (picked.tocsr() > 0).astype(np.int64)  # scan x landmark: picked there
+    together = np.asarray((picked.T @ picked)[pairs[:, 0], pairs[:, 1]]).ravel()  # scans picking both of a pair
     counts = np.bincount(pick[used], minlength=len(landmarks))
     order = np.argsort(np.hypot(*(landmarks[pairs[:, 0]] - landmarks[pairs[:, 1]]).T), kind="stable")
     dropped: set[int] = set()
-    for i, j in pairs[order]:
-        if i in dropped or j in dropped:
-            continue
-        if len(by_landmark.get(int(i), set()) & by_landmark.get(int(j), set())) >= BIRTH_SCANS:
+    for (i, j), both in zip(pairs[order], together[order]):
+        if i in dropped or j in dropped or both >= BIRTH_SCANS:
             continue
         dropped.add(int(j) if counts[j] < counts[i] or (counts[j] == counts[i] and j > i) else int(i))
     return np.array(sorted(dropped), dtype=np.int64)

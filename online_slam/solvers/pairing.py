@@ -83,10 +83,15 @@ class Pairing:
     were merged into another."""
 
 
+def _points(s: Sightings, poses: Array, rows: Index | slice = slice(None)) -> Array:
+    """Where sightings ``rows`` put their landmarks, (j, 2)."""
+    return landmark_from_sighting(poses[s.pose[rows]], s.z[rows], s.model[rows])
+
+
 def _candidates(s: Sightings, poses: Array, landmarks: Array) -> tuple[Index, Array]:
     """The nearest landmarks to each sighting's world point (k, c) and their chi-squares (k, c)."""
     c = min(NEAREST, len(landmarks))
-    points = landmark_from_sighting(poses[s.pose], s.z, s.model)
+    points = _points(s, poses)
     near = cKDTree(landmarks).query(points, k=c)[1].reshape(len(points), c).astype(np.int64)
     k = np.repeat(np.arange(len(points)), c)
     d2 = sighting_chi2(poses[s.pose[k]], landmarks[near.reshape(-1)], s.z[k], s.sqrt_info[k], s.model[k])
@@ -150,16 +155,11 @@ def _solve(
     return result.poses, landmarks
 
 
-def _points(s: Sightings, poses: Array, rows: Index | slice = slice(None)) -> Array:
-    """Where sightings ``rows`` put their landmarks, (j, 2)."""
-    return landmark_from_sighting(poses[s.pose[rows]], s.z[rows], s.model[rows])
-
-
-def _scale(s: Sightings, poses: Array, landmarks: Array, bound: float) -> float:
-    """How far the paired sightings' points lie from their landmarks, as a standard deviation per axis, m: their
-    median distance over ``sqrt(2 ln 2)`` (a Rayleigh's median). Their covariances would not do: a stream may widen
-    them for what they share in time, not for how far apart one scan's sightings lie."""
-    pick = _paired(s, poses, landmarks, bound)[0]
+def _scale(s: Sightings, poses: Array, landmarks: Array, pick: Index) -> float:
+    """How far the paired sightings' points (``pick``: :func:`_paired`'s) lie from their landmarks, as a standard
+    deviation per axis, m: their median distance over ``sqrt(2 ln 2)`` (a Rayleigh's median). Their covariances
+    would not do: a stream may widen them for what they share in time, not for how far apart one scan's sightings
+    lie."""
     rows = np.flatnonzero(pick >= 0)
     if not len(rows):
         return 0.0
@@ -168,15 +168,14 @@ def _scale(s: Sightings, poses: Array, landmarks: Array, bound: float) -> float:
 
 
 def _unstacked(
-    s: Sightings, poses: Array, landmarks: Array, bound: float, scale: float
+    s: Sightings, poses: Array, landmarks: Array, w: Array, near: Index, scale: float
 ) -> tuple[Array, NDArray[np.bool_]] | None:
     """The landmarks with each stacked group placed again by k-means of its sightings' points, as many as one
     scan's sightings there say (:func:`~online_slam.solvers.landmark_moves.distinct`), and which to keep (the
-    group's others are merged away); None if none is stacked."""
+    group's others are merged away); None if none is stacked. ``w``, ``near``: :func:`_paired`'s."""
     groups = stacked_groups(landmarks, scale)
     if not groups:
         return None
-    _, _, w, near = _paired(s, poses, landmarks, bound)
     best = near[np.arange(len(near)), np.argmax(w, axis=1)]
     landmarks, keep = landmarks.copy(), np.ones(len(landmarks), dtype=bool)
     for group in groups:
@@ -234,25 +233,27 @@ def repair(
             poses, landmarks = _solve(base, s, k, near[k, c], w[k, c] / temperature, poses, landmarks, solver)
     poses, landmarks = _hard(base, s, poses, landmarks, bound, solver)
     origin = np.arange(len(landmarks))
-    scale = _scale(s, poses, landmarks, bound)  # 0 (nothing paired): no moves
-    if scale > 0 and (unstacked := _unstacked(s, poses, landmarks, bound, scale)) is not None:
-        placed, keep = unstacked
-        poses, landmarks = _hard(base, s, poses, placed[keep], bound, solver)
-        origin = origin[keep]
-    for _ in range(BIRTH_ROUNDS if scale > 0 else 0):
-        pick, _, w, _ = _paired(s, poses, landmarks, bound)
-        losers = np.flatnonzero((w.max(axis=1) > MAJORITY) & (pick < 0))  # lost to a surer sighting of the scan
-        born = births(_points(s, poses, losers), s.pose[losers], landmarks, scale)
-        if not len(born):
-            break
-        poses, landmarks = _hard(base, s, poses, np.vstack([landmarks, born]), bound, solver)
-        origin = np.r_[origin, np.full(len(born), -1)]
-    drop = merged_away(landmarks, _paired(s, poses, landmarks, bound)[0], s.pose, scale) if scale > 0 else origin[:0]
-    if len(drop):
-        keep = np.ones(len(landmarks), dtype=bool)
-        keep[drop] = False
-        poses, landmarks = _hard(base, s, poses, landmarks[keep], bound, solver)
-        origin = origin[keep]
+    pick, _, w, near = _paired(s, poses, landmarks, bound)
+    scale = _scale(s, poses, landmarks, pick)
+    if scale > 0:  # 0 (nothing paired): no moves
+        if (unstacked := _unstacked(s, poses, landmarks, w, near, scale)) is not None:
+            placed, keep = unstacked
+            poses, landmarks = _hard(base, s, poses, placed[keep], bound, solver)
+            origin = origin[keep]
+            pick, _, w, _ = _paired(s, poses, landmarks, bound)
+        for _ in range(BIRTH_ROUNDS):
+            losers = np.flatnonzero((w.max(axis=1) > MAJORITY) & (pick < 0))  # lost to a surer sighting of the scan
+            born = births(_points(s, poses, losers), s.pose[losers], landmarks, scale)
+            if not len(born):
+                break
+            poses, landmarks = _hard(base, s, poses, np.vstack([landmarks, born]), bound, solver)
+            origin = np.r_[origin, np.full(len(born), -1)]
+            pick, _, w, _ = _paired(s, poses, landmarks, bound)
+        if len(drop := merged_away(landmarks, pick, s.pose, scale)):
+            keep = np.ones(len(landmarks), dtype=bool)
+            keep[drop] = False
+            poses, landmarks = _hard(base, s, poses, landmarks[keep], bound, solver)
+            origin = origin[keep]
     if objective(base, s, poses, landmarks, bound) > start:  # annealing may end in a worse basin: keep the start
         (poses, landmarks), origin = before, np.arange(len(before[1]))
     pick, likeliest, _, _ = _paired(s, poses, landmarks, bound)

@@ -73,13 +73,13 @@ def paired_again(estimate: Estimate, stream: ProblemLog, config: SmootherConfig)
     kept = np.array([where.get(lid, -1) for lid in paired.landmark_ids], dtype=np.int64)
     covs, joint = estimate.landmark_covs, estimate.landmark_joint
     new_labels = list(paired.info["labels"])
-    born = np.flatnonzero(kept < 0)  # at the end: the ids the pairing gave
+    born = np.flatnonzero(kept < 0)  # the ids the pairing gave
     dropped = len(estimate.landmark_ids) - (len(kept) - len(born))
     if len(born):  # landmarks the pairing added: covariances of the whole run's information; no joint
         joint = None
         if covs is not None:
             covs = np.concatenate([covs, born_covariances(stream, paired, new_labels, born)])
-            kept = np.r_[kept[kept >= 0], len(estimate.landmark_ids) + np.arange(len(born))]
+            kept[born] = len(estimate.landmark_ids) + np.arange(len(born))
     elif joint is not None:
         flat = np.stack([2 * kept, 2 * kept + 1], axis=1).ravel()
         joint = joint[np.ix_(flat, flat)]
