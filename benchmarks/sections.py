@@ -315,6 +315,15 @@ def _unknown_ids(args: argparse.Namespace, world: GridConfig) -> None:
     print(f"target: smoother and batch final within {TARGET}x the known-id figure: {met} of {len(pairs)} met")
 
 
+def _odometry_bias(args: argparse.Namespace, world: GridConfig) -> None:
+    from benchmarks.odometry_bias import BIAS, PRIORS, run_odometry_bias, table
+
+    rows = run_odometry_bias(args.mrclam, args.workers)
+    print(f"the EKF's odometry bias state (none; prior sigmas {PRIORS}): online RMSE m / mean NEES, each stream "
+          f"as logged and biased ({BIAS[0]:.3f} of its distances, {BIAS[1]:g} rad/s added)")  # fmt: skip
+    print(table(rows))
+
+
 def _misdeclared(args: argparse.Namespace, world: GridConfig) -> None:
     from benchmarks.misdeclared import MODES, run_misdeclared, verdicts
 
@@ -480,14 +489,16 @@ SECTIONS: dict[str, Section] = {
     "heldout": _heldout,
     "misdeclared": _misdeclared,
     "unknown-ids": _unknown_ids,
+    "odometry-bias": _odometry_bias,
     "sweep": _sweep,
     "soak": _soak,
 }
 """Every section by name, in the order they run."""
-DEFAULT_SECTIONS = tuple(SECTIONS)[:-10]
+DEFAULT_SECTIONS = tuple(SECTIONS)[:-11]
 """The big and waypoint worlds (5000 poses beside iSAM2, minutes), the circle protocol (100 Monte Carlo runs,
 minutes), the sensor timing (seeded worlds, minutes), MRCLAM, its held-out figures, misdeclared noise (worlds and
-MRCLAM), MRCLAM without ids, the sweep (MRCLAM data) and the soak (100,000 poses, minutes) run only when asked for
+MRCLAM), MRCLAM without ids, the odometry bias state (worlds and MRCLAM), the sweep (MRCLAM data) and the soak
+(100,000 poses, minutes) run only when asked for
 (``--only``)."""
 MRCLAM_SECTIONS = ("mrclam", "heldout", "unknown-ids", "sweep")
 """The sections that read the MRCLAM Dataset 6 folder (``--mrclam``)."""

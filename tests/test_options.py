@@ -89,6 +89,8 @@ def _sample(option: Option) -> object:
         return True
     if option.choices:
         return option.choices[-1]
+    if option.name == "odometry_bias":  # text: prior sigmas
+        return "0.02,0.003"
     base = option.value if option.value is not None else field_default(option.field)
     if base is None:  # resolved later (e.g. --max-latency by the source)
         return 2 if option.kind is int else 0.25

@@ -56,6 +56,7 @@ from online_slam.errors import OnlineSlamError
 from online_slam.estimators import ekf_gating
 from online_slam.estimators.adaptation import adapted_info, entering, update_adaptation
 from online_slam.estimators.blas import OneThreadBlas
+from online_slam.estimators.ekf_bias import OdometryBias, invariant_points
 from online_slam.estimators.ekf_config import EkfConfig
 from online_slam.estimators.ekf_fixes import AbsoluteFixes
 from online_slam.estimators.ekf_map import PriorMap
@@ -74,6 +75,7 @@ from online_slam.estimators.protocol import Estimate, Snapshot
 from online_slam.frontend.steps import Step
 from online_slam.geometry.pose_moments import reported
 from online_slam.geometry.se2 import compose_with_jacobians
+from online_slam.models.motion import unbiased_increment
 from online_slam.models.observation import (
     RANGE_BEARING,
     as_models,
@@ -97,7 +99,7 @@ by a wrong id and then seen where it is reads 51,000, and letting it in moved th
 10% wrong ids, world 2, seed 0)."""
 
 
-class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
+class EkfSlam(SeveralRobots, OdometryBias, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
     """EKF-SLAM with a growing state; follows the estimator protocol (``step`` / ``finish``)."""
 
     name = "ekf"
@@ -207,19 +209,28 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         self.K = np.zeros((self.dim_x, self.K.shape[1] if self.K.ndim == 2 else 1))
 
     # -- predict ---------------------------------------------------------------------------------
-    def predict(self, u: Array, Q: Array | None = None) -> None:
-        """Move the robot by the odometry increment u (3,) with covariance Q (3, 3); O(n).
+    def predict(self, u: Array, Q: Array | None = None, dt: float = 0.0) -> None:
+        """Move the robot by the odometry increment u (3,) with covariance Q (3, 3) over ``dt`` seconds; O(n).
 
-        Only the robot block and its cross-covariances change: ``P_rr = F P_rr F^T + G Q G^T``, ``P_rm = F P_rm``.
+        Only the robot block and its cross-covariances change: ``P_rr = F P_rr F^T + G Q G^T``, ``P_rm = F P_rm``
+        (with a bias state, :mod:`~online_slam.estimators.ekf_bias`, its columns ``B`` too).
         """
         Q = self.state.Q if Q is None else np.asarray(Q, dtype=float)
+        P, bias = self.P, self._bias_columns() if self.state.biased else None
+        if bias is not None:
+            u, D = unbiased_increment(u, self.x[bias, 0], dt)
         pose, F, G = self._motion(u)
         self.state.predicted = pose.copy()
         self.x[:3, 0] = pose
-        P = self.P
-        P[:3, 3:] = F @ P[:3, 3:]
-        P[3:, :3] = P[:3, 3:].T
-        P_rr = F @ P[:3, :3] @ F.T + G @ Q @ G.T
+        if bias is None:
+            P[:3, 3:] = F @ P[:3, 3:]
+            P[3:, :3] = P[:3, 3:].T
+            P_rr = F @ P[:3, :3] @ F.T + G @ Q @ G.T
+        else:
+            B = G @ D
+            A = F @ P[:3, :] + B @ P[bias, :]
+            P_rr = A[:, :3] @ F.T + A[:, bias] @ B.T + G @ Q @ G.T
+            P[:3, :], P[:, :3] = A, A.T
         P[:3, :3] = 0.5 * (P_rr + P_rr.T)
         self.state.Q = Q
         self.Q[:3, :3] = Q
@@ -271,12 +282,6 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         self.state.streak, self.state.confirmed = self.state.streak[kept], self.state.confirmed[kept]
         self.state.first = self.state.first[kept]
         self.state.recent = {int(renumber[j]): v for j, v in self.state.recent.items() if renumber[j] >= 0}
-
-    def _mapped(self) -> NDArray[np.bool_] | None:
-        """Which landmarks belong to the reported map (None: all; tentative ones do not)."""
-        if not self.book.has_tentative:
-            return None
-        return np.array([not self.book.is_tentative(lid) for lid in self.landmark_ids], dtype=bool)
 
     # -- update ----------------------------------------------------------------------------------
     def _innovation(
@@ -337,7 +342,10 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             drifted = failing > 0 and recent_agree < max(2.0, 0.25 * (recent_fail + recent_agree))
             if drifted and failing >= 2:  # several: drift moves them all by one robot correction
                 f = confirmed & ~passed
-                drifted = self._one_robot_correction_explains(indices[f], z[f], R[f], model[f])
+                cols = landmark_columns(indices[f], self._offset).reshape(-1, 2)
+                drifted = ekf_gating.one_robot_correction_explains(
+                    self.x[:3, 0], self.x[self._offset :, 0].reshape(-1, 2)[indices[f]],
+                    self.P[cols[:, :, None], cols[:, None, :]], z[f], R[f], model[f])  # fmt: skip
             beyond = nis > DRIFT_NIS  # no drift of the robot explains these: the landmark is off
             if drifted:  # the filter drifted: let the persistent sightings of confirmed landmarks in
                 accepted |= ~passed & ~beyond & confirmed & (streak >= self.config.gate_persistence - 1)
@@ -369,15 +377,6 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         for i in np.flatnonzero(reanchor):
             self.reanchor_landmark(int(indices[i]), z[i], R[i], model[i])
         return nis, accepted | reanchor
-
-    def _one_robot_correction_explains(
-        self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]
-    ) -> bool:
-        """Can one robot pose, the landmarks held where they are, explain these sightings?"""
-        cols = landmark_columns(indices, self._offset).reshape(-1, 2)
-        P_ll = self.P[cols[:, :, None], cols[:, None, :]]
-        landmarks = self.x[self._offset :, 0].reshape(-1, 2)[indices]
-        return ekf_gating.one_robot_correction_explains(self.x[:3, 0], landmarks, P_ll, z, R, model)
 
     def _remember(self, indices: NDArray[np.int64], z: Array, R: Array, model: NDArray[np.int8]) -> None:
         """Keep where each gated sighting puts its landmark (with that position's covariance)."""
@@ -411,7 +410,11 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
         """``x += K y``, ``P -= K S K^T`` with ``K = P H^T S^-1``, through the Cholesky factor of S."""
         dx, W, L_inv = apply_update(self.P, PHt, S, y)
         if self.config.linearization == "invariant" and len(self.state.robots) == 1 and not self.state.fixed:
-            self.x[:, 0], column = invariant_retraction(self.x[:, 0], dx)
+            points, column = invariant_points(len(dx), self.state.biased), np.zeros(len(dx))
+            moved, column[points] = invariant_retraction(self.x[points, 0], dx[points])
+            if self.state.biased:  # the bias: no position, nothing turns
+                self.x[3:5, 0] += dx[3:5]
+            self.x[points, 0] = moved
             transport(self.P, column)
         else:
             self.x[:, 0] += dx
@@ -450,11 +453,13 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             self.P[:3, :3] = 0.0 if step.prior_cov is None else step.prior_cov
             self.state.predicted = self.x[:3, 0].copy()
             self.state.robots[0] = step.robot
+            self._begin_bias(step)
+            self._resized()
         else:
             self._activate(step.robot)
             self._moved_on()
             self.state.history.append(self.x[:3, 0])  # the previous pose is complete
-            self.predict(step.odometry, step.odometry_cov)
+            self.predict(step.odometry, step.odometry_cov, step.t - self.state.robot_times[0])
         self.state.robot_steps[0], self.state.robot_times[0] = step.index, step.t
         self.state.step_nis, self.state.step_gated, self.state.step_new, self.state.step_ids = [], [], [], []
         self._observe(step, 0)
@@ -563,15 +568,6 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
             },
         )
 
-    def _map(self) -> tuple[tuple[LandmarkId, ...], Array, Array]:
-        """The reported map: ids, positions (M, 2), marginal covariances (M, 2, 2); tentative landmarks left out."""
-        landmarks, covs = self.x[self._offset :, 0].reshape(-1, 2).copy(), self.landmark_marginals()
-        mapped = self._mapped()
-        if mapped is None:
-            return tuple(self.landmark_ids), landmarks, covs
-        ids = tuple(lid for lid, ok in zip(self.landmark_ids, mapped) if ok)
-        return ids, landmarks[mapped], covs[mapped]
-
     def finish(self) -> Estimate:
         """The filter has no smoothing: each pose keeps the estimate it had when it was the newest (with several
         robots: when its robot moved on)."""
@@ -594,6 +590,7 @@ class EkfSlam(SeveralRobots, AbsoluteFixes, PriorMap, ExtendedKalmanFilter):
                 "rejected": np.concatenate(self.state.rejected) if self.state.rejected else np.zeros(0, dtype=bool),
                 **self.book.info(),
                 **self._robot_info(),
+                **self._bias_info(),
             },
             landmark_covs=covs,
             landmark_joint=self.landmark_joint(),

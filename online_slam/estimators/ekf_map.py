@@ -1,4 +1,5 @@
-"""The EKF started from a map (a mixin of :class:`~online_slam.estimators.ekf.EkfSlam`): ``--map``, ``--map-fixed``."""
+"""The EKF's map (a mixin of :class:`~online_slam.estimators.ekf.EkfSlam`): started from one (``--map``,
+``--map-fixed``), and as reported."""
 
 from __future__ import annotations
 
@@ -9,18 +10,20 @@ from numpy.typing import NDArray
 
 from online_slam.errors import OnlineSlamError
 from online_slam.estimators.ekf_state import EkfState
+from online_slam.sources.events import LandmarkId
 from online_slam.sources.landmark_map import LandmarkMap
 
 Array = NDArray[np.float64]
 
 
 class PriorMap:
-    """Loads a map's landmarks into the state before the first step."""
+    """Loads a map's landmarks into the state before the first step; the map as reported."""
 
     state: EkfState
     dim_x: int
+    x: Array
     P: Array
-    _mapped: Callable[[], NDArray[np.bool_] | None]
+    _offset: int
     _grow: Callable[[Array, Array, Array], None]
     """Appends rows to the state: values, their cross-covariance with the state, their own covariance block."""
 
@@ -58,3 +61,19 @@ class PriorMap:
             return block.copy()
         keep = np.repeat(mapped, 2)
         return block[np.ix_(keep, keep)]
+
+    def _mapped(self) -> NDArray[np.bool_] | None:
+        """Which landmarks belong to the reported map (None: all; tentative ones do not)."""
+        book = self.state.book
+        if not book.has_tentative:
+            return None
+        return np.array([not book.is_tentative(lid) for lid in self.state.landmark_ids], dtype=bool)
+
+    def _map(self) -> tuple[tuple[LandmarkId, ...], Array, Array]:
+        """The reported map: ids, positions (M, 2), marginal covariances (M, 2, 2); tentative landmarks left out."""
+        landmarks, covs = self.x[self._offset :, 0].reshape(-1, 2).copy(), self.landmark_marginals()
+        mapped = self._mapped()
+        if mapped is None:
+            return tuple(self.state.landmark_ids), landmarks, covs
+        ids = tuple(lid for lid, ok in zip(self.state.landmark_ids, mapped) if ok)
+        return ids, landmarks[mapped], covs[mapped]

@@ -48,18 +48,18 @@ class SeveralRobots:
     """The filter's update (``x += K y``, ``P -= K S K^T``)."""
     _resized: Callable[[], None]
     """The filter's bookkeeping after the state's size changed."""
-
-    @property
-    def _offset(self) -> int:
-        """First state column of the landmarks (3 per robot)."""
-        return 3 * len(self.state.robots)
+    _pose_end: int
+    _offset: int
+    _inserted: Callable[[int, Array, Array], None]
+    _bias_block: Callable[[Step], Array]
+    _swap_biases: Callable[[NDArray[np.int64], int], None]
 
     def _wrap_headings(self) -> None:
         """Wrap every robot's heading."""
         if len(self.state.robots) == 1:
             self.x[2, 0] = wrap(self.x[2, 0])
         else:
-            self.x[2 : self._offset : 3, 0] = wrap(self.x[2 : self._offset : 3, 0])
+            self.x[2 : self._pose_end : 3, 0] = wrap(self.x[2 : self._pose_end : 3, 0])
 
     def _activate(self, robot: RobotId | None) -> None:
         """Swap the robot's block into the first one (a permutation of the state; nothing if it is there)."""
@@ -69,6 +69,7 @@ class SeveralRobots:
         k = robots.index(robot)
         order = np.arange(len(self.x))
         order[:3], order[3 * k : 3 * k + 3] = order[3 * k : 3 * k + 3], order[:3].copy()
+        self._swap_biases(order, k)
         self.x = self.x[order]
         self.P = self.P[np.ix_(order, order)]
         columns: tuple[list[Any], ...] = (robots, self.state.robot_steps, self.state.robot_times)
@@ -76,17 +77,14 @@ class SeveralRobots:
             column[0], column[k] = column[k], column[0]
 
     def _add_robot(self, step: Step) -> None:
-        """A robot begins: its start pose becomes a block before the landmarks, then the active one."""
-        o, n = self._offset, len(self.x)
+        """A robot begins: its start pose becomes a block after the poses (its bias, when modelled, after the
+        biases), then the active one."""
         if len(self.state.robots) == 1:  # every pose so far was the first robot's, in step order
             self.state.moved = list(range(len(self.state.history)))
-        x = np.zeros((n + 3, 1))
-        x[:o], x[o : o + 3, 0], x[o + 3 :] = self.x[:o], step.prior, self.x[o:]
-        P = np.zeros((n + 3, n + 3))
-        keep = np.r_[np.arange(o), np.arange(o + 3, n + 3)]
-        P[np.ix_(keep, keep)] = self.P
-        P[o : o + 3, o : o + 3] = 0.0 if step.prior_cov is None else step.prior_cov
-        self.x, self.P = x, P
+        if self.state.biased:
+            self._inserted(self._offset, np.zeros(2), self._bias_block(step))
+        prior_cov = np.zeros((3, 3)) if step.prior_cov is None else step.prior_cov
+        self._inserted(self._pose_end, cast(Array, step.prior), prior_cov)
         self.state.robots.append(step.robot)
         self.state.robot_steps.append(step.index)
         self.state.robot_times.append(step.t)
@@ -113,7 +111,7 @@ class SeveralRobots:
         history, moved = self.state.history.view(), self.state.moved
         out = np.zeros((len(history) + len(self.state.robots), 3))
         out[moved] = history
-        out[self.state.robot_steps] = self.x[: self._offset, 0].reshape(-1, 3)
+        out[self.state.robot_steps] = self.x[: self._pose_end, 0].reshape(-1, 3)
         return out
 
     # -- robot sightings ---------------------------------------------------------------------------

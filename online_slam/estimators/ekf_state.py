@@ -105,13 +105,16 @@ class EkfState:
     """Fixes refused by the gate (their NIS beyond the chi-square quantile ``gate_probability``)."""
     adaptation: Adaptation = field(default_factory=Adaptation)
     """The adapted noise scales (``--adapt-noise``; 1 and 1 when off)."""
+    biased: bool = False
+    """``x`` holds each robot's odometry bias ``[s, w]`` after the poses (:mod:`~online_slam.estimators.ekf_bias`)."""
     index: dict[LandmarkId, int] = field(init=False)
     """State index of each landmark id."""
 
     def __post_init__(self) -> None:
         n, m = len(self.x), len(self.landmark_ids)
         sizes = (len(self.streak), len(self.confirmed), len(self.first))
-        if n != 3 * len(self.robots) + 2 * m or self.P.shape != (n, n) or any(size != m for size in sizes):
+        expected = (5 if self.biased else 3) * len(self.robots) + 2 * m
+        if n != expected or self.P.shape != (n, n) or any(size != m for size in sizes):
             raise ValueError("x, P, landmark_ids and the per-landmark arrays disagree in size")
         self.index = {lid: j for j, lid in enumerate(self.landmark_ids)}
 

@@ -71,6 +71,10 @@ class Step:
     z_widening: Array = None  # type: ignore[assignment]  # not given: __post_init__ puts ones, never None
     """How many times each sighting's ``z_cov`` variances exceed its own (its line's ``widened``), shape (k, 2),
     each >= 1; not given: ones. Noise adaptation judges innovations by ``z_cov / sqrt(f f^T)``."""
+    odometry_bias: Array | None = None
+    """On a robot's first step (with ``prior``): the prior standard deviations ``[s, w]`` (2,) of its odometry bias,
+    which the EKF estimates (:mod:`~online_slam.estimators.ekf_bias`; ``FrontEndConfig.odometry_bias``, or the
+    header's ``odometry_bias``); None: not modelled."""
 
     def __post_init__(self) -> None:
         if self.z_model is None:
@@ -127,6 +131,7 @@ class PendingStep:
     odometry_cov: Array | None
     prior: Array | None = None
     prior_cov: Array | None = None
+    odometry_bias: Array | None = None
     merged: int = 1
     landmarks: list[LandmarkId | None] = field(default_factory=list)
     z: list[tuple[float, float]] = field(default_factory=list)
@@ -185,6 +190,7 @@ class PendingStep:
             z_cov=self.z_covariances(),
             prior=self.prior,
             prior_cov=self.prior_cov,
+            odometry_bias=self.odometry_bias,
             merged=self.merged,
             **self._robot_fields(),
             z_model=self._models(),

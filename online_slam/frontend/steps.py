@@ -117,8 +117,19 @@ class FrontEndConfig:
     counts for what its errors are worth, not each as news. 0: fixes independent. None: the stream header's
     ``fix_correlation_s``, else 0."""
 
+    odometry_bias_scale: float | None = None
+    """The prior standard deviation of the fraction each robot's odometry overstates distances by, a bias the EKF
+    estimates with the state (:mod:`~online_slam.estimators.ekf_bias`); 0: none. None: the stream header's
+    ``odometry_bias`` (``[scale, rate]``), else 0."""
+    odometry_bias_rate: float | None = None
+    """The same of the heading rate (rad/s) each robot's odometry adds to its turns."""
+
     def __post_init__(self) -> None:
         check_scale("odometry_noise_scale", self.odometry_noise_scale)
+        for name in ("odometry_bias_scale", "odometry_bias_rate"):
+            value = getattr(self, name)
+            if value is not None and not 0.0 <= value < math.inf:
+                raise ValueError(f"{name} must be a finite number >= 0")
         check_scale("sensor_noise_scale", self.sensor_noise_scale)
         check_biases(self.sensor_bias)
         if self.max_latency is not None and not 0.0 <= self.max_latency < math.inf:  # NaN fails too
@@ -304,6 +315,16 @@ class FrontEnd:
         none."""
         own = None if self.header is None else self.header.meta.get("sightings_own_scale")
         return None if own is None else (float(own["range"][0]), float(own["range"][1]), float(own["spread"]))
+
+    @property
+    def odometry_bias(self) -> Array | None:
+        """The odometry bias prior sigmas ``[scale, rate]`` (2,) a robot's first step carries (the configuration's,
+        else the header's), or None: not modelled (both 0)."""
+        config = cast(FrontEndConfig, self.config)
+        declared = (None if self.header is None else self.header.meta.get("odometry_bias")) or (0.0, 0.0)
+        given = (config.odometry_bias_scale, config.odometry_bias_rate)
+        sigmas = np.array([float(d if g is None else g) for g, d in zip(given, declared)])
+        return sigmas if sigmas.any() else None
 
     def _decorrelated(self, fix: Position | Heading) -> Position | Heading:
         """The fix with its covariance widened for its correlation with the robot's previous one of its kind
@@ -506,6 +527,7 @@ class FrontEnd:
             odometry_cov=None,
             prior=pose,
             prior_cov=prior_cov,
+            odometry_bias=self.odometry_bias,
             robot=robot,
             mounted=bool(self.sensors),
             widened=self.sightings_correlated,

@@ -146,3 +146,25 @@ def _moved(pose: Array, cov: Array | None, delta: Array, delta_cov: Array) -> tu
         return moved, None
     out = J_pose @ cov @ J_pose.T + J_delta @ delta_cov @ J_delta.T
     return moved, 0.5 * (out + out.T)
+
+
+def unbiased_increment(delta: ArrayLike, bias: ArrayLike, dt: float) -> tuple[Array, Array]:
+    """An odometry increment with a robot's odometry bias taken off, and its Jacobian in the bias.
+
+    The bias ``[s, w]`` is what the odometry reads beyond the motion: a distance overstated by the fraction ``s``
+    and a heading rate ``w`` (rad/s) added to each turn, so the motion is ``[(1 - s) dx, (1 - s) dy,
+    dtheta - w dt]`` (linear in the bias: its Jacobian is exact).
+
+    Args:
+        delta: Measured increment ``[dx, dy, dtheta]``, shape (3,).
+        bias: ``[s, w]``, shape (2,).
+        dt: The increment's time span, seconds.
+
+    Returns:
+        (the increment without the bias (3,), its derivative in ``[s, w]`` (3, 2)).
+    """
+    d = np.asarray(delta, dtype=float)
+    s, w = np.asarray(bias, dtype=float)
+    moved = np.array([(1.0 - s) * d[0], (1.0 - s) * d[1], d[2] - w * dt])
+    jacobian = np.array([[-d[0], 0.0], [-d[1], 0.0], [0.0, -dt]])
+    return moved, jacobian

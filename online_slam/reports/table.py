@@ -216,6 +216,10 @@ def notes(results: Results) -> list[str]:
                 f"{name}: {state} in {counted(d['iterations'], 'iteration')} "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
+        for robot, (s, w, sd_s, sd_w) in (d.get("odometry_bias") or {}).items():
+            who = "" if robot is None else f" of robot {robot}"
+            out.append(f"{name}: odometry bias{who}: distances {100 * s:+.2f} +- {100 * sd_s:.2f}% long, heading rate "
+                       f"{1e3 * w:+.2f} +- {1e3 * sd_w:.2f} mrad/s added (taken off as estimated)")  # fmt: skip
         if "adapted_noise" in d and tuple(d["adapted_noise"]) != (1.0, 1.0):
             odometry, sensor = d["adapted_noise"]
             out.append(f"{name}: noise adapted to its innovations: odometry covariance x{odometry:.3g}, sensor "

@@ -342,6 +342,10 @@ class EventValidator(ScanRules, RobotRules):
             raise self.fail(line, "fix_correlation_s", f"expected seconds >= 0 (a finite number), got {show(tau)}")
         if "sightings_own_scale" in meta:
             self._own_scale(meta["sightings_own_scale"], line)
+        bias = meta.get("odometry_bias")
+        if "odometry_bias" in meta and not (isinstance(bias, list) and len(bias) == 2
+                                            and all(finite(v) and v >= 0.0 for v in bias)):  # fmt: skip
+            raise self.fail(line, "odometry_bias", f"expected [S, W], prior sigmas >= 0, got {show(bias)}")
         self._pending.seen_content = True
         return Header(name=name, meta=meta, version=VERSION)
 
