@@ -16,6 +16,7 @@ from collections.abc import Iterable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from online_slam.options import replay_config
 from online_slam.pipeline import replay
@@ -93,3 +94,41 @@ def table(rows: list[Row]) -> str:
         label = f"biased {BIAS[0]:.3f} / {1e3 * BIAS[1]:.0f} mrad/s" if biased else "as logged"
         lines.append(f"| {stream} | {label} | {figures} | {cells[PRIORS[0]].found} |")
     return "\n".join(lines)
+
+
+def heldout_cell(folder: str, job: Any, prior: tuple[float, float]) -> tuple[float, float]:
+    """The EKF's online RMSE (m) and mean NEES on one of ``benchmarks.heldout``'s jobs under a bias prior (its
+    scored part: a whole run's second half)."""
+    import numpy as np
+
+    from benchmarks.heldout import _events, _rms
+    from online_slam.frontend.steps import FrontEndConfig
+    from online_slam.pipeline import ReplayConfig
+
+    frontend = FrontEndConfig(odometry_bias_scale=prior[0], odometry_bias_rate=prior[1])
+    r = replay(_events(folder, job), ReplayConfig(estimators=("ekf",), frontend=frontend))
+    if job.scored is None:
+        return float(r.estimators["ekf"].online_rmse_m or 0.0), float(r.estimators["ekf"].nees_mean or 0.0)
+    series = r.series["ekf"]
+    inside = (series.t >= job.scored[0]) & (series.t < job.scored[1])
+    return _rms(series.position_error_m[inside]), float(np.nanmean(series.nees[inside]))
+
+
+def run_heldout(folder: str | Path, workers: int | None = None) -> list[tuple[str, str, list[tuple[float, float]]]]:
+    """``benchmarks.heldout``'s held-out cells (27 on Dataset 6) by the EKF without the bias state and with each of
+    :data:`PRIORS`: (scheme, stream, [(online m, mean NEES) per prior])."""
+    import numpy as np
+
+    from benchmarks.heldout import fits, jobs
+    from online_slam.importers.mrclam.reader import half_of, recording_span
+
+    recording = recording_span(Path(folder))
+    spans = {half: half_of(recording, half) for half in ("first", "second")}
+    spans["whole"] = (recording[0], float(np.nextafter(recording[1], np.inf)))
+    todo = [job for job in jobs(fits(folder, spans), spans) if job.held_out]
+    priors = ((0.0, 0.0), *PRIORS)
+    pairs = [(job, prior) for job in todo for prior in priors]
+    with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
+        figures = list(pool.map(heldout_cell, [str(folder)] * len(pairs), *zip(*pairs)))
+    n = len(priors)
+    return [(job.scheme, str(job.stream), figures[k * n : (k + 1) * n]) for k, job in enumerate(todo)]

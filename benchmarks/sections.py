@@ -316,12 +316,24 @@ def _unknown_ids(args: argparse.Namespace, world: GridConfig) -> None:
 
 
 def _odometry_bias(args: argparse.Namespace, world: GridConfig) -> None:
-    from benchmarks.odometry_bias import BIAS, PRIORS, run_odometry_bias, table
+    from benchmarks.odometry_bias import BIAS, PRIORS, run_heldout, run_odometry_bias, table
 
     rows = run_odometry_bias(args.mrclam, args.workers)
     print(f"the EKF's odometry bias state (none; prior sigmas {PRIORS}): online RMSE m / mean NEES, each stream "
           f"as logged and biased ({BIAS[0]:.3f} of its distances, {BIAS[1]:g} rad/s added)")  # fmt: skip
     print(table(rows))
+    if args.mrclam:
+        print("held out (benchmarks.heldout's held-out cells; whole runs: their second half): EKF online m / mean "
+              "NEES, without the bias state, then with each prior")  # fmt: skip
+        cells = run_heldout(args.mrclam, args.workers)
+        for scheme, stream, figures in cells:
+            text = " | ".join(f"{online:.3f} / {nees:.2f}" for online, nees in figures)
+            print(f"{scheme:<40}{stream:<5}{text}")
+        for k, prior in enumerate(((0.0, 0.0), *PRIORS)):
+            worst = max(f[k][0] for _, _, f in cells), max(f[k][1] for _, _, f in cells)
+            better = sum(f[k][0] < f[0][0] for _, _, f in cells)
+            print(f"prior {prior}: worst online {worst[0]:.3f} m, worst mean NEES {worst[1]:.2f}; "
+                  f"{better} of {len(cells)} cells below the EKF without it")  # fmt: skip
 
 
 def _misdeclared(args: argparse.Namespace, world: GridConfig) -> None:

@@ -30,6 +30,7 @@ def test_the_shipped_mrclam_stream_is_what_the_conversion_writes() -> None:
     assert_close(shipped, list(read_mrclam(MRCLAM, 1)), rtol=1e-12)  # sin, cos, exp: last bits differ by CPU
     assert shipped[0].meta["sightings_correlated"] is True
     assert shipped[0].meta["sightings_own_scale"] == {"range": [0.197, 0.509], "spread": 1.6}
+    assert shipped[0].meta["odometry_bias"] == [0.05, 0.01]
 
 
 def test_square_is_the_simulators_output(tmp_path: Path) -> None:

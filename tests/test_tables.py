@@ -58,7 +58,7 @@ def test_an_open_path_shows_no_end_gap_and_says_why(mrclam: Results) -> None:
     text = format_results(mrclam)
     labels, rows = table(text)
     assert not any("gap" in label for label in labels)
-    assert rows["odometry"]["final RMSE m"] == "1.809" and rows["ekf"]["final RMSE m"] == "0.076"
+    assert rows["odometry"]["final RMSE m"] == "1.809" and rows["ekf"]["final RMSE m"] == "0.064"
     (line,) = [line for line in legend(text) if line.startswith("end gap")]
     assert "not shown" in line and "6.822 m" in line and "1%" in line
 

@@ -32,6 +32,7 @@ from online_slam.importers.mrclam.reader import (
     MrclamNoise,
     RobotData,
     _interpolate_truth,
+    bias_meta,
     correlates,
     load_robot,
     noise_meta,
@@ -166,6 +167,7 @@ def read_mrclam_robots(
             "noise": noise_meta(cfg),
             "sightings_correlated": correlates(cfg),
             **own_scale_meta(cfg),
+            **bias_meta(cfg),
             **_sensors(cfg),
         },
     )
