@@ -328,7 +328,7 @@ def _odometry_bias(args: argparse.Namespace, world: GridConfig) -> None:
         cells = run_heldout(args.mrclam, args.workers)
         for scheme, stream, figures in cells:
             text = " | ".join(f"{online:.3f} / {nees:.2f}" for online, nees in figures)
-            print(f"{scheme:<40}{stream:<5}{text}")
+            print(f"{scheme:<44}{stream:<5}{text}")
         for k, prior in enumerate(((0.0, 0.0), *PRIORS)):
             worst = max(f[k][0] for _, _, f in cells), max(f[k][1] for _, _, f in cells)
             better = sum(f[k][0] < f[0][0] for _, _, f in cells)
