@@ -234,11 +234,11 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
                "front-end", ("FrontEndConfig", "sensor_noise_scale"), metavar="S", positive=True,
                lands=("frontend.sensor_noise_scale",)),
     Option("odometry_bias_scale", "EKF: estimate each robot's odometry bias with the state, the fraction its "
-           "distances are overstated by with this prior sigma (0: none)", "input", ("front-end",), kind=float,
+           "distances are overstated by with this prior sigma (0: none)", "input", ("ekf",), kind=float,
            field=("FrontEndConfig", "odometry_bias_scale"), unset="the header's odometry_bias, else 0", metavar="S",
            lands=("frontend.odometry_bias_scale",)),
-    Option("odometry_bias_rate", "... and the heading rate it adds to its turns, with this prior sigma (0: none)",
-           "input", ("front-end",), kind=float, field=("FrontEndConfig", "odometry_bias_rate"), unit="rad/s",
+    Option("odometry_bias_rate", "... and the heading rate it adds to its turns, with this prior sigma in rad/s "
+           "(0: none)", "input", ("ekf",), kind=float, field=("FrontEndConfig", "odometry_bias_rate"), unit="rad/s",
            unset="the header's odometry_bias, else 0", metavar="W", lands=("frontend.odometry_bias_rate",)),
     Option("max_latency", "lines may arrive up to S seconds late (a reorder buffer puts them in time order, "
            "delaying the estimate by S); later ones are skipped and counted", "input", ("front-end",), kind=float,
