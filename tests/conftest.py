@@ -135,7 +135,7 @@ HEAVY_FIRST = (
 # every OpenBLAS kernel family the CPU can run, since BLAS kernels round differently (see .ci/run).
 PORTABLE_MODULES = (
     "test_ekf.py", "test_smoother.py", "test_solver.py", "test_article.py", "test_shipped_replays.py",
-    "test_geometry.py", "test_models.py", "test_checkpoint.py", "test_slam_api.py",
+    "test_geometry.py", "test_models.py", "test_checkpoint.py", "test_slam_api.py", "test_odometry_bias.py",
 )  # fmt: skip
 
 
