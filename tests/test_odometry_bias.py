@@ -189,3 +189,19 @@ def test_the_command_line_reports_the_bias_it_found(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     line = next(line for line in done.stdout.splitlines() if "odometry bias" in line)
     assert re.search(r"ekf: odometry bias: distances \+[3-5]\.\d\d \+- \d\.\d\d% long, heading rate \+[45]\.\d\d", line)
+
+
+def test_the_estimate_stream_carries_the_bias_as_estimated(tmp_path: Path) -> None:
+    source, out = tmp_path / "biased.jsonl", tmp_path / "estimates.jsonl"
+    write_stream(source, _grid((0.04, 0.005))[:1500])
+    done = run_cli("replay", str(source), "--estimators", "ekf", "--odometry-bias-scale", "0.1",
+                   "--odometry-bias-rate", "0.02", "--emit", str(out), "--quiet")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    lines = [json.loads(line) for line in out.read_text().splitlines()]
+    first, last = lines[1], lines[-1]
+    assert first["odometry_bias_sd"][0] > 0.05 > last["odometry_bias_sd"][0]  # it learns as the robot drives
+    (s, w), (sd_s, sd_w) = last["odometry_bias"], last["odometry_bias_sd"]
+    assert abs(s - 0.04) < 4 * sd_s and abs(w - 0.005) < 4 * sd_w
+    plain = tmp_path / "plain.jsonl"
+    assert run_cli("replay", str(source), "--estimators", "ekf", "--emit", str(plain), "--quiet").returncode == 0
+    assert "odometry_bias" not in json.loads(plain.read_text().splitlines()[-1])

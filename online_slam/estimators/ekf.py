@@ -565,6 +565,7 @@ class EkfSlam(SeveralRobots, OdometryBias, AbsoluteFixes, PriorMap, ExtendedKalm
                 "gated": tuple(self.state.step_gated),
                 "new_landmarks": tuple(self.state.step_new),
                 **self._fix_info(),
+                **self._step_bias(),
             },
         )
 

@@ -84,6 +84,15 @@ class OdometryBias:
             out[robot] = (self.x[cols, 0].copy(), np.sqrt(np.maximum(np.diag(self.P)[cols], 0.0)))
         return out
 
+    def _step_bias(self) -> dict[str, Any]:
+        """A snapshot's ``odometry_bias``: the newest pose's robot's ``(s, w, sd of s, sd of w)`` (none when not
+        modelled)."""
+        if not self.state.biased:
+            return {}
+        cols = self._bias_columns()
+        sd = np.sqrt(np.maximum(np.diag(self.P)[cols], 0.0))
+        return {"odometry_bias": (*map(float, self.x[cols, 0]), *map(float, sd))}
+
     def _bias_info(self) -> dict[str, Any]:
         """The final estimate's ``odometry_bias``: by robot, ``(s, w, sd of s, sd of w)`` (none when not modelled)."""
         biases = self.odometry_biases()

@@ -108,6 +108,8 @@ def estimate_line(step: Step, snapshot: Snapshot, rows: Sequence[int], removed: 
     }  # fmt: skip
     if removed:
         line["removed"] = [_plain_id(landmark) for landmark in removed]
+    if (bias := snapshot.info.get("odometry_bias")) is not None:
+        line["odometry_bias"], line["odometry_bias_sd"] = list(bias[:2]), list(bias[2:])
     if snapshot.wall_s is not None:
         line["step_ms"] = 1e3 * snapshot.wall_s
     return line
