@@ -47,7 +47,7 @@ import numpy as np
 from online_slam.errors import InputError, OnlineSlamError
 from online_slam.version import __version__
 
-FORMAT_VERSION = 11
+FORMAT_VERSION = 12
 """Version of the checkpoint layout; files of another version are refused."""
 
 
