@@ -233,13 +233,14 @@ OPTIONS: dict[str, Option] = {o.name: o for o in (
     _estimator("sensor_noise_scale", "multiply every sighting's covariance of the source by S", "input",
                "front-end", ("FrontEndConfig", "sensor_noise_scale"), metavar="S", positive=True,
                lands=("frontend.sensor_noise_scale",)),
-    Option("odometry_bias_scale", "EKF: estimate each robot's odometry bias with the state, the fraction its "
-           "distances are overstated by with this prior sigma (0: none)", "input", ("ekf",), kind=float,
+    Option("odometry_bias_scale", "EKF only: estimate each robot's odometry bias with the state, the share of each "
+           "logged distance that is not real, with this prior sigma (0: none)", "input", ("ekf",), kind=float,
            field=("FrontEndConfig", "odometry_bias_scale"), unset="the header's odometry_bias, else 0", metavar="S",
            lands=("frontend.odometry_bias_scale",)),
-    Option("odometry_bias_rate", "... and the heading rate it adds to its turns, with this prior sigma in rad/s "
-           "(0: none)", "input", ("ekf",), kind=float, field=("FrontEndConfig", "odometry_bias_rate"), unit="rad/s",
-           unset="the header's odometry_bias, else 0", metavar="W", lands=("frontend.odometry_bias_rate",)),
+    Option("odometry_bias_rate", "... and the heading rate the odometry adds to each turn (counter-clockwise "
+           "positive), with this prior sigma in rad/s (0: none)", "input", ("ekf",), kind=float,
+           field=("FrontEndConfig", "odometry_bias_rate"), unit="rad/s", unset="the header's odometry_bias, else 0",
+           metavar="W", lands=("frontend.odometry_bias_rate",)),
     Option("max_latency", "lines may arrive up to S seconds late (a reorder buffer puts them in time order, "
            "delaying the estimate by S); later ones are skipped and counted", "input", ("front-end",), kind=float,
            field=("FrontEndConfig", "max_latency"), unset="0 for files, 0.5 s for stdin, tcp://", metavar="S", unit="s",

@@ -188,7 +188,11 @@ def test_the_command_line_reports_the_bias_it_found(tmp_path: Path) -> None:
                    "--odometry-bias-rate", "0.02")  # fmt: skip
     assert done.returncode == 0, done.stderr
     line = next(line for line in done.stdout.splitlines() if "odometry bias" in line)
-    assert re.search(r"ekf: odometry bias: distances \+[3-5]\.\d\d \+- \d\.\d\d% long, heading rate \+[45]\.\d\d", line)
+    assert re.search(r"ekf: odometry bias: distances read [3-5]\.\d\d \+- \d\.\d\d% long, turns [45]\.\d\d \+- "
+                     r"\d\.\d\d mrad/s counter-clockwise", line)  # fmt: skip
+    both = run_cli("replay", str(path), "--estimators", "ekf,smoother", "--odometry-bias-scale", "0.1")
+    assert "turns not modelled" in both.stdout
+    assert "smoother: odometry taken as logged (only the EKF estimates its bias)" in both.stdout
 
 
 def test_the_estimate_stream_carries_the_bias_as_estimated(tmp_path: Path) -> None:

@@ -151,9 +151,9 @@ def _moved(pose: Array, cov: Array | None, delta: Array, delta_cov: Array) -> tu
 def unbiased_increment(delta: ArrayLike, bias: ArrayLike, dt: float) -> tuple[Array, Array]:
     """An odometry increment with a robot's odometry bias taken off, and its Jacobian in the bias.
 
-    The bias ``[s, w]`` is what the odometry reads beyond the motion: a distance overstated by the fraction ``s``
-    and a heading rate ``w`` (rad/s) added to each turn, so the motion is ``[(1 - s) dx, (1 - s) dy,
-    dtheta - w dt]`` (linear in the bias: its Jacobian is exact).
+    The bias ``[s, w]`` is what the odometry reads beyond the motion: the share ``s`` of each logged distance that
+    is not real (distances overstated by ``1 / (1 - s)``) and a heading rate ``w`` (rad/s) added to each turn, so
+    the motion is ``[(1 - s) dx, (1 - s) dy, dtheta - w dt]`` (linear in the bias: its Jacobian is exact).
 
     Args:
         delta: Measured increment ``[dx, dy, dtheta]``, shape (3,).

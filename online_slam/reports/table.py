@@ -216,10 +216,10 @@ def notes(results: Results) -> list[str]:
                 f"{name}: {state} in {counted(d['iterations'], 'iteration')} "
                 f"(cost {d['initial_cost']:.6g} -> {d['final_cost']:.6g})"
             )
-        for robot, (s, w, sd_s, sd_w) in (d.get("odometry_bias") or {}).items():
-            who = "" if robot is None else f" of robot {robot}"
-            out.append(f"{name}: odometry bias{who}: distances {100 * s:+.2f} +- {100 * sd_s:.2f}% long, heading rate "
-                       f"{1e3 * w:+.2f} +- {1e3 * sd_w:.2f} mrad/s added (taken off as estimated)")  # fmt: skip
+        for robot, bias in (d.get("odometry_bias") or {}).items():
+            out.append(f"{name}: odometry bias{'' if robot is None else f' of robot {robot}'}: {_bias_text(*bias)}")
+        if "odometry_bias" not in d and _bias_beside(results, name):
+            out.append(f"{name}: odometry taken as logged (only the EKF estimates its bias)")
         if "adapted_noise" in d and tuple(d["adapted_noise"]) != (1.0, 1.0):
             odometry, sensor = d["adapted_noise"]
             out.append(f"{name}: noise adapted to its innovations: odometry covariance x{odometry:.3g}, sensor "
@@ -308,3 +308,19 @@ def robot_rows(results: Results, rows: Mapping[str, Row] | None = None) -> dict[
         for robot, figures in ({} if result is None else result.robots).items():
             out[f"{name}  robot {robot}"] = figures.row()
     return out
+
+
+def _bias_text(s: float, w: float, sd_s: float, sd_w: float) -> str:
+    """A robot's odometry bias as the report says it (a part with no spread was not modelled)."""
+    distance = f"distances read {abs(100 * s):.2f} +- {100 * sd_s:.2f}% {'long' if s >= 0 else 'short'}"
+    if sd_s == 0.0:
+        distance = "distances not modelled"
+    turn = f"turns {abs(1e3 * w):.2f} +- {1e3 * sd_w:.2f} mrad/s {'counter-clockwise' if w >= 0 else 'clockwise'}"
+    if sd_w == 0.0:
+        turn = "turns not modelled"
+    return f"{distance}, {turn} (each increment corrected by the estimate so far)"
+
+
+def _bias_beside(results: Results, name: str) -> bool:
+    """Whether another estimator of the run estimated the odometry bias while ``name`` did not."""
+    return name != "odometry" and any("odometry_bias" in r.details for r in results.estimators.values())

@@ -1,7 +1,7 @@
 """A stream's odometry biased: what a robot with a wheel radius off and a drifting turn rate would log.
 
-The inverse of :func:`~online_slam.models.motion.unbiased_increment`: each increment's distance overstated by the
-fraction ``s`` and ``w`` rad/s added to its turn, per robot (its time span since that robot's previous pose).
+The inverse of :func:`~online_slam.models.motion.unbiased_increment`: each increment's distance overstated by
+``1 / (1 - s)`` and ``w`` rad/s added to its turn, per robot (its time span since that robot's previous pose).
 Simulated worlds draw odometry without bias; this makes the stress streams of benchmarks/RESULTS.md ("Odometry
 biased beyond the model") and the tests of the EKF's bias state.
 """

@@ -120,8 +120,8 @@ class MrclamNoise:
     start_sigma: float = 0.01
     """Standard deviation of the start prior (x, y in m, theta in rad)."""
     odometry_bias: tuple[float, float] = (0.05, 0.01)
-    """Prior standard deviations of each robot's odometry bias, the fraction its distances are overstated by and
-    the heading rate it adds (rad/s), which the EKF estimates with the state (header ``odometry_bias``; (0, 0):
+    """Prior standard deviations of each robot's odometry bias, the share of each logged distance that is not real
+    and the heading rate it adds (rad/s), which the EKF estimates with the state (header ``odometry_bias``; (0, 0):
     none). Not fitted: wider than Dataset 6's own biases (robot 4's distances about 2% long, heading rates of
     about 2 mrad/s), because a recording's robot may drift more. Chosen on held-out figures
     (benchmarks/RESULTS.md, "The EKF's odometry bias")."""
