@@ -225,3 +225,19 @@ def test_a_biased_mrclam_robot_stays_found_with_the_importers_defaults() -> None
     assert held.online_rmse_m < 0.15 and held.nees_mean < 5.0
     plain = replay(events, replay_config({"estimators": "ekf", "odometry_bias_scale": 0.0, "odometry_bias_rate": 0.0}))
     assert plain.estimators["ekf"].online_rmse_m > 4 * held.online_rmse_m
+
+
+def test_a_recording_holds_the_bias_as_it_was_learnt(tmp_path: Path) -> None:
+    pytest.importorskip("datafusion", reason="rerun-sdk[catalog] is not installed")
+    from online_slam.sinks.recording import Recording
+
+    source, rrd = tmp_path / "biased.jsonl", tmp_path / "biased.rrd"
+    write_stream(source, _grid((0.04, 0.005))[:1500])
+    done = run_cli("replay", str(source), "--estimators", "ekf", "--odometry-bias-scale", "0.1",
+                   "--odometry-bias-rate", "0.02", "--rrd", str(rrd), "--quiet")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    with Recording(rrd) as recording:
+        steps, scale = recording.metric("ekf", "odometry_bias_scale")
+        _, rate = recording.metric("ekf", "odometry_bias_rate")
+    assert len(steps) == len(scale) == len(rate) > 100 and scale[0] == 0.0
+    assert abs(scale[-1] - 0.04) < 0.02 and abs(rate[-1] - 0.005) < 0.002

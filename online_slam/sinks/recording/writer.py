@@ -461,6 +461,9 @@ class RerunSink:
             nis = np.asarray(info.get("nis", []), dtype=float)
             if np.isfinite(nis).any():
                 self.columns.add(f"{metrics}/nis", "scalar", step, float(np.nanmean(nis)))
+        if (bias := info.get("odometry_bias")) is not None:  # the EKF's, of the step's robot
+            self.columns.add(f"{metrics}/odometry_bias_scale", "scalar", step, float(bias[0]))
+            self.columns.add(f"{metrics}/odometry_bias_rate", "scalar", step, float(bias[1]))
         if info.get("new_landmarks"):
             out.append(f"{name}: initialised {_ids('landmark', info['new_landmarks'])}")
         if info.get("gated"):
