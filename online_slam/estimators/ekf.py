@@ -413,7 +413,8 @@ class EkfSlam(SeveralRobots, OdometryBias, AbsoluteFixes, PriorMap, ExtendedKalm
             points, column = invariant_points(len(dx), self.state.biased), np.zeros(len(dx))
             moved, column[points] = invariant_retraction(self.x[points, 0], dx[points])
             if self.state.biased:  # the bias: no position, nothing turns
-                self.x[3:5, 0] += dx[3:5]
+                bias = self._bias_columns()
+                self.x[bias, 0] += dx[bias]
             self.x[points, 0] = moved
             transport(self.P, column)
         else:
@@ -454,7 +455,6 @@ class EkfSlam(SeveralRobots, OdometryBias, AbsoluteFixes, PriorMap, ExtendedKalm
             self.state.predicted = self.x[:3, 0].copy()
             self.state.robots[0] = step.robot
             self._begin_bias(step)
-            self._resized()
         else:
             self._activate(step.robot)
             self._moved_on()

@@ -14,6 +14,7 @@ positions only: a bias keeps its value under the group's turn (:func:`invariant_
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,8 @@ class OdometryBias:
     state: EkfState
     x: Array
     P: Array
+    _resized: Callable[[], None]
+    """The filter's bookkeeping after the state's size changed."""
 
     @property
     def _pose_end(self) -> int:
@@ -63,42 +66,35 @@ class OdometryBias:
             return
         self._inserted(self._pose_end, np.zeros(2), self._bias_block(step))
         self.state.biased = True
+        self._resized()
 
-    def _bias_columns(self) -> NDArray[np.int64]:
-        """The active robot's bias columns (2,)."""
-        return self._pose_end + np.arange(2)
+    def _bias_columns(self, k: int = 0) -> NDArray[np.int64]:
+        """Robot k's bias columns (2,) (0: the active robot's)."""
+        return self._pose_end + 2 * k + np.arange(2)
 
     def _swap_biases(self, order: NDArray[np.int64], k: int) -> None:
         """Robot k's block becomes the first: swap the bias blocks too in the permutation ``order``."""
         if self.state.biased:
-            a, b = self._pose_end, self._pose_end + 2 * k
-            order[a : a + 2], order[b : b + 2] = order[b : b + 2], order[a : a + 2].copy()
+            a, b = self._bias_columns(), self._bias_columns(k)
+            order[a], order[b] = order[b], order[a]
 
-    def odometry_biases(self) -> dict[Any, tuple[Array, Array]]:
-        """Each robot's bias ``[s, w]`` (2,) and its standard deviations (2,), by robot (empty when not modelled)."""
-        if not self.state.biased:
-            return {}
-        out = {}
-        for k, robot in enumerate(self.state.robots):
-            cols = self._pose_end + 2 * k + np.arange(2)
-            out[robot] = (self.x[cols, 0].copy(), np.sqrt(np.maximum(np.diag(self.P)[cols], 0.0)))
-        return out
+    def _bias_of(self, k: int) -> tuple[float, float, float, float]:
+        """Robot k's ``(s, w, sd of s, sd of w)``."""
+        cols = self._bias_columns(k)
+        s, w = self.x[cols, 0]
+        sd_s, sd_w = np.sqrt(np.maximum(self.P[cols, cols], 0.0))
+        return float(s), float(w), float(sd_s), float(sd_w)
 
     def _step_bias(self) -> dict[str, Any]:
         """A snapshot's ``odometry_bias``: the newest pose's robot's ``(s, w, sd of s, sd of w)`` (none when not
         modelled)."""
-        if not self.state.biased:
-            return {}
-        cols = self._bias_columns()
-        sd = np.sqrt(np.maximum(np.diag(self.P)[cols], 0.0))
-        return {"odometry_bias": (*map(float, self.x[cols, 0]), *map(float, sd))}
+        return {"odometry_bias": self._bias_of(0)} if self.state.biased else {}
 
     def _bias_info(self) -> dict[str, Any]:
         """The final estimate's ``odometry_bias``: by robot, ``(s, w, sd of s, sd of w)`` (none when not modelled)."""
-        biases = self.odometry_biases()
-        if not biases:
+        if not self.state.biased:
             return {}
-        return {"odometry_bias": {robot: (*map(float, b), *map(float, sd)) for robot, (b, sd) in biases.items()}}
+        return {"odometry_bias": {robot: self._bias_of(k) for k, robot in enumerate(self.state.robots)}}
 
 
 def invariant_points(n: int, biased: bool) -> NDArray[np.int64]:

@@ -118,7 +118,7 @@ class FrontEndConfig:
     ``fix_correlation_s``, else 0."""
 
     odometry_bias_scale: float | None = None
-    """The prior standard deviation of the fraction each robot's odometry overstates distances by, a bias the EKF
+    """The prior standard deviation of the share of each logged distance that is not real, a bias the EKF
     estimates with the state (:mod:`~online_slam.estimators.ekf_bias`); 0: none. None: the stream header's
     ``odometry_bias`` (``[scale, rate]``), else 0."""
     odometry_bias_rate: float | None = None

@@ -323,4 +323,4 @@ def _bias_text(s: float, w: float, sd_s: float, sd_w: float) -> str:
 
 def _bias_beside(results: Results, name: str) -> bool:
     """Whether another estimator of the run estimated the odometry bias while ``name`` did not."""
-    return name != "odometry" and any("odometry_bias" in r.details for r in results.estimators.values())
+    return any("odometry_bias" in r.details for r in results.estimators.values())
